@@ -1,0 +1,40 @@
+# Two commands set everything up on a fresh clone: `make demo` and `make test`.
+PYTHON ?= python3
+VENV   := .venv
+PY     := $(VENV)/bin/python
+STAMP  := $(VENV)/.installed
+OUT    := samples/out
+
+.PHONY: demo test lint bench check-gl clean
+
+$(STAMP): pyproject.toml
+	@$(PYTHON) -c 'import sys; sys.exit(sys.version_info < (3, 10))' || \
+	  { echo "error: Python 3.10 or newer is needed (found $$($(PYTHON) --version))"; exit 1; }
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install -q --upgrade pip
+	$(PY) -m pip install -q -e '.[test]'
+	@touch $@
+
+# Headless OpenGL needs Mesa's EGL and its software driver (llvmpipe).
+check-gl:
+	@ldconfig -p 2>/dev/null | grep -q 'libEGL.so.1 ' && \
+	 { ldconfig -p | grep -q 'libEGL_mesa.so.0' || ls /usr/lib/*/dri/swrast_dri.so >/dev/null 2>&1 || \
+	   ls /usr/share/glvnd/egl_vendor.d/*nvidia* >/dev/null 2>&1; } || \
+	 { echo "error: headless OpenGL (EGL) is missing. Install it with:"; \
+	   echo "  sudo apt-get install -y libegl1 libgl1 libgl1-mesa-dri libegl-mesa0"; exit 1; }
+
+demo: $(STAMP) check-gl
+	$(PY) -m pyramid_cli.demo $(OUT)
+
+test: $(STAMP) check-gl
+	$(PY) -m ruff check pyramid_cli tests
+	$(PY) -m pytest
+
+lint: $(STAMP)
+	$(PY) -m ruff check pyramid_cli tests
+
+bench: $(STAMP) check-gl
+	$(PY) bench/run.py
+
+clean:
+	rm -rf $(VENV) $(OUT) build *.egg-info
