@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from fractions import Fraction
-from functools import lru_cache
+from functools import cache
 from math import floor, lcm
 
 from . import catalogue
@@ -97,7 +97,7 @@ class Kernel:
 def _evaluate(stps: list[Step], r: int, c: int) -> dict[Offset, Fraction]:
     """Output pixel (r, c) of the chain as a combination of input pixels, unbounded."""
 
-    @lru_cache(maxsize=None)
+    @cache
     def value(level: int, rr: int, cc: int) -> tuple:
         if level == 0:
             return (((rr, cc), Fraction(1)),)
@@ -306,7 +306,7 @@ def continuity(k: Kernel) -> int | None:
     if split is None:
         return None
     classes = []
-    for vec, m in zip(split, dil):
+    for vec, m in zip(split, dil, strict=False):
         total = sum(vec)
         if not total:
             return None

@@ -19,7 +19,7 @@ class Border(Enum):
     ZERO = "zero"       # GL CLAMP_TO_BORDER with 0, Halide constant_exterior
 
     @classmethod
-    def parse(cls, name: str) -> "Border":
+    def parse(cls, name: str) -> Border:
         return cls(name.lower())
 
 

@@ -33,7 +33,7 @@ def outer(col, row, scale=1) -> Matrix:
 
 
 def transpose(m: Matrix) -> Matrix:
-    return tuple(zip(*m))
+    return tuple(zip(*m, strict=False))
 
 
 @dataclass(frozen=True)

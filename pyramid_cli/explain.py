@@ -125,7 +125,7 @@ def _power(expr: Expr, m: int) -> Expr:
     """m repetitions of the whole chain ``expr`` (each applied to the previous result)."""
     from dataclasses import replace
 
-    from .expr import Apply, Input
+    from .expr import Input
 
     def graft(e: Expr, onto: Expr) -> Expr:
         if isinstance(e, Input):

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from enum import Enum
-from fractions import Fraction
 
 from . import catalogue
 from .catalogue import Matrix
@@ -58,7 +57,7 @@ class Input:
 class Apply:
     op: Op
     filter: Filter
-    arg: "Expr"
+    arg: Expr
     power: int = 1      # (h)^power: that many written steps
     stride: int = 1     # the m of ⊗↓ᵐ: one step of stride 2**m
     span: tuple[int, int] = field(default=(0, 0), compare=False)
@@ -102,10 +101,6 @@ def resolve_mask(f: Filter) -> Matrix:
 def resolve_phases(f: Filter) -> dict[catalogue.Phase, Matrix]:
     """The four phase masks of a filter used with ⊗↑."""
     return catalogue.synthesis(f.key).phases
-
-
-def _frac(v: Fraction) -> str:
-    return str(v)
 
 
 def _literal(m: Matrix, style: str) -> str:

@@ -22,7 +22,6 @@ import re
 from dataclasses import dataclass
 from fractions import Fraction
 
-from . import catalogue
 from .errors import ExpressionError
 from .expr import Apply, Expr, Filter, Input, Literal, Named, Op
 

@@ -1,0 +1,887 @@
+"""Reading and writing images with OpenImageIO, in linear premultiplied light.
+
+Everything the rest of the tool filters is an :class:`Image`: float32 pixels of
+shape ``(H, W, C)`` (row 0 is the top row of the file, nothing is ever flipped)
+in linear light, with colour premultiplied by alpha when the image has an alpha
+channel, plus an :class:`ImageInfo` that remembers how the file stored them so
+that :func:`write_image` can store the result the same way.
+
+Rules
+-----
+Colour encoding
+    8/16-bit integer files are sRGB-encoded unless their ``oiio:ColorSpace``
+    metadata names a linear space; half/float files are linear unless their
+    metadata names an sRGB-like space. Decoding uses the exact piecewise sRGB
+    EOTF (not a 2.2 power) on colour channels only, never on alpha.
+Alpha
+    Files are opened with the ``oiio:UnassociatedAlpha`` hint so that
+    OpenImageIO hands over the stored values untouched. A file whose spec then
+    reports ``oiio:UnassociatedAlpha`` (PNG, unassociated TIFF, ...) stores
+    straight alpha and is premultiplied after linearising; anything else (EXR,
+    associated TIFF) is already premultiplied. Where alpha is 0 a straight
+    colour is written as 0: premultiplied data holds no colour there, so an
+    integer RGBA file round-trips bit-exactly except for the colour under
+    alpha 0.
+Pixel types
+    The output keeps the input's type unless ``pixel_type`` is given. A format
+    that cannot hold the type gets the nearest one it can: PNG and other
+    8/16-bit formats take ``uint16`` for half/float, 8-bit-only formats (JPEG,
+    GIF, BMP, TGA, WebP, ICO) take ``uint8``, and float-only formats (EXR,
+    HDR) take ``half`` for integers (``float`` for HDR).
+Metadata
+    Attributes are carried to the output when they still apply: attributes
+    specific to a file format (``openexr:*``, ``tiff:*``, ``png:*``, ...,
+    ``compression``) only when the output has the same format, colour profile
+    data only when the encoding is unchanged, and bookkeeping attributes that
+    OpenImageIO derives from the data (``oiio:*``) never.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import stat
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import OpenImageIO as oiio
+
+from .atomic import atomic_path
+from .errors import DataError, InputError, OutputError, UsageError
+
+__all__ = [
+    "Image",
+    "ImageInfo",
+    "check_size",
+    "count_nonfinite",
+    "describe_rules",
+    "linear_to_srgb",
+    "output_pixel_type",
+    "read_image",
+    "srgb_to_linear",
+    "write_image",
+]
+
+PIXEL_TYPES = ("uint8", "uint16", "half", "float")
+COLORSPACES = ("linear", "srgb")
+ALPHA_MODES = ("straight", "premultiplied", "none")
+
+# The colour space names written into ``oiio:ColorSpace`` (OpenImageIO 3
+# built-in names, understood by older versions as well).
+_OIIO_COLORSPACE = {"linear": "lin_rec709_scene", "srgb": "srgb_rec709_scene"}
+
+# Pixel types each format can store, for the formats that cannot store all
+# four. Formats not listed are assumed to store any of them.
+_FORMAT_TYPES: dict[str, tuple[str, ...]] = {
+    "openexr": ("half", "float"),
+    "png": ("uint8", "uint16"),
+    "jpeg": ("uint8",),
+    "gif": ("uint8",),
+    "bmp": ("uint8",),
+    "targa": ("uint8",),
+    "webp": ("uint8",),
+    "ico": ("uint8",),
+    "sgi": ("uint8", "uint16"),
+    "dpx": ("uint8", "uint16"),
+    "jpeg2000": ("uint8", "uint16"),
+    "hdr": ("float",),
+    "pnm": ("uint8", "uint16", "float"),
+}
+
+# Formats that can store premultiplied (associated) alpha; all others store
+# straight alpha only.
+_ASSOCIATED_CAPABLE = ("openexr", "tiff")
+
+# Formats that hold no alpha channel at all: alpha is dropped on write, which
+# leaves the premultiplied colour, i.e. the image composited over black.
+_NO_ALPHA_FORMATS = ("jpeg", "hdr")
+
+# Attributes that describe the file's layout rather than the image; they are
+# recomputed by OpenImageIO for each file, so copying them could only conflict.
+_DERIVED_ATTRIBUTES = frozenset({
+    "tiff:Compression",
+    "tiff:PhotometricInterpretation",
+    "tiff:PlanarConfiguration",
+    "tiff:RowsPerStrip",
+    "openexr:chunkCount",
+    "openexr:version",
+})
+
+_FORMAT_ONLY_ATTRIBUTES = frozenset({"compression", "planarconfig", "Compression"})
+
+# Attributes that only make sense with the colour encoding they came with.
+_COLOUR_PROFILE_ATTRIBUTES = frozenset({"ICCProfile", "oiio:Gamma", "png:gAMA", "CICP"})
+
+_NON_LINEAR_KEYWORDS = ("srgb", "rec709", "g22", "g18", "gamma", "sycc")
+_LINEAR_NAMES = frozenset({"linear", "scene_linear", "acescg", "aces", "aces2065-1",
+                           "raw", "data", "role_scene_linear"})
+
+# 8x8 Bayer matrix for ordered dither.
+_BAYER8 = np.array(
+    [[0, 32, 8, 40, 2, 34, 10, 42],
+     [48, 16, 56, 24, 50, 18, 58, 26],
+     [12, 44, 4, 36, 14, 46, 6, 38],
+     [60, 28, 52, 20, 62, 30, 54, 22],
+     [3, 35, 11, 43, 1, 33, 9, 41],
+     [51, 19, 59, 27, 49, 17, 57, 25],
+     [15, 47, 7, 39, 13, 45, 5, 37],
+     [63, 31, 55, 23, 61, 29, 53, 21]],
+    dtype=np.float64,
+)
+
+
+@dataclass
+class ImageInfo:
+    """How an image was stored, so that it can be written back the same way.
+
+    Attributes
+    ----------
+    path : str
+        The file it was read from.
+    format : str
+        OpenImageIO format name, e.g. ``"openexr"``, ``"png"``, ``"tiff"``.
+    pixel_type : str
+        ``"uint8"``, ``"uint16"``, ``"half"`` or ``"float"`` (other stored
+        types are reported as ``"float"``).
+    channel_names : list of str
+        One name per channel, in file order.
+    alpha_channel : int
+        Index of the alpha channel, -1 if none.
+    colorspace : str
+        Encoding of the stored values: ``"linear"`` or ``"srgb"``.
+    alpha_mode : str
+        How the file stores alpha: ``"straight"``, ``"premultiplied"``, or
+        ``"none"`` (no alpha, or alpha treated as an ordinary channel).
+    attributes : dict
+        Metadata to carry through, name to value.
+    attribute_types : dict
+        OpenImageIO type name of each attribute (e.g. ``"float2"``) so that it
+        is written back with the same type.
+    channel_pixel_types : list of str
+        Per-channel stored types when they differ (EXR), else empty.
+    width, height : int
+        Size of the stored data window (0 if unknown).
+    origin : tuple of int
+        ``(x, y)`` of the data window's top-left pixel.
+    display_window : tuple of int or None
+        ``(x, y, width, height)`` of the display window when it differs from
+        the data window.
+    """
+
+    path: str
+    format: str
+    pixel_type: str
+    channel_names: list[str]
+    alpha_channel: int
+    colorspace: str
+    alpha_mode: str
+    attributes: dict[str, Any] = field(default_factory=dict)
+    attribute_types: dict[str, str] = field(default_factory=dict, repr=False)
+    channel_pixel_types: list[str] = field(default_factory=list)
+    width: int = 0
+    height: int = 0
+    origin: tuple[int, int] = (0, 0)
+    display_window: tuple[int, int, int, int] | None = None
+
+
+@dataclass
+class Image:
+    """Pixels in linear light plus how the file stored them.
+
+    Attributes
+    ----------
+    pixels : numpy.ndarray
+        float32, shape ``(H, W, C)``, linear light; colour is premultiplied by
+        alpha when :attr:`premultiplied` is true.
+    spec : ImageInfo
+        What is needed to write the image back like its input.
+    """
+
+    pixels: np.ndarray
+    spec: ImageInfo
+
+    @property
+    def premultiplied(self) -> bool:
+        """Whether colour channels in :attr:`pixels` are multiplied by alpha."""
+        return self.spec.alpha_channel >= 0 and self.spec.alpha_mode != "none"
+
+
+# ---------------------------------------------------------------------------
+# Pixel arithmetic
+
+
+def srgb_to_linear(encoded: np.ndarray) -> np.ndarray:
+    """Decode sRGB values with the exact piecewise sRGB EOTF.
+
+    Parameters
+    ----------
+    encoded : numpy.ndarray
+        sRGB-encoded values; negative values are mirrored.
+
+    Returns
+    -------
+    numpy.ndarray
+        Linear values, float64.
+    """
+    v = np.asarray(encoded, dtype=np.float64)
+    a = np.abs(v)
+    out = np.where(a <= 0.04045, a / 12.92, ((a + 0.055) / 1.055) ** 2.4)
+    return np.copysign(out, v)
+
+
+def linear_to_srgb(linear: np.ndarray) -> np.ndarray:
+    """Encode linear values with the inverse of the sRGB EOTF.
+
+    Parameters
+    ----------
+    linear : numpy.ndarray
+        Linear values; negative values are mirrored.
+
+    Returns
+    -------
+    numpy.ndarray
+        sRGB-encoded values, float64.
+    """
+    v = np.asarray(linear, dtype=np.float64)
+    a = np.abs(v)
+    with np.errstate(invalid="ignore"):
+        out = np.where(a <= 0.0031308, a * 12.92, 1.055 * a ** (1.0 / 2.4) - 0.055)
+    return np.copysign(out, v)
+
+
+def count_nonfinite(pixels: np.ndarray) -> int:
+    """Count NaN and infinite values.
+
+    Parameters
+    ----------
+    pixels : numpy.ndarray
+        Any array.
+
+    Returns
+    -------
+    int
+        Number of elements that are NaN, +Inf or -Inf.
+    """
+    return int(np.size(pixels) - np.count_nonzero(np.isfinite(pixels)))
+
+
+def check_size(width: int, height: int, limit: int, *, where: str = "") -> None:
+    """Refuse an image larger than ``limit`` pixels on a side.
+
+    Parameters
+    ----------
+    width, height : int
+        Image size in pixels.
+    limit : int
+        Largest allowed width and height (e.g. the GL maximum texture size).
+    where : str, optional
+        Path or name to put in the message.
+
+    Raises
+    ------
+    DataError
+        If ``width`` or ``height`` exceeds ``limit``.
+    """
+    if width > limit or height > limit:
+        prefix = f"{where}: " if where else ""
+        raise DataError(
+            f"{prefix}image size {width}x{height} exceeds the limit of "
+            f"{limit}x{limit} pixels"
+        )
+
+
+def _colour_mask(nchannels: int, alpha_channel: int, names: list[str]) -> np.ndarray:
+    """Channels that carry colour: everything but alpha and depth."""
+    mask = np.ones(nchannels, dtype=bool)
+    if 0 <= alpha_channel < nchannels:
+        mask[alpha_channel] = False
+    for i, name in enumerate(names[:nchannels]):
+        if name.split(".")[-1].lower() in ("z", "zback", "depth"):
+            mask[i] = False
+    return mask
+
+
+def _premultiply(px: np.ndarray, alpha_channel: int, colour: np.ndarray) -> None:
+    alpha = px[..., alpha_channel:alpha_channel + 1]
+    px[..., colour] *= alpha
+
+
+def _unpremultiply(px: np.ndarray, alpha_channel: int, colour: np.ndarray) -> None:
+    alpha = px[..., alpha_channel:alpha_channel + 1]
+    # Where alpha is 0 (or negative after filtering) there is no colour to
+    # recover: store 0 rather than dividing by zero.
+    safe = np.where(alpha > 0, alpha, 1.0)
+    px[..., colour] = np.where(alpha > 0, px[..., colour] / safe, 0.0)
+
+
+# ---------------------------------------------------------------------------
+# Helpers
+
+
+def _one_line(message: str, fallback: str) -> str:
+    lines = [ln.strip() for ln in str(message).splitlines() if ln.strip()]
+    return lines[0] if lines else fallback
+
+
+def _check_choice(name: str, value: str, choices: Iterable[str]) -> None:
+    choices = tuple(choices)
+    if value not in choices:
+        raise UsageError(f"bad {name} {value!r}: expected one of {', '.join(choices)}")
+
+
+def _type_name(t: oiio.TypeDesc) -> str:
+    base = t.basetype
+    if base == oiio.UINT8:
+        return "uint8"
+    if base == oiio.UINT16:
+        return "uint16"
+    if base == oiio.HALF:
+        return "half"
+    return "float"
+
+
+def _classify_colorspace(name: str) -> str | None:
+    n = name.strip().lower()
+    if not n:
+        return None
+    if n in _LINEAR_NAMES or n.startswith(("lin", "g10")) or "linear" in n:
+        return "linear"
+    if any(k in n for k in _NON_LINEAR_KEYWORDS):
+        return "srgb"
+    return None
+
+
+def _default_colorspace(pixel_type: str) -> str:
+    return "srgb" if pixel_type in ("uint8", "uint16") else "linear"
+
+
+def _default_names(nchannels: int) -> list[str]:
+    return {1: ["Y"], 2: ["Y", "A"], 3: ["R", "G", "B"], 4: ["R", "G", "B", "A"]}.get(
+        nchannels, [f"channel{i}" for i in range(nchannels)])
+
+
+def _find_alpha(spec: oiio.ImageSpec, names: list[str]) -> int:
+    if 0 <= spec.alpha_channel < spec.nchannels:
+        return int(spec.alpha_channel)
+    for i, name in enumerate(names):
+        if name in ("A", "a", "alpha", "Alpha", "ALPHA"):
+            return i
+    return -1
+
+
+def _format_from_path(path: str) -> str:
+    ext = os.path.splitext(path)[1].lower().lstrip(".")
+    if not ext:
+        return ""
+    for entry in oiio.get_string_attribute("extension_list").split(";"):
+        fmt, _, exts = entry.partition(":")
+        if ext in exts.split(","):
+            return fmt
+    return ""
+
+
+def output_pixel_type(fmt: str, pixel_type: str) -> str:
+    """The pixel type a format will store when asked for ``pixel_type``.
+
+    Parameters
+    ----------
+    fmt : str
+        OpenImageIO format name.
+    pixel_type : str
+        Requested type: ``"uint8"``, ``"uint16"``, ``"half"`` or ``"float"``.
+
+    Returns
+    -------
+    str
+        ``pixel_type`` if the format can hold it, else the nearest type it can:
+        the widest integer type for a float request, ``half`` (or the
+        narrowest float) for an integer request.
+    """
+    allowed = _FORMAT_TYPES.get(fmt)
+    if allowed is None or pixel_type in allowed:
+        return pixel_type
+    if pixel_type in ("half", "float"):
+        ints = [t for t in allowed if t in ("uint8", "uint16")]
+        if ints:
+            return ints[-1]
+        return "float" if "float" in allowed else allowed[-1]
+    floats = [t for t in allowed if t in ("half", "float")]
+    if floats:
+        return floats[0]
+    return allowed[-1]
+
+
+# ---------------------------------------------------------------------------
+# Reading
+
+
+def read_image(path: str | os.PathLike[str], *, colorspace: str = "auto",
+               alpha: str = "auto", nan: str = "keep") -> Image:
+    """Read an image into linear, premultiplied float32 pixels.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Any file OpenImageIO can read (the first subimage is used).
+    colorspace : {"auto", "linear", "srgb"}
+        Encoding of the stored values; ``"auto"`` decides from the
+        ``oiio:ColorSpace`` metadata, then from the pixel type (integer: sRGB,
+        half/float: linear).
+    alpha : {"auto", "straight", "premultiplied", "none"}
+        How the file stores alpha; ``"auto"`` follows the file (see the module
+        notes). ``"none"`` treats alpha as an ordinary channel: it is neither
+        decoded nor multiplied in.
+    nan : {"keep", "zero", "fail"}
+        What to do with NaN/Inf values: keep them, replace them with 0, or
+        raise :class:`DataError`.
+
+    Returns
+    -------
+    Image
+        float32 ``(H, W, C)`` pixels, row 0 the top row of the file.
+
+    Raises
+    ------
+    InputError
+        Missing, unreadable, truncated, corrupt, unsupported or zero-size file.
+    DataError
+        Non-finite values under ``nan="fail"``.
+    UsageError
+        An unknown ``colorspace``, ``alpha`` or ``nan`` value.
+    """
+    _check_choice("colorspace", colorspace, ("auto", *COLORSPACES))
+    _check_choice("alpha mode", alpha, ("auto", *ALPHA_MODES))
+    _check_choice("nan mode", nan, ("keep", "zero", "fail"))
+    p = os.fspath(path)
+
+    if not os.path.lexists(p):
+        raise InputError(f"cannot read {p}: no such file")
+    if os.path.isdir(p):
+        raise InputError(f"cannot read {p}: it is a directory")
+    try:
+        st = os.stat(p)
+        if not stat.S_ISREG(st.st_mode):
+            # Opening a FIFO or device could block or never end.
+            raise InputError(f"cannot read {p}: not a regular file")
+        with open(p, "rb"):
+            pass
+    except OSError as exc:
+        raise InputError(f"cannot read {p}: {exc.strerror or exc}") from None
+    if st.st_size == 0:
+        raise InputError(f"cannot read {p}: the file is empty")
+
+    data, spec, fmt = _read_pixels(p)
+    names = [str(n) for n in spec.channelnames] or _default_names(spec.nchannels)
+    pixel_type = _type_name(spec.format)
+    alpha_channel = _find_alpha(spec, names)
+
+    attributes: dict[str, Any] = {}
+    attribute_types: dict[str, str] = {}
+    for attr in spec.extra_attribs:
+        attributes[attr.name] = attr.value
+        attribute_types[attr.name] = str(attr.type)
+
+    if colorspace == "auto":
+        meta = attributes.get("oiio:ColorSpace")
+        encoding = _classify_colorspace(meta) if isinstance(meta, str) else None
+        encoding = encoding or _default_colorspace(pixel_type)
+    else:
+        encoding = colorspace
+
+    if alpha_channel < 0:
+        alpha_mode = "none"
+    elif alpha == "auto":
+        unassociated = spec.get_int_attribute("oiio:UnassociatedAlpha", 0)
+        alpha_mode = "straight" if unassociated else "premultiplied"
+    else:
+        alpha_mode = alpha
+
+    px = data
+    colour = _colour_mask(px.shape[2], alpha_channel, names)
+    has_alpha = alpha_channel >= 0 and alpha_mode != "none"
+    if encoding == "srgb":
+        if has_alpha and alpha_mode == "premultiplied":
+            # The file premultiplied the encoded values: divide them back out
+            # before decoding, premultiply again in linear light below.
+            _unpremultiply(px, alpha_channel, colour)
+        px[..., colour] = srgb_to_linear(px[..., colour])
+        if has_alpha:
+            _premultiply(px, alpha_channel, colour)
+    elif has_alpha and alpha_mode == "straight":
+        _premultiply(px, alpha_channel, colour)
+    pixels = px.astype(np.float32)
+
+    bad = count_nonfinite(pixels)
+    if bad and nan == "fail":
+        y, x, c = (int(v) for v in np.argwhere(~np.isfinite(pixels))[0])
+        raise DataError(
+            f"{p}: {bad} non-finite pixel value{'s' if bad != 1 else ''} (NaN/Inf), "
+            f"first at x={x}, y={y}, channel {c} ({names[c] if c < len(names) else c})"
+        )
+    if bad and nan == "zero":
+        pixels[~np.isfinite(pixels)] = 0.0
+
+    channel_types = [_type_name(t) for t in spec.channelformats]
+    if len(set(channel_types)) <= 1:
+        channel_types = []
+    display = (spec.full_x, spec.full_y, spec.full_width, spec.full_height)
+    info = ImageInfo(
+        path=p,
+        format=fmt,
+        pixel_type=pixel_type,
+        channel_names=names,
+        alpha_channel=alpha_channel,
+        colorspace=encoding,
+        alpha_mode=alpha_mode,
+        attributes=attributes,
+        attribute_types=attribute_types,
+        channel_pixel_types=channel_types,
+        width=spec.width,
+        height=spec.height,
+        origin=(spec.x, spec.y),
+        display_window=None if display == (spec.x, spec.y, spec.width, spec.height) else display,
+    )
+    return Image(pixels=pixels, spec=info)
+
+
+def _read_pixels(p: str) -> tuple[np.ndarray, oiio.ImageSpec, str]:
+    """Open and fully read ``p``; float64 pixels normalised to the stored range."""
+    config = oiio.ImageSpec()
+    # Ask for the stored values: without this hint OpenImageIO premultiplies
+    # straight-alpha files itself, in the encoded (non-linear) space.
+    config.attribute("oiio:UnassociatedAlpha", 1)
+    try:
+        inp = oiio.ImageInput.open(p, config)
+    except Exception as exc:  # binding errors become one line
+        raise InputError(f"cannot read {p}: {_one_line(str(exc), 'open failed')}") from None
+    if inp is None:
+        msg = _one_line(oiio.geterror(), "not an image file OpenImageIO can read")
+        raise InputError(f"cannot read {p}: {msg}")
+    try:
+        spec = inp.spec()
+        fmt = str(inp.format_name())
+        if spec.deep:
+            raise InputError(f"cannot read {p}: deep images are not supported")
+        if spec.width <= 0 or spec.height <= 0 or spec.nchannels <= 0:
+            raise InputError(
+                f"cannot read {p}: zero-size image "
+                f"({spec.width}x{spec.height}, {spec.nchannels} channels)")
+        if spec.depth > 1:
+            raise InputError(f"cannot read {p}: volume images are not supported")
+        native = _type_name(spec.format)
+        uniform = len({str(t) for t in spec.channelformats}) <= 1
+        read_type = native if native in ("uint8", "uint16") and uniform else "float"
+        try:
+            data = inp.read_image(0, 0, 0, spec.nchannels, read_type)
+        except Exception as exc:
+            data = None
+            err = str(exc)
+        else:
+            err = inp.geterror() if inp.has_error else ""
+        if data is None or err:
+            err = err or oiio.geterror()
+            msg = _one_line(err, "read failed")
+            raise InputError(f"cannot read {p}: {msg} (truncated or corrupt file?)")
+    finally:
+        inp.close()
+    data = np.asarray(data).reshape(spec.height, spec.width, spec.nchannels)
+    if read_type == "uint8":
+        return data.astype(np.float64) / 255.0, spec, fmt
+    if read_type == "uint16":
+        return data.astype(np.float64) / 65535.0, spec, fmt
+    return data.astype(np.float64), spec, fmt
+
+
+# ---------------------------------------------------------------------------
+# Writing
+
+
+def _output_colorspace(info: ImageInfo, out_type: str) -> str:
+    in_int = info.pixel_type in ("uint8", "uint16")
+    out_int = out_type in ("uint8", "uint16")
+    if in_int == out_int:
+        return info.colorspace
+    return _default_colorspace(out_type)
+
+
+def _output_alpha_mode(info: ImageInfo, fmt: str, out_type: str) -> str:
+    if info.alpha_mode == "none":
+        return "none"
+    if fmt == "openexr":
+        return "premultiplied"
+    if fmt == "tiff":
+        if info.format == "tiff":
+            return info.alpha_mode
+        return "straight" if out_type in ("uint8", "uint16") else "premultiplied"
+    return "straight"
+
+
+def _keep_attribute(name: str, same_format: bool, same_encoding: bool) -> bool:
+    if name.startswith("oiio:") or name in _DERIVED_ATTRIBUTES:
+        return False
+    if name in _COLOUR_PROFILE_ATTRIBUTES and not same_encoding:
+        return False
+    if not same_format:
+        if name in _FORMAT_ONLY_ATTRIBUTES:
+            return False
+        prefix = name.split(":", 1)[0].lower() if ":" in name else ""
+        if prefix in _KNOWN_FORMAT_PREFIXES:
+            return False
+    return True
+
+
+def _known_format_prefixes() -> frozenset[str]:
+    names = {entry.partition(":")[0] for entry in
+             oiio.get_string_attribute("extension_list").split(";") if entry}
+    return frozenset(names | {"exr", "tif", "jpg", "heif", "raw", "ffmpeg", "openvdb"})
+
+
+_KNOWN_FORMAT_PREFIXES = _known_format_prefixes()
+
+
+def _encode_integer(values: np.ndarray, out_type: str, dither: bool,
+                    colour: np.ndarray) -> np.ndarray:
+    scale = 255.0 if out_type == "uint8" else 65535.0
+    v = np.nan_to_num(values, nan=0.0, posinf=1.0, neginf=0.0) * scale
+    if dither and out_type == "uint8":
+        h, w = v.shape[:2]
+        # Ordered dither in (-0.5, 0.5) LSB: deterministic, mean preserving,
+        # and alpha stays undithered so opaque stays opaque.
+        offsets = (_BAYER8 + 0.5) / 64.0 - 0.5
+        tile = np.tile(offsets, (math.ceil(h / 8), math.ceil(w / 8)))[:h, :w]
+        v[..., colour] += tile[..., None]
+    # Round half up rather than numpy's round-half-even.
+    v = np.floor(v + 0.5)
+    np.clip(v, 0.0, scale, out=v)
+    return v.astype(np.uint8 if out_type == "uint8" else np.uint16)
+
+
+def _oiio_write(path: str, spec: oiio.ImageSpec, pixels: np.ndarray) -> None:
+    """Write ``pixels`` to ``path`` with OpenImageIO; raise OutputError on failure."""
+    out = oiio.ImageOutput.create(path)
+    if out is None:
+        raise OutputError(f"cannot write {path}: "
+                          f"{_one_line(oiio.geterror(), 'no writer for this format')}")
+    try:
+        if not out.open(path, spec):
+            raise OutputError(f"cannot write {path}: "
+                              f"{_one_line(out.geterror(), 'open failed')}")
+        if not out.write_image(pixels):
+            raise OutputError(f"cannot write {path}: "
+                              f"{_one_line(out.geterror(), 'write failed')}")
+    finally:
+        closed = out.close()
+    if not closed:
+        raise OutputError(f"cannot write {path}: {_one_line(out.geterror(), 'close failed')}")
+
+
+def _is_same_file(a: str, b: str) -> bool:
+    try:
+        if os.path.exists(a) and os.path.exists(b):
+            return os.path.samefile(a, b)
+    except OSError:
+        pass
+    return os.path.realpath(a) == os.path.realpath(b)
+
+
+def write_image(path: str | os.PathLike[str], image: Image, *,
+                pixel_type: str | None = None, colorspace: str | None = None,
+                alpha: str | None = None, dither: bool = False,
+                compression: str | None = None, force: bool = False,
+                inputs: Iterable[str | os.PathLike[str]] = ()) -> None:
+    """Write an image atomically, encoded like its input unless told otherwise.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Output file; its extension picks the format.
+    image : Image
+        Linear pixels (premultiplied when ``image.premultiplied``) and the
+        info of the input they came from.
+    pixel_type : {"uint8", "uint16", "half", "float"}, optional
+        Stored type; default the input's. Replaced by the nearest type the
+        format can hold (see :func:`output_pixel_type`).
+    colorspace : {"linear", "srgb"}, optional
+        Encoding to store; default the input's when input and output are both
+        integer or both float, else the output type's default (integer: sRGB,
+        float: linear).
+    alpha : {"straight", "premultiplied", "none"}, optional
+        How to store alpha; default what the output format expects (EXR:
+        premultiplied; TIFF: like a TIFF input, else straight for integers;
+        other formats: straight). ``"none"`` writes alpha values as they are.
+    dither : bool
+        Add an ordered (Bayer 8x8, deterministic) dither of under half a step
+        to colour channels before rounding to uint8.
+    compression : str, optional
+        OpenImageIO compression name, e.g. ``"zip"``, ``"piz"``,
+        ``"dwaa:45"``; default the input's when the format is unchanged.
+    force : bool
+        Allow overwriting a path in ``inputs``.
+    inputs : iterable of path
+        Files that must not be overwritten.
+
+    Raises
+    ------
+    OutputError
+        Unknown extension, unwritable folder, write failure, or the output is
+        one of ``inputs`` and ``force`` is false.
+    UsageError
+        An unknown ``pixel_type``, ``colorspace`` or ``alpha`` value.
+    """
+    out_path = os.fspath(path)
+    info = image.spec
+    if pixel_type is not None:
+        _check_choice("pixel type", pixel_type, PIXEL_TYPES)
+    if colorspace is not None:
+        _check_choice("colorspace", colorspace, COLORSPACES)
+    if alpha is not None:
+        _check_choice("alpha mode", alpha, ALPHA_MODES)
+
+    fmt = _format_from_path(out_path)
+    if not fmt:
+        raise OutputError(f"cannot write {out_path}: unknown image file extension")
+    folder = os.path.dirname(os.path.abspath(out_path))
+    if not os.path.isdir(folder):
+        raise OutputError(f"cannot write {out_path}: folder {folder} does not exist")
+    if os.path.isdir(out_path):
+        raise OutputError(f"cannot write {out_path}: it is a directory")
+    if not force:
+        for inp in inputs:
+            if _is_same_file(out_path, os.fspath(inp)):
+                raise OutputError(f"refusing to overwrite input {out_path} (use --force)")
+
+    pixels = np.asarray(image.pixels)
+    if pixels.ndim == 2:
+        pixels = pixels[..., None]
+    if pixels.ndim != 3 or 0 in pixels.shape:
+        raise OutputError(f"cannot write {out_path}: bad pixel array shape {pixels.shape}")
+    height, width, nch = pixels.shape
+    names = list(info.channel_names)
+    alpha_channel = info.alpha_channel
+    if len(names) != nch:
+        names = _default_names(nch)
+        alpha_channel = names.index("A") if "A" in names else -1
+
+    want_type = pixel_type or info.pixel_type
+    out_type = output_pixel_type(fmt, want_type)
+    out_int = out_type in ("uint8", "uint16")
+    encoding = colorspace or _output_colorspace(info, out_type)
+    memory_premultiplied = alpha_channel >= 0 and info.alpha_mode != "none"
+    mode = "none" if alpha_channel < 0 else (alpha or _output_alpha_mode(info, fmt, out_type))
+
+    px = pixels.astype(np.float64)
+    if fmt in _NO_ALPHA_FORMATS and alpha_channel >= 0:
+        # No alpha in the file: premultiplied linear colour alone is the image
+        # composited over black.
+        if not memory_premultiplied:
+            _premultiply(px, alpha_channel, _colour_mask(nch, alpha_channel, names))
+        keep = [i for i in range(nch) if i != alpha_channel]
+        px = px[..., keep]
+        names = [names[i] for i in keep]
+        alpha_channel = -1
+        mode = "none"
+        nch -= 1
+    colour = _colour_mask(nch, alpha_channel, names)
+    if mode != "none":
+        if memory_premultiplied and (mode == "straight" or encoding == "srgb"):
+            _unpremultiply(px, alpha_channel, colour)
+        if encoding == "srgb":
+            px[..., colour] = linear_to_srgb(px[..., colour])
+        if mode == "premultiplied" and (encoding == "srgb" or not memory_premultiplied):
+            _premultiply(px, alpha_channel, colour)
+    elif encoding == "srgb":
+        px[..., colour] = linear_to_srgb(px[..., colour])
+
+    if out_int:
+        data = _encode_integer(px, out_type, dither, colour)
+    else:
+        data = px.astype(np.float32)
+    data = np.ascontiguousarray(data)
+
+    spec = oiio.ImageSpec(width, height, nch, out_type)
+    spec.channelnames = tuple(names)
+    spec.alpha_channel = alpha_channel
+    same_format = fmt == info.format
+    if (same_format and pixel_type is None and info.channel_pixel_types
+            and len(info.channel_pixel_types) == nch):
+        spec.channelformats = tuple(oiio.TypeDesc(t) for t in info.channel_pixel_types)
+    # The data and display windows only still apply at the input's size.
+    same_size = (width, height) == (info.width, info.height)
+    if same_size and (info.origin != (0, 0) or info.display_window is not None):
+        spec.x, spec.y = info.origin
+        if info.display_window is not None:
+            spec.full_x, spec.full_y, spec.full_width, spec.full_height = info.display_window
+        else:
+            spec.full_x, spec.full_y = info.origin
+            spec.full_width, spec.full_height = width, height
+
+    same_encoding = encoding == info.colorspace
+    for name, value in info.attributes.items():
+        if not _keep_attribute(name, same_format, same_encoding):
+            continue
+        type_name = info.attribute_types.get(name)
+        try:
+            if type_name:
+                spec.attribute(name, oiio.TypeDesc(type_name), value)
+            else:
+                spec.attribute(name, value)
+        except (TypeError, ValueError, RuntimeError):
+            continue  # metadata OpenImageIO cannot express for this file: drop it
+    old_cs = info.attributes.get("oiio:ColorSpace")
+    if isinstance(old_cs, str) and _classify_colorspace(old_cs) == encoding:
+        spec.attribute("oiio:ColorSpace", old_cs)
+    elif isinstance(old_cs, str) or encoding != _default_colorspace(out_type):
+        spec.attribute("oiio:ColorSpace", _OIIO_COLORSPACE[encoding])
+    if mode == "straight" or (mode == "none" and alpha_channel >= 0) or (
+            alpha_channel >= 0 and fmt not in _ASSOCIATED_CAPABLE):
+        # The values handed over are exactly what is to be stored: stop
+        # OpenImageIO from unpremultiplying them again.
+        spec.attribute("oiio:UnassociatedAlpha", 1)
+    if compression is not None:
+        spec.attribute("compression", compression)
+
+    _atomic_write(out_path, folder, spec, data)
+
+
+def _atomic_write(out_path: str, folder: str, spec: oiio.ImageSpec, data: np.ndarray) -> None:
+    with atomic_path(out_path) as tmp:
+        try:
+            _oiio_write(tmp, spec, data)
+        except OutputError as exc:
+            # Report the user's path, not the temporary one.
+            raise OutputError(exc.message.replace(tmp, out_path)) from None
+
+
+def describe_rules(info: ImageInfo) -> str:
+    """One line saying which colour and alpha rule is in force for ``info``.
+
+    Parameters
+    ----------
+    info : ImageInfo
+        As returned in :attr:`Image.spec`.
+
+    Returns
+    -------
+    str
+        E.g. ``"in.png: png uint8, sRGB-encoded: decoded with the sRGB EOTF to
+        linear light; straight alpha (channel A): premultiplied after
+        decoding"``.
+    """
+    if info.colorspace == "srgb":
+        colour = "sRGB-encoded: decoded with the sRGB EOTF to linear light"
+    else:
+        colour = "linear light: no decoding"
+    if info.alpha_channel < 0:
+        alpha = "no alpha"
+    else:
+        name = (info.channel_names[info.alpha_channel]
+                if info.alpha_channel < len(info.channel_names) else str(info.alpha_channel))
+        if info.alpha_mode == "straight":
+            alpha = f"straight alpha (channel {name}): premultiplied after decoding"
+        elif info.alpha_mode == "premultiplied":
+            alpha = f"premultiplied alpha (channel {name}): used as stored"
+        else:
+            alpha = f"alpha (channel {name}) treated as an ordinary channel"
+    return f"{info.path}: {info.format} {info.pixel_type}, {colour}; {alpha}"
