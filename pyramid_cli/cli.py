@@ -102,6 +102,41 @@ def explain(expression, as_json: bool, plot: str | None) -> None:
     click.echo(json.dumps(info, ensure_ascii=False) if as_json else render(info))
 
 
+def _size(ctx, param, value):
+    import re
+
+    if value is None:
+        return None
+    m = re.fullmatch(r"\s*(\d+)\s*[x×X]\s*(\d+)\s*", value)
+    if not m or not int(m.group(1)) or not int(m.group(2)):
+        raise click.BadParameter(f"expected WIDTHxHEIGHT such as 1920x1080, not {value!r}")
+    return int(m.group(1)), int(m.group(2))
+
+
+@main.command("plan")
+@click.argument("expression", type=EXPR)
+@click.option("--size", required=True, callback=_size, metavar="WxH", help="Input image size, e.g. 1920x1080.")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of the report.")
+def plan_command(expression, size, as_json: bool) -> None:
+    """Show the render passes and bilinear taps that compute EXPRESSION.
+
+    \b
+    Example:
+      pyramid plan 'quadratic *v g' --size 1920x1080
+      pyramid plan --json 'h_Doo-Sabin ⊗↑ g' --size 64x64
+
+    \b
+    Tap positions are [x, y] in source texels relative to the source pixel the
+    output fragment maps to (R = S·⌈r/P⌉); all are multiples of ¼ texel.
+    """
+    from .plan import check, plan, render, to_json
+
+    w, h = size
+    p = plan(expression, (h, w))
+    check(p)
+    click.echo(json.dumps(to_json(p), ensure_ascii=False) if as_json else render(p))
+
+
 @main.command()
 @click.argument("expression", type=EXPR)
 @click.argument("input_path", metavar="INPUT", type=click.Path(dir_okay=False))

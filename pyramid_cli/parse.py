@@ -280,14 +280,14 @@ class _Parser:
         depth = 0
         while True:
             k = self.tokens[j].kind
+            if k == "END":
+                return j - start
             depth += k == "LBRACK"
             depth -= k == "RBRACK"
             j += 1
             if depth == 0 and k == "RBRACK":
-                if self.tokens[j].kind == "SLASH":
+                if self.tokens[j].kind == "SLASH" and self.tokens[j + 1].kind == "NUM":
                     j += 2
-                return j - start
-            if k == "END":
                 return j - start
 
     def named(self) -> _Operand:

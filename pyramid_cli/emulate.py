@@ -1,0 +1,67 @@
+"""The living definition of a :class:`~pyramid_cli.plan.Plan`: numpy, software bilinear.
+
+It runs a plan exactly as the GL executor must (same coordinates, same clamping
+to each texture's stored extent, same bilinear mixing), so tests can check the
+planner without GL, and the GL executor against it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .plan import Plan, Tap
+
+
+def _axis(r: np.ndarray, period: int, stride: int) -> np.ndarray:
+    """Source base index R = S·⌈r/P⌉ for (possibly non-positive) logical indices r."""
+    return stride * -(-r // period)
+
+
+def sample(src: np.ndarray, guard_lo: tuple[int, int], rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """Bilinear read of ``src`` (stored array) at logical 1-based fractional indices, clamped to the texture."""
+    q = rows.astype(np.float64) - 1 + guard_lo[0]
+    p = cols.astype(np.float64) - 1 + guard_lo[1]
+    q = np.clip(q, 0, src.shape[0] - 1)
+    p = np.clip(p, 0, src.shape[1] - 1)
+    i0, j0 = np.floor(q).astype(int), np.floor(p).astype(int)
+    a, b = q - i0, p - j0
+    i1, j1 = np.minimum(i0 + 1, src.shape[0] - 1), np.minimum(j0 + 1, src.shape[1] - 1)
+    extra = (slice(None),) * 2 + (None,) * (src.ndim - 2)
+    a, b = a[:, None][extra], b[None, :][extra]
+    return ((1 - a) * (1 - b) * src[np.ix_(i0, j0)] + (1 - a) * b * src[np.ix_(i0, j1)]
+            + a * (1 - b) * src[np.ix_(i1, j0)] + a * b * src[np.ix_(i1, j1)])
+
+
+def run(plan: Plan, image: np.ndarray) -> np.ndarray:
+    """Execute ``plan`` on ``image`` (H, W) or (H, W, C); returns the output's logical pixels, float64."""
+    stored: list[np.ndarray | None] = [np.asarray(image, dtype=np.float64)]
+    for ps in plan.passes:
+        target = plan.images[ps.target]
+        h, w = target.stored
+        top, left = target.guard[0], target.guard[1]
+        out = np.zeros((h, w) + stored[0].shape[2:])
+        r_all = np.arange(h) + 1 - top
+        c_all = np.arange(w) + 1 - left
+        (pr, pc), (sr, sc) = ps.period, ps.stride
+        for (phr, phc), taps in ps.phases.items():
+            ri = np.nonzero(r_all % pr == phr)[0]
+            ci = np.nonzero(c_all % pc == phc)[0]
+            if not len(ri) or not len(ci):
+                continue
+            base_r = _axis(r_all[ri], pr, sr)
+            base_c = _axis(c_all[ci], pc, sc)
+            acc = np.zeros((len(ri), len(ci)) + out.shape[2:])
+            for t in taps:
+                acc += float(t.weight) * _read(plan, stored, t, base_r, base_c)
+            out[np.ix_(ri, ci)] = acc
+        stored.append(out)
+    last = plan.images[-1]
+    t, l, b, r = last.guard
+    return stored[-1][t:t + last.size[0], l:l + last.size[1]]
+
+
+def _read(plan: Plan, stored, t: Tap, base_r: np.ndarray, base_c: np.ndarray) -> np.ndarray:
+    src = plan.images[t.source]
+    rows = base_r - float(t.offset[0])
+    cols = base_c - float(t.offset[1])
+    return sample(stored[t.source], (src.guard[0], src.guard[1]), rows, cols)

@@ -1,0 +1,460 @@
+"""From expressions to render passes of bilinear texture taps (paper §3–§5, DESIGN.md §5).
+
+A :class:`Plan` is the contract between the planner and the executors (the
+numpy emulator in :mod:`pyramid_cli.emulate` and the GL executor): a list of
+images (``images[0]`` is the input; image k > 0 is written by pass k − 1), and
+for every pass the taps each output fragment sums.
+
+Coordinates: every image has a *logical* 1-based pixel grid ``1..h`` (rows) and
+``1..w`` (columns), plus a guard band (rows ``1 − top .. h + bottom`` …) that
+bounds inference found later passes read. A pass maps output pixel ``r`` to
+the source base index ``R = S·⌈r/P⌉`` (``S``, ``P`` per axis) and a tap with
+offset ``t`` reads the source at the (possibly fractional) index ``R − t``:
+a fraction ``α`` of ``t`` mixes ``(1 − α)·src[R − ⌊t⌋] + α·src[R − ⌊t⌋ − 1]``
+(hardware bilinear filtering). Reads clamp to the source texture's stored
+extent (logical grid plus guard), which is the paper's clamp at the borders of
+the input and of every written operator, while guard bands keep a named
+filter atomic (DESIGN.md §1). Every fractional offset is a multiple of ¼.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from fractions import Fraction
+from functools import cache
+
+from . import algebra, catalogue
+from .algebra import Step, Weights, mask_weights
+from .expr import Expr, Literal, Named, Op, steps
+
+Half = Fraction(1, 2)
+
+
+@dataclass(frozen=True)
+class Tap:
+    source: int                        # image index
+    offset: tuple[Fraction, Fraction]  # t: reads source index R − t (rows, columns)
+    weight: Fraction
+    linear: bool                       # bilinear (fractional offset) or nearest
+
+    @property
+    def sampler(self) -> str:
+        return "linear" if self.linear else "nearest"
+
+
+@dataclass
+class Image:
+    size: tuple[int, int]                       # logical (rows, columns)
+    guard: list[int] = field(default_factory=lambda: [0, 0, 0, 0])  # top, left, bottom, right
+
+    @property
+    def stored(self) -> tuple[int, int]:
+        """Texture size: logical size plus guard band."""
+        t, l, b, r = self.guard
+        return self.size[0] + t + b, self.size[1] + l + r
+
+
+@dataclass
+class Pass:
+    label: str
+    target: int                                  # image index written
+    period: tuple[int, int]
+    stride: tuple[int, int]
+    phases: dict[tuple[int, int], list[Tap]]     # keyed by (r mod Pr, c mod Pc)
+
+    def sources(self) -> set[int]:
+        return {t.source for taps in self.phases.values() for t in taps}
+
+    @property
+    def fetches(self) -> float:
+        """Texture reads per fragment, the mean over phases (each phase is equally frequent)."""
+        return sum(len(t) for t in self.phases.values()) / len(self.phases)
+
+
+@dataclass
+class Plan:
+    images: list[Image]
+    passes: list[Pass]
+    expression: str
+    paper_fetches: float | None = None
+
+    @property
+    def output(self) -> Image:
+        return self.images[-1]
+
+    @property
+    def fetches(self) -> float:
+        return sum(p.fetches for p in self.passes)
+
+    @property
+    def fetches_per_output_pixel(self) -> float:
+        """Fetches weighted by each pass's stored size relative to the output (DESIGN.md §5)."""
+        out = self.output.size[0] * self.output.size[1]
+        return sum(p.fetches * self.images[p.target].stored[0] * self.images[p.target].stored[1] / out
+                   for p in self.passes)
+
+
+# ------------------------------------------------------------------ stages
+@dataclass(frozen=True)
+class Stage:
+    """One pass of a recipe: per phase, weights on earlier stages ("in" is the recipe's input)."""
+
+    period: tuple[int, int]
+    stride: tuple[int, int]
+    phases: tuple  # ((phase, ((source, Weights-items), ...)), ...); source: -1 = input, k = stage k
+
+
+def _stage(period, stride, phases: dict) -> Stage:
+    return Stage(period, stride, tuple(sorted(
+        (ph, tuple((src, tuple(sorted(w.items()))) for src, w in parts)) for ph, parts in phases.items())))
+
+
+def conv(w: Weights, src: int = -1) -> Stage:
+    return _stage((1, 1), (1, 1), {(0, 0): [(src, w)]})
+
+
+def down(w: Weights, m: int = 1, src: int = -1) -> Stage:
+    return _stage((1, 1), (2 ** m, 2 ** m), {(0, 0): [(src, w)]})
+
+
+def up(phases: dict, src: int = -1) -> Stage:
+    return _stage((2, 2), (1, 1), {p: [(src, w)] for p, w in phases.items()})
+
+
+def _weights(key: str) -> Weights:
+    return mask_weights(catalogue.mask(key).mask)
+
+
+def _chain(*stages_outermost_last: Stage) -> list[Stage]:
+    """Stages that each read the previous one (the first reads the input)."""
+    out = []
+    for i, s in enumerate(stages_outermost_last):
+        out.append(Stage(s.period, s.stride, tuple(
+            (ph, tuple((i - 1 if src == -1 and i else src, w) for src, w in parts)) for ph, parts in s.phases)))
+    return out
+
+
+def _split_1d_synthesis(phases: dict[tuple[int, int], Weights]) -> tuple[dict, dict] | None:
+    """Split separable synthesis phases into a row pass and a column pass (§5.5 four-point)."""
+    rows, cols = {}, {}
+    for (pr, pc), w in phases.items():
+        m, _ = algebra.as_matrix(w)
+        split = algebra.separate(m)
+        if split is None:
+            return None
+        rows.setdefault(pr, split[0])
+        cols.setdefault(pc, split[1])
+    # rebuild and verify exactness with these factors
+    for (pr, pc), w in phases.items():
+        m, a = algebra.as_matrix(w)
+        rebuilt = [[x * y for y in cols[pc]] for x in rows[pr]]
+        if rebuilt != m:
+            # factors of different phases may carry different scales
+            return None
+    return rows, cols
+
+
+def recipe(op: Op, f, stride: int = 1) -> list[Stage]:
+    """The paper's decomposition of one named filter into box-sized stages (§3–§5).
+
+    Each recipe is checked against the filter's exact mask by :func:`check_recipe`.
+    """
+    box, nw = _weights("box"), _weights("box_nw")
+    if isinstance(f, Named) and op is Op.CONV:
+        key = f.key
+        if key == "bartlett":                       # §3.2: box↘ ⊗ (box↖ ⊗ g)
+            return _chain(conv(nw), conv(box))
+        if key.startswith("gauss"):                 # §3.3: (n−1)/2 Bartletts, n−1 passes
+            n = int(key[5:])
+            return _chain(*[conv(nw if i % 2 == 0 else box) for i in range(n - 1)])
+        if key == "quasi":                          # §5.5: 10/6 δ − 16/24 (box↘ ⊗ (box↖ ⊗ g))
+            first = conv(nw)
+            last = _stage((1, 1), (1, 1), {(0, 0): [
+                (-1, {(0, 0): Fraction(10, 6)}),
+                (0, {d: -Fraction(16, 24) * v for d, v in box.items()})]})
+            return [first, last]
+    if isinstance(f, Named) and op is Op.DOWN and stride == 1:
+        key = f.key
+        if key == "box4":                           # §4.2 (erratum): box↘ ⊗ (box↖ ⊗↓ g), row 0 kept
+            return _chain(down(nw), conv(box))
+        if key == "quadratic":                      # §4.3: box↘ ⊗↓ (bartlett ⊗ g)
+            return _chain(conv(nw), conv(box), down(box))
+        if key == "cubic":                          # §4.3 (erratum): box↘ ⊗↓ (bartlett ⊗ (box↖ ⊗ g))
+            return _chain(conv(nw), conv(nw), conv(box), down(box))
+        if key == "bartlett":                       # §4.2 (erratum): box↘ ⊗↓ (box↖ ⊗ g)
+            return _chain(conv(nw), down(box))
+        if key.startswith("gauss"):
+            n = int(key[5:])
+            return _chain(*[conv(nw if i % 2 == 0 else box) for i in range(n - 2)], down(box))
+    if isinstance(f, Named) and op is Op.UP:
+        phases = {p: mask_weights(m) for p, m in catalogue.synthesis(f.key).phases.items()}
+        if f.key == "cubic":                        # §5.4: box↘ ⊗ (Doo-Sabin ⊗↑ g)
+            ds = {p: mask_weights(m) for p, m in catalogue.synthesis("doosabin").phases.items()}
+            return _chain(up(ds), conv(box))
+        if f.key == "fourpoint":                    # §5.5: rows, then columns
+            split = _split_1d_synthesis(phases)
+            if split:
+                rows, cols = split
+                row_pass = _stage((2, 1), (1, 1), {(p, 0): [(-1, {(i - algebra.anchor(len(v)), 0): x
+                                                                  for i, x in enumerate(v) if x})]
+                                                   for p, v in rows.items()})
+                col_pass = _stage((1, 2), (1, 1), {(0, p): [(0, {(0, j - algebra.anchor(len(v))): x
+                                                                 for j, x in enumerate(v) if x})]
+                                                   for p, v in cols.items()})
+                return [row_pass, col_pass]
+        return [up(phases)]
+    step = algebra.step_of(op, f, stride)
+    if op is Op.UP:
+        return [up(dict(step.weights))]
+    w = dict(step.weights)
+    return [down(w, stride)] if op is Op.DOWN else [conv(w)]
+
+
+# ------------------------------------------------------------------ recipe check
+def _stage_reads(stage: Stage, r: int, c: int):
+    pr, pc = stage.period
+    sr, sc = stage.stride
+    base = (sr * -(-r // pr), sc * -(-c // pc))
+    for ph, parts in stage.phases:
+        if ph == (r % pr, c % pc):
+            for src, items in parts:
+                for (dr, dc), v in items:
+                    yield src, (base[0] - dr, base[1] - dc), v
+
+
+def recipe_kernel_matches(stages: list[Stage], op: Op, f, stride: int = 1) -> bool:
+    """Does the recipe compute exactly the filter's own masks (interior, all phases)?"""
+    target = algebra.kernel_of_steps([algebra.step_of(op, f, stride)])
+
+    @cache
+    def value(level: int, r: int, c: int) -> tuple:
+        acc: dict = {}
+        for src, (ir, ic), v in _stage_reads(stages[level], r, c):
+            sub = (((ir, ic), Fraction(1)),) if src == -1 else value(src, ir, ic)
+            for k, x in sub:
+                acc[k] = acc.get(k, 0) + v * x
+        return tuple((k, x) for k, x in acc.items() if x)
+
+    p = target.period
+    origin = 16 * max(p)
+    for r in range(origin + 1, origin + p[0] + 1):
+        for c in range(origin + 1, origin + p[1] + 1):
+            br, bc = target.base(r, 0), target.base(c, 1)
+            got = {(br - ir, bc - ic): v for (ir, ic), v in value(len(stages) - 1, r, c)}
+            if got != target.phases[(r % p[0], c % p[1])]:
+                return False
+    return True
+
+
+# ------------------------------------------------------------------ taps
+_QUARTERS = {Fraction(0), Fraction(1, 4), Fraction(1, 2), Fraction(3, 4)}
+
+
+def _bilinear_fit(block: list[list[Fraction]]) -> tuple[Fraction, Fraction] | None:
+    """Fractions (a, b) such that a 2×2 block is W·[(1−a)(1−b), (1−a)b; a(1−b), ab], quarter steps only."""
+    w = sum(sum(row) for row in block)
+    if not w:
+        return None
+    signs = {v > 0 for row in block for v in row if v}
+    if len(signs) > 1:
+        return None
+    a = (block[1][0] + block[1][1]) / w
+    b = (block[0][1] + block[1][1]) / w
+    if a not in _QUARTERS and a != 1 or b not in _QUARTERS and b != 1:
+        return None
+    for i in range(2):
+        for j in range(2):
+            if block[i][j] != w * (a if i else 1 - a) * (b if j else 1 - b):
+                return None
+    return a, b
+
+
+def taps_for(weights: Weights, source: int) -> list[Tap]:
+    """Fewest taps found greedily: 2×2 and 1×2 bilinear footprints at quarter positions, else nearest."""
+    left = dict(weights)
+    out: list[Tap] = []
+    while left:
+        # Largest footprint first: try every placement covering the smallest remaining offset.
+        d0 = min(left)
+        best = None
+        for (oi, oj) in ((0, 0), (0, -1), (-1, 0), (-1, -1)):
+            top = (d0[0] + oi, d0[1] + oj)
+            block = [[left.get((top[0] + i, top[1] + j), Fraction(0)) for j in range(2)] for i in range(2)]
+            covered = sum(1 for row in block for v in row if v)
+            fit = _bilinear_fit(block)
+            if fit and (best is None or covered > best[0]):
+                best = (covered, top, fit, sum(sum(r) for r in block))
+        if best is None or best[0] == 1:
+            v = left.pop(d0)
+            out.append(Tap(source, (Fraction(d0[0]), Fraction(d0[1])), v, False))
+            continue
+        _, top, (a, b), w = best
+        for i in range(2):
+            for j in range(2):
+                left.pop((top[0] + i, top[1] + j), None)
+        offset = (top[0] + a, top[1] + b)
+        out.append(Tap(source, offset, w, bool(a % 1 or b % 1)))
+    return out
+
+
+# ------------------------------------------------------------------ bounds inference
+def _needed(stage_pass: Pass, rows: tuple[int, int], cols: tuple[int, int], src: int):
+    """Source index ranges read by ``rows × cols`` of a pass, for one source."""
+    lo_r = lo_c = 10 ** 9
+    hi_r = hi_c = -10 ** 9
+    (pr, pc), (sr, sc) = stage_pass.period, stage_pass.stride
+    for (phr, phc), taps in stage_pass.phases.items():
+        rs = [r for r in _ends(rows, pr) if r % pr == phr]
+        cs = [c for c in _ends(cols, pc) if c % pc == phc]
+        for t in taps:
+            if t.source != src:
+                continue
+            for r in rs:
+                base = sr * -(-r // pr) - t.offset[0]
+                lo_r, hi_r = min(lo_r, _floor(base)), max(hi_r, _ceil(base))
+            for c in cs:
+                base = sc * -(-c // pc) - t.offset[1]
+                lo_c, hi_c = min(lo_c, _floor(base)), max(hi_c, _ceil(base))
+    return (lo_r, hi_r), (lo_c, hi_c)
+
+
+def _ends(span: tuple[int, int], p: int) -> list[int]:
+    lo, hi = span
+    return sorted(set(range(lo, min(hi, lo + p - 1) + 1)) | set(range(max(lo, hi - p + 1), hi + 1)))
+
+
+def _floor(x) -> int:
+    return int(Fraction(x).__floor__())
+
+
+def _ceil(x) -> int:
+    return int(Fraction(x).__ceil__())
+
+
+# ------------------------------------------------------------------ planning
+def plan(expr: Expr, size: tuple[int, int]) -> Plan:
+    """Plan ``expr`` for an input of ``size`` = (rows, columns)."""
+    images = [Image(tuple(size))]
+    passes: list[Pass] = []
+    current = 0
+    for op, f, stride in steps(expr):
+        stages = recipe(op, f, stride)
+        if isinstance(f, Named) and not recipe_kernel_matches(stages, op, f, stride):
+            raise AssertionError(f"recipe for {f.key} {op.unicode} does not match its mask")  # planner bug
+        first = len(images)
+        in_size = images[current].size
+        # logical sizes of each stage's output (a stage reading stage k takes its size)
+        sizes = []
+        for st in stages:
+            srcs = {src for _, parts in st.phases for src, _ in parts}
+            base = in_size if max(srcs) == -1 else sizes[max(srcs)]
+            h = -(-base[0] * st.period[0] // st.stride[0])
+            w = -(-base[1] * st.period[1] // st.stride[1])
+            sizes.append((h, w))
+        for i, st in enumerate(stages):
+            images.append(Image(sizes[i]))
+            phases = {}
+            for ph, parts in st.phases:
+                taps = []
+                for src, items in parts:
+                    taps += taps_for(dict(items), current if src == -1 else first + src)
+                phases[ph] = taps
+            label = f"{_label(op, f)}" + (f" [{i + 1}/{len(stages)}]" if len(stages) > 1 else "")
+            passes.append(Pass(label, first + i, st.period, st.stride, phases))
+        _infer_guards(images, passes[-len(stages):], first)
+        current = len(images) - 1
+    if not passes:  # the identity "g": one copy pass
+        images.append(Image(tuple(size)))
+        passes.append(Pass("g (copy)", 1, (1, 1), (1, 1), {(0, 0): [Tap(0, (Fraction(0), Fraction(0)),
+                                                                          Fraction(1), False)]}))
+    return Plan(images, passes, _text(expr), algebra.paper_fetches(expr))
+
+
+def _infer_guards(images: list[Image], passes: list[Pass], first: int) -> None:
+    """Walk a named filter's passes backwards: each intermediate stores what later passes read."""
+    for p in reversed(passes):
+        img = images[p.target]
+        t, l, b, r = img.guard
+        rows, cols = (1 - t, img.size[0] + b), (1 - l, img.size[1] + r)
+        for src in p.sources():
+            if src < first:
+                continue  # the filter's input: a boundary, read clamped
+            (lo_r, hi_r), (lo_c, hi_c) = _needed(p, rows, cols, src)
+            s = images[src]
+            s.guard = [max(s.guard[0], 1 - lo_r), max(s.guard[1], 1 - lo_c),
+                       max(s.guard[2], hi_r - s.size[0]), max(s.guard[3], hi_c - s.size[1])]
+            s.guard = [max(0, g) for g in s.guard]
+
+
+def _label(op: Op, f) -> str:
+    from .expr import filter_text
+
+    return f"{filter_text(f, op)} {op.unicode}"
+
+
+def _text(expr: Expr) -> str:
+    from .expr import to_text
+
+    return to_text(expr)
+
+
+def check(p: Plan) -> None:
+    """Invariants every executor relies on; raises AssertionError on a planner bug."""
+    for ps in p.passes:
+        for taps in ps.phases.values():
+            for t in taps:
+                assert t.source < ps.target
+                for o in t.offset:
+                    assert o % Fraction(1, 4) == 0, f"tap offset {o} not on a quarter texel"
+
+
+__all__ = ["Plan", "Pass", "Tap", "Image", "plan", "check", "Literal", "Step"]
+
+
+# ------------------------------------------------------------------ reports
+def _tap_json(t: Tap) -> dict:
+    return {"pos": [float(-t.offset[1]), float(-t.offset[0])], "weight": float(t.weight),
+            "exact": str(t.weight), "sampler": t.sampler, "source": t.source}
+
+
+def to_json(p: Plan) -> dict:
+    """The ``pyramid plan --json`` object. ``pos`` is [x, y] in source texels relative to the
+    source pixel ``R = S·⌈r/P⌉`` the output fragment maps to; sizes are [width, height]."""
+    passes = []
+    for ps in p.passes:
+        img = p.images[ps.target]
+        entry = {"label": ps.label, "size": [img.size[1], img.size[0]], "guard": list(img.guard),
+                 "period": [ps.period[1], ps.period[0]], "stride": [ps.stride[1], ps.stride[0]],
+                 "fetches": ps.fetches}
+        if len(ps.phases) == 1:
+            entry["taps"] = [_tap_json(t) for t in next(iter(ps.phases.values()))]
+        else:
+            entry["phases"] = [{"phase": list(ph), "taps": [_tap_json(t) for t in taps]}
+                               for ph, taps in sorted(ps.phases.items(), reverse=True)]
+        passes.append(entry)
+    return {"expression": p.expression, "input": [p.images[0].size[1], p.images[0].size[0]],
+            "output": [p.output.size[1], p.output.size[0]], "passes": passes, "fetches": p.fetches,
+            "fetches_per_output_pixel": p.fetches_per_output_pixel, "paper_fetches": p.paper_fetches}
+
+
+def render(p: Plan) -> str:
+    """The human-readable ``pyramid plan`` report."""
+    h, w = p.images[0].size
+    oh, ow = p.output.size
+    lines = [f"plan   {p.expression}", f"input  {w}×{h} → output {ow}×{oh}, {len(p.passes)} pass(es)"]
+    for n, ps in enumerate(p.passes, 1):
+        img = p.images[ps.target]
+        t, l, b, r = img.guard
+        guard = f" + guard t{t} l{l} b{b} r{r}" if any(img.guard) else ""
+        srcs = ", ".join("input" if s == 0 else f"pass {s}" for s in sorted(ps.sources()))
+        lines.append(f"pass {n}  {ps.label}: {img.size[1]}×{img.size[0]}{guard}, reads {srcs}, "
+                     f"{ps.fetches:g} fetch(es) per fragment")
+        for ph, taps in sorted(ps.phases.items(), reverse=True):
+            head = f"  phase {ph[0]},{ph[1]}" if len(ps.phases) > 1 else "  "
+            for i, tap in enumerate(taps):
+                src = "" if len(ps.sources()) == 1 else (" input" if tap.source == 0 else f" pass {tap.source}")
+                lines.append(f"{head if i == 0 else ' ' * len(head)}  {tap.sampler:<7} at "
+                             f"({float(-tap.offset[1]):+.2f}, {float(-tap.offset[0]):+.2f}) × {tap.weight}{src}")
+    paper = "n/a" if p.paper_fetches is None else f"{p.paper_fetches:g}"
+    lines.append(f"fetches {p.fetches:g} (paper: {paper}); per output pixel {p.fetches_per_output_pixel:.2f}")
+    return "\n".join(lines)

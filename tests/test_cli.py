@@ -1,0 +1,149 @@
+"""The command line as a user meets it: help, explain, apply on real files, exit codes."""
+
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import OpenImageIO as oiio
+import pytest
+from click.testing import CliRunner
+
+from pyramid_cli import reference
+from pyramid_cli.cli import main
+from pyramid_cli.parse import parse
+
+
+def invoke(*args):
+    return CliRunner().invoke(main, list(args))
+
+
+@pytest.mark.parametrize("command", [[], ["explain"], ["plan"], ["apply"]])
+def test_every_command_has_help_with_an_example(command):
+    r = invoke(*command, "--help")
+    assert r.exit_code == 0
+    assert "Example" in r.output
+
+
+def test_explain_json_fields_for_quadratic():
+    r = invoke("explain", "--json", "h_box^↘ ⊗↓ (h_Bartlett ⊗ g)")
+    assert r.exit_code == 0, r.output
+    d = json.loads(r.output)
+    assert d["expression"] == "h_box^↘ ⊗↓ (h_Bartlett ⊗ g)"
+    assert d["kind"] == "analysis" and d["stride"] == 2
+    (ph,) = d["phases"]
+    assert ph["phase"] == [0, 0] and ph["denominator"] == 64
+    assert ph["weights"] == [[1, 3, 3, 1], [3, 9, 9, 3], [3, 9, 9, 3], [1, 3, 3, 1]]
+    assert ph["anchor"] == [1, 1]
+    assert d["continuity"] == "C^1" and d["lattice"] == "dual" and d["fetches"] == 3
+
+
+def test_explain_json_synthesis_has_four_phases_that_match_the_reference():
+    d = json.loads(invoke("explain", "--json", "doosabin").output)
+    assert d["kind"] == "synthesis" and len(d["phases"]) == 4
+    # Apply the JSON's own weights with its documented index rule and compare to the reference.
+    g = np.random.default_rng(0).random((6, 5))
+    want = reference.run(parse("doosabin"), g)
+    got = np.zeros_like(want)
+    for ph in d["phases"]:
+        w = np.array(ph["weights"]) / ph["denominator"]
+        i0, j0 = ph["anchor"]
+        for r in range(1, want.shape[0] + 1):
+            for c in range(1, want.shape[1] + 1):
+                if [r % 2, c % 2] != ph["phase"]:
+                    continue
+                R, C = (r + 1) // 2, (c + 1) // 2
+                for i in range(w.shape[0]):
+                    for j in range(w.shape[1]):
+                        rr = min(max(R - (i - i0), 1), g.shape[0])
+                        cc = min(max(C - (j - j0), 1), g.shape[1])
+                        got[r - 1, c - 1] += w[i, j] * g[rr - 1, cc - 1]
+    np.testing.assert_allclose(got, want, atol=1e-12)
+
+
+def test_explain_report_prints_the_kernel_like_the_paper():
+    r = invoke("explain", "bartlett")
+    assert "1/16 ⎡1 2 1⎤" in r.output
+    assert "= 1/4 [1 2 1]ᵀ · 1/4 [1 2 1]" in r.output
+
+
+def test_explain_plot_writes_a_png(tmp_path):
+    out = tmp_path / "box4.png"
+    r = invoke("explain", "--plot", str(out), "box4 *v g")
+    assert r.exit_code == 0, r.output
+    assert oiio.ImageInput.open(str(out)) is not None
+
+
+def test_bad_expression_exits_2_with_a_caret():
+    r = invoke("explain", "bartlet ⊗ g")
+    assert r.exit_code == 2
+    assert "did you mean 'bartlett'?" in r.output
+    assert "  ^^^^^^^" in r.output
+
+
+def write_exr(path, pixels, pixel_type="float"):
+    spec = oiio.ImageSpec(pixels.shape[1], pixels.shape[0], pixels.shape[2], pixel_type)
+    out = oiio.ImageOutput.create(str(path))
+    out.open(str(path), spec)
+    out.write_image(pixels.astype(np.float32))
+    out.close()
+
+
+def read(path):
+    inp = oiio.ImageInput.open(str(path))
+    spec = inp.spec()
+    px = inp.read_image("float")
+    inp.close()
+    return px, spec
+
+
+@pytest.mark.parametrize("pixel_type, tol", [("float", 1e-6), ("half", 2e-3)])
+def test_apply_cpu_exr_in_exr_out_keeps_the_type(tmp_path, pixel_type, tol):
+    g = np.random.default_rng(1).random((9, 7, 3)).astype(np.float32)
+    src, dst = tmp_path / "in.exr", tmp_path / "out.exr"
+    write_exr(src, g, pixel_type)
+    r = invoke("apply", "--backend", "cpu", "quadratic *v g", str(src), str(dst))
+    assert r.exit_code == 0, r.output
+    px, spec = read(dst)
+    assert spec.format == oiio.TypeDesc(pixel_type)
+    g_read, _ = read(src)
+    want = reference.run(parse("quadratic *v g"), g_read.astype(np.float64))
+    np.testing.assert_allclose(px, want, atol=tol)
+
+
+def test_apply_cpu_png(tmp_path):
+    g = (np.random.default_rng(2).random((8, 8, 3)) * 255).astype(np.uint8)
+    src, dst = tmp_path / "in.png", tmp_path / "out.png"
+    out = oiio.ImageOutput.create(str(src))
+    out.open(str(src), oiio.ImageSpec(8, 8, 3, "uint8"))
+    out.write_image(g)
+    out.close()
+    r = invoke("apply", "--backend", "cpu", "doosabin", str(src), str(dst))
+    assert r.exit_code == 0, r.output
+    px, spec = read(dst)
+    assert (spec.width, spec.height) == (16, 16) and spec.format == oiio.TypeDesc("uint8")
+
+
+def test_apply_missing_input_exits_3(tmp_path):
+    r = invoke("apply", "--backend", "cpu", "box", str(tmp_path / "nope.exr"), str(tmp_path / "o.exr"))
+    assert r.exit_code == 3
+    assert "nope.exr" in r.output
+
+
+def test_apply_refuses_to_overwrite_its_input(tmp_path):
+    src = tmp_path / "in.exr"
+    write_exr(src, np.zeros((4, 4, 3)))
+    before = src.read_bytes()
+    r = invoke("apply", "--backend", "cpu", "box", str(src), str(src))
+    assert r.exit_code == 4 and src.read_bytes() == before
+
+
+def test_console_script_and_help_do_not_import_heavy_modules():
+    code = ("import sys; from pyramid_cli.cli import main\n"
+            "try:\n    main(['--help'], standalone_mode=False)\nexcept SystemExit:\n    pass\n"
+            "heavy = [m for m in ('numpy', 'OpenImageIO', 'moderngl', 'matplotlib') if m in sys.modules]\n"
+            "print('HEAVY=' + ','.join(heavy))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env={**os.environ})
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip().splitlines()[-1] == "HEAVY="
