@@ -72,6 +72,7 @@ def main() -> None:
     Example:
       pyramid explain 'h_box^↘ ⊗↓ (h_Bartlett ⊗ g)'
       pyramid apply 'quadratic *v g' in.exr half.exr
+      pyramid blur --levels 5 in.exr soft.exr
     """
 
 
@@ -137,28 +138,57 @@ def plan_command(expression, size, as_json: bool) -> None:
     click.echo(json.dumps(to_json(p), ensure_ascii=False) if as_json else render(p))
 
 
+def io_options(f):
+    """Options every command that reads and writes images shares."""
+    options = [
+        click.option("--backend", type=click.Choice(["auto", "gl", "cpu"]), default="auto", show_default=True,
+                     help="gl: OpenGL through headless EGL; cpu: numpy; auto: gl, else cpu with a warning."),
+        click.option("--type", "pixel_type", type=click.Choice(["uint8", "uint16", "half", "float"]),
+                     help="Output pixel type (default: the input's, as the output format allows)."),
+        click.option("--colorspace", type=click.Choice(["auto", "linear", "srgb"]), default="auto",
+                     show_default=True, help="Encoding of integer inputs; filtering is always in linear light."),
+        click.option("--alpha", type=click.Choice(["auto", "straight", "premultiplied", "none"]), default="auto",
+                     show_default=True, help="How the input stores alpha (RGBA is filtered premultiplied)."),
+        click.option("--nan", "nan_policy", type=click.Choice(["keep", "zero", "fail"]), default="keep",
+                     show_default=True, help="What to do with NaN/Inf pixels in float input."),
+        click.option("--dither", is_flag=True, help="Dither 8-bit output."),
+        click.option("--force", is_flag=True, help="Allow OUTPUT to overwrite INPUT."),
+        click.option("-v", "--verbose", is_flag=True, help="Say which backend, colour and alpha rules are in force."),
+        click.option("-q", "--quiet", is_flag=True, help="Print nothing but errors."),
+    ]
+    for option in reversed(options):
+        f = option(f)
+    return f
+
+
+def _process(input_path: str, output_path: str, work, opts: dict) -> None:
+    """Read, transform with ``work(runner, pixels)``, write atomically; report unless --quiet."""
+    from . import io
+    from .run import Runner
+
+    image = io.read_image(input_path, colorspace=opts["colorspace"], alpha=opts["alpha"], nan=opts["nan_policy"])
+    runner = Runner(opts["backend"])
+    try:
+        if opts["verbose"]:
+            click.echo(f"pyramid: {io.describe_rules(image.spec)}; backend {runner.name}", err=True)
+        image.pixels = work(runner, image.pixels)
+    finally:
+        runner.close()
+    io.write_image(output_path, image, pixel_type=opts["pixel_type"], dither=opts["dither"], force=opts["force"],
+                   inputs=(input_path,))
+    if not opts["quiet"]:
+        h, w = image.pixels.shape[:2]
+        click.echo(f"wrote {output_path} ({w}×{h}, {runner.name})")
+
+
 @main.command()
 @click.argument("expression", type=EXPR)
 @click.argument("input_path", metavar="INPUT", type=click.Path(dir_okay=False))
 @click.argument("output_path", metavar="OUTPUT", type=click.Path(dir_okay=False))
-@click.option("--backend", type=click.Choice(["auto", "gl", "cpu"]), default="auto", show_default=True,
-              help="gl: OpenGL through headless EGL; cpu: the numpy reference; auto: gl, else cpu.")
 @click.option("--border", type=click.Choice(["clamp", "mirror", "wrap", "zero"]), default="clamp",
-              show_default=True, help="How pixels outside the image are read.")
-@click.option("--type", "pixel_type", type=click.Choice(["uint8", "uint16", "half", "float"]),
-              help="Output pixel type (default: the input's).")
-@click.option("--colorspace", type=click.Choice(["auto", "linear", "srgb"]), default="auto", show_default=True,
-              help="Encoding of integer inputs; filtering is always in linear light.")
-@click.option("--alpha", type=click.Choice(["auto", "straight", "premultiplied", "none"]), default="auto",
-              show_default=True, help="How the input stores alpha.")
-@click.option("--nan", "nan_policy", type=click.Choice(["keep", "zero", "fail"]), default="keep",
-              show_default=True, help="What to do with NaN/Inf pixels in float input.")
-@click.option("--dither", is_flag=True, help="Dither 8-bit output.")
-@click.option("--force", is_flag=True, help="Allow OUTPUT to overwrite INPUT.")
-@click.option("-v", "--verbose", is_flag=True, help="Say which colour and alpha rules are in force.")
-@click.option("-q", "--quiet", is_flag=True, help="Print nothing but errors.")
-def apply(expression, input_path: str, output_path: str, backend: str, border: str, pixel_type, colorspace,
-          alpha, nan_policy, dither, force, verbose, quiet) -> None:
+              show_default=True, help="How pixels outside the image are read (non-clamp borders run on the CPU).")
+@io_options
+def apply(expression, input_path: str, output_path: str, border: str, **opts) -> None:
     """Apply EXPRESSION to INPUT and write OUTPUT (format from its extension).
 
     \b
@@ -166,18 +196,42 @@ def apply(expression, input_path: str, output_path: str, backend: str, border: s
       pyramid apply 'box4 *v g' render.exr render_half.exr
       pyramid apply --backend cpu 'h_Doo-Sabin ⊗↑ g' small.png big.png
     """
-    from . import io
-    from .run import execute
+    _process(input_path, output_path, lambda runner, px: runner.run_expr(expression, px, border), opts)
 
-    image = io.read_image(input_path, colorspace=colorspace, alpha=alpha, nan=nan_policy)
-    if verbose:
-        click.echo(io.describe_rules(image.spec), err=True)
-    pixels, used = execute(expression, image.pixels, backend=backend, border=border)
-    image.pixels = pixels
-    io.write_image(output_path, image, pixel_type=pixel_type, dither=dither, force=force, inputs=(input_path,))
-    if not quiet:
-        h, w = pixels.shape[:2]
-        click.echo(f"wrote {output_path} ({w}×{h}, {used})", err=False)
+
+@main.command()
+@click.argument("input_path", metavar="INPUT", type=click.Path(dir_okay=False))
+@click.argument("output_path", metavar="OUTPUT", type=click.Path(dir_okay=False))
+@click.option("--levels", "-m", type=click.IntRange(1, 16), default=4, show_default=True,
+              help="Analysis steps down (and synthesis steps back up).")
+@click.option("--analysis", default="box4", show_default=True,
+              help="box, box4, quadratic, cubic, or a ⊗↓ expression.")
+@click.option("--synthesis", default="doosabin", show_default=True,
+              help="nearest, midpoint, doosabin, cubic, fourpoint, or a ⊗↑ expression.")
+@click.option("--quasi", is_flag=True, help="Apply the §5.5 quasi-interpolation prefilter at the coarsest level.")
+@click.option("--allow-mixed-lattice", is_flag=True, help="Do not warn when analysis and synthesis lattices differ.")
+@io_options
+def blur(input_path: str, output_path: str, levels: int, analysis: str, synthesis: str, quasi: bool,
+         allow_mixed_lattice: bool, **opts) -> None:
+    """Pyramidal blur: LEVELS analysis steps, then synthesis back to the input size.
+
+    Defaults are the paper's Figure 3b: 4×4 box analysis, Doo-Sabin synthesis.
+
+    \b
+    Example:
+      pyramid blur --levels 5 render.exr soft.exr
+      pyramid blur --analysis box --synthesis doosabin photo.png blocky.png
+    """
+    from .pyramids import blur_plan, lattice_mismatch
+
+    warning = None if allow_mixed_lattice else lattice_mismatch(analysis, synthesis)
+    if warning and not opts["quiet"]:
+        click.echo(f"pyramid: warning: {warning}", err=True)
+
+    def work(runner, px):
+        return runner.run_plan(blur_plan(px.shape[:2], levels, analysis, synthesis, quasi), px)
+
+    _process(input_path, output_path, work, opts)
 
 
 def run() -> None:  # console-script entry point

@@ -334,10 +334,21 @@ def _ceil(x) -> int:
 # ------------------------------------------------------------------ planning
 def plan(expr: Expr, size: tuple[int, int]) -> Plan:
     """Plan ``expr`` for an input of ``size`` = (rows, columns)."""
+    return plan_steps(steps(expr), size, text=_text(expr), paper=algebra.paper_fetches(expr))
+
+
+def plan_steps(step_list, size: tuple[int, int], crops: dict[int, tuple[int, int]] | None = None,
+               text: str = "", paper: float | None = None) -> Plan:
+    """Plan written steps ``(op, filter, stride)`` (innermost first) as one job.
+
+    ``crops`` maps a step's index to the size its result is cut to (top-left
+    kept), as pyramid synthesis does to return to an odd level's size.
+    """
+    crops = crops or {}
     images = [Image(tuple(size))]
     passes: list[Pass] = []
     current = 0
-    for op, f, stride in steps(expr):
+    for index, (op, f, stride) in enumerate(step_list):
         stages = recipe(op, f, stride)
         if isinstance(f, Named) and not recipe_kernel_matches(stages, op, f, stride):
             raise AssertionError(f"recipe for {f.key} {op.unicode} does not match its mask")  # planner bug
@@ -351,6 +362,8 @@ def plan(expr: Expr, size: tuple[int, int]) -> Plan:
             h = -(-base[0] * st.period[0] // st.stride[0])
             w = -(-base[1] * st.period[1] // st.stride[1])
             sizes.append((h, w))
+        if index in crops:
+            sizes[-1] = tuple(crops[index])
         for i, st in enumerate(stages):
             images.append(Image(sizes[i]))
             phases = {}
@@ -367,7 +380,7 @@ def plan(expr: Expr, size: tuple[int, int]) -> Plan:
         images.append(Image(tuple(size)))
         passes.append(Pass("g (copy)", 1, (1, 1), (1, 1), {(0, 0): [Tap(0, (Fraction(0), Fraction(0)),
                                                                           Fraction(1), False)]}))
-    return Plan(images, passes, _text(expr), algebra.paper_fetches(expr))
+    return Plan(images, passes, text, paper)
 
 
 def _infer_guards(images: list[Image], passes: list[Pass], first: int) -> None:

@@ -1,16 +1,79 @@
-"""Choose an executor for an expression and run it (GL, or the numpy reference)."""
+"""Choose an executor and run plans on it: GL through EGL, or numpy on the CPU.
+
+``auto`` tries GL and falls back to the CPU with a one-line warning when no
+EGL/OpenGL context can be made; ``gl`` fails instead (exit code 6).
+"""
 
 from __future__ import annotations
+
+import sys
 
 import numpy as np
 
 from .border import Border
+from .errors import BackendError
 from .expr import Expr
+from .plan import Plan
+
+BACKENDS = ["auto", "gl", "cpu"]
+
+
+class Runner:
+    """Holds one executor (one GL context, one program cache) for a whole command or batch."""
+
+    def __init__(self, backend: str = "auto", precision: str = "float", warn=None):
+        self.requested = backend
+        self.precision = precision
+        self._gl = None
+        self._warn = warn or (lambda msg: print(f"pyramid: warning: {msg}", file=sys.stderr))
+        self.used = "cpu"
+        if backend in ("gl", "auto"):
+            from . import gl
+
+            executor = gl.GLExecutor(precision=precision)
+            try:
+                executor.ctx  # makes the context now, so a missing EGL shows here
+                self._gl = executor
+                self.used = "gl"
+            except BackendError as e:
+                if backend == "gl":
+                    raise
+                self._warn(f"{e.message}; running on the CPU")
+
+    def run_plan(self, plan: Plan, pixels: np.ndarray) -> np.ndarray:
+        """Execute a plan; float32 out."""
+        if self._gl is not None:
+            return self._gl.run(plan, np.asarray(pixels, dtype=np.float32))
+        from . import emulate
+
+        return emulate.run(plan, pixels).astype(np.float32)
+
+    def run_expr(self, expr: Expr, pixels: np.ndarray, border: str = "clamp") -> np.ndarray:
+        """Execute an expression: planned on GL, the numpy reference on the CPU (and for non-clamp borders)."""
+        if self._gl is not None and border == "clamp":
+            from .plan import plan
+
+            return self.run_plan(plan(expr, pixels.shape[:2]), pixels)
+        from . import reference
+
+        return reference.run(expr, pixels, Border.parse(border)).astype(np.float32)
+
+    @property
+    def name(self) -> str:
+        if self._gl is None:
+            return "cpu"
+        info = self._gl.info()
+        return f"gl ({info.get('renderer', 'OpenGL')})"
+
+    def close(self) -> None:
+        if self._gl is not None:
+            self._gl.close()
 
 
 def execute(expr: Expr, pixels: np.ndarray, backend: str = "auto", border: str = "clamp") -> tuple[np.ndarray, str]:
-    """Run ``expr`` on ``pixels`` (H, W, C) float32; returns (result float32, backend used)."""
-    from . import reference
-
-    out = reference.run(expr, pixels, Border.parse(border))
-    return out.astype(np.float32), "cpu reference"
+    """One-shot helper: run ``expr`` on ``pixels``; returns (float32 result, backend used)."""
+    runner = Runner(backend)
+    try:
+        return runner.run_expr(expr, pixels, border), runner.name
+    finally:
+        runner.close()

@@ -1,0 +1,96 @@
+"""Pyramid workflows built from written steps: blur (Strengert, Kraus & Ertl 2006; paper §2, Figure 3).
+
+Each workflow is planned as one job (one :class:`~pyramid_cli.plan.Plan`), so
+an executor runs it without read-back between levels.
+"""
+
+from __future__ import annotations
+
+from fractions import Fraction
+
+from . import algebra
+from .errors import UsageError
+from .expr import Apply, Expr, Input, Named, Op, steps, to_text
+from .plan import Plan, plan_steps
+
+ANALYSIS = ["box", "box4", "quadratic", "cubic"]
+SYNTHESIS = ["nearest", "midpoint", "doosabin", "cubic", "fourpoint"]
+
+
+def level_sizes(size: tuple[int, int], levels: int) -> list[tuple[int, int]]:
+    """Sizes of levels 0..m: each ⌈n/2⌉ of the one before (DESIGN.md §1)."""
+    out = [tuple(size)]
+    for _ in range(levels):
+        h, w = out[-1]
+        out.append((-(-h // 2), -(-w // 2)))
+    return out
+
+
+def _one_step(text: str, op: Op) -> Expr:
+    """A filter name or a one-step expression for the given operator."""
+    from .parse import parse
+
+    expr = parse(text) if any(ch in text for ch in "⊗*(") else parse(f"{text} {op.ascii} g")
+    st = steps(expr)
+    if not st or any(o is not op for o, _, _ in st):
+        raise UsageError(f"'{text}' must use only {op.unicode} for this role")
+    return expr
+
+
+def blur_steps(size: tuple[int, int], levels: int, analysis: str = "box4", synthesis: str = "doosabin",
+               quasi: bool = False):
+    """Written steps and crops of an m-level pyramid blur back to ``size``."""
+    if levels < 1:
+        raise UsageError("--levels must be at least 1")
+    down = steps(_one_step(analysis, Op.DOWN))
+    up = steps(_one_step(synthesis, Op.UP))
+    sizes = level_sizes(size, levels)
+    step_list, crops = [], {}
+    for _ in range(levels):
+        step_list += down
+    if quasi:
+        step_list.append((Op.CONV, Named("quasi"), 1))
+    for k in range(levels, 0, -1):
+        step_list += up
+        crops[len(step_list) - 1] = sizes[k - 1]
+    return step_list, crops
+
+
+def blur_plan(size: tuple[int, int], levels: int, analysis: str = "box4", synthesis: str = "doosabin",
+              quasi: bool = False) -> Plan:
+    step_list, crops = blur_steps(size, levels, analysis, synthesis, quasi)
+    text = f"blur: {levels} level(s), {analysis} ⊗↓ / {synthesis} ⊗↑" + (" + quasi" if quasi else "")
+    return plan_steps(step_list, size, crops, text=text)
+
+
+def lattice_mismatch(analysis: str, synthesis: str) -> str | None:
+    """A warning when analysis and synthesis sit on different lattices (DESIGN.md §4), else None."""
+    down = algebra.lattice(algebra.kernel(_one_step(analysis, Op.DOWN)))[0]
+    up = algebra.lattice(algebra.kernel(_one_step(synthesis, Op.UP)))[0]
+    if down != up:
+        return (f"analysis {analysis} sits on the {down} lattice and synthesis {synthesis} on the {up} one: "
+                "the result shifts by half a fine pixel per level (DESIGN.md §4)")
+    return None
+
+
+def blur_expression(levels: int, analysis: str, synthesis: str) -> Expr:
+    """The blur without crops, as an expression (used to describe its equivalent kernel)."""
+    expr: Expr = Input()
+    for op, f, s in blur_steps((2 ** levels, 2 ** levels), levels, analysis, synthesis)[0]:
+        expr = Apply(op, f, expr, 1, s)
+    return expr
+
+
+def impulse_sigma(levels: int, analysis: str, synthesis: str) -> float:
+    """Standard deviation (input pixels) of the blur's equivalent kernel, averaged over phases."""
+    k = algebra.kernel(blur_expression(levels, analysis, synthesis))
+    total = 0.0
+    for w in k.phases.values():
+        s = sum(w.values())
+        mean = sum(v * d[1] for d, v in w.items()) / s
+        var = sum(v * (d[1] - mean) ** 2 for d, v in w.items()) / s
+        total += float(var)
+    return (total / len(k.phases)) ** 0.5
+
+
+__all__ = ["blur_plan", "level_sizes", "lattice_mismatch", "impulse_sigma", "Fraction", "to_text"]
