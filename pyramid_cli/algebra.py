@@ -94,8 +94,8 @@ class Kernel:
         return (Fraction(self.stride[0], self.period[0]), Fraction(self.stride[1], self.period[1]))
 
 
-def _evaluate(stps: list[Step], r: int, c: int) -> dict[Offset, Fraction]:
-    """Output pixel (r, c) of the chain as a combination of input pixels, unbounded."""
+def _evaluator(stps: list[Step]):
+    """value(level, r, c): a pixel after ``level`` steps as input combination, unbounded, memoised."""
 
     @cache
     def value(level: int, rr: int, cc: int) -> tuple:
@@ -107,16 +107,23 @@ def _evaluate(stps: list[Step], r: int, c: int) -> dict[Offset, Fraction]:
                 acc[k] = acc.get(k, 0) + w * v
         return tuple((k, v) for k, v in acc.items() if v)
 
-    return dict(value(len(stps), r, c))
+    return value
 
 
 def kernel_of_steps(stps: list[Step]) -> Kernel:
+    split = axis_kernels(stps)
+    if split is not None:  # separable chains: two cheap 1-D evaluations, then outer products
+        (pr, sr, rows), (pc, sc, cols) = split
+        phases = {(a, b): {(dr, dc): x * y for dr, x in rw.items() for dc, y in cw.items()}
+                  for a, rw in rows.items() for b, cw in cols.items()}
+        return Kernel((pr, pc), (sr, sc), phases)
     ups = sum(s.op is Op.UP for s in stps)
     downs = sum(s.stride for s in stps if s.op is Op.DOWN)
     p, s = 2 ** ups, 2 ** downs
     # One full output period, far from index 0 so that no sign games matter.
     origin = 8 * p
-    truth = {(r, c): _evaluate(stps, r, c)
+    value = _evaluator(stps)
+    truth = {(r, c): dict(value(len(stps), r, c))
              for r in range(origin + 1, origin + p + 1) for c in range(origin + 1, origin + p + 1)}
     period, stride = [p, p], [s, s]
     for axis in (0, 1):
@@ -130,6 +137,73 @@ def kernel_of_steps(stps: list[Step]) -> Kernel:
     phases = _phases(truth, period, stride)
     assert phases is not None
     return Kernel(tuple(period), tuple(stride), phases)
+
+
+def _split_step(step: Step) -> tuple[dict, dict] | None:
+    """Per-axis 1-D phase weights {phase: {d: w}} of a separable step, or None."""
+    phases = dict(step.weights) if step.op is Op.UP else {(0, 0): step.weights}
+    rows: dict[int, dict[int, Fraction]] = {}
+    cols: dict[int, dict[int, Fraction]] = {}
+    for (pr, pc), w in phases.items():
+        m, (i0, j0) = as_matrix(dict(w))
+        split = separate(m)
+        if split is None or not sum(split[1]):
+            return None
+        col = {i - i0: v for i, v in enumerate(split[0]) if v}
+        row = {j - j0: v for j, v in enumerate(split[1]) if v}
+        if rows.setdefault(pr, col) != col or cols.setdefault(pc, row) != row:
+            return None
+    return rows, cols
+
+
+def _evaluator_1d(axis_steps):
+    """value(level, r): pixel r after ``level`` steps as {input index: weight}, memoised across outputs."""
+
+    @cache
+    def value(level: int, rr: int) -> tuple:
+        if level == 0:
+            return ((rr, Fraction(1)),)
+        op, phases, m = axis_steps[level - 1]
+        if op is Op.UP:
+            w, base = phases[rr % 2], (rr + 1) // 2
+        else:
+            w, base = phases[0], (2 ** m if op is Op.DOWN else 1) * rr
+        acc: dict[int, Fraction] = {}
+        for d, v in w.items():
+            for k, x in value(level - 1, base - d):
+                acc[k] = acc.get(k, 0) + v * x
+        return tuple((k, x) for k, x in acc.items() if x)
+
+    return value
+
+
+def axis_kernels(stps: list[Step]):
+    """For a chain of separable steps: per axis (period, stride, {phase: {d: w}}); else None."""
+    splits = [_split_step(s) for s in stps]
+    if any(sp is None for sp in splits):
+        return None
+    out = []
+    for axis in (0, 1):
+        axis_steps = [(s.op, sp[axis], s.stride) for s, sp in zip(stps, splits, strict=True)]
+        p = 2 ** sum(s.op is Op.UP for s in stps)
+        st = 2 ** sum(s.stride for s in stps if s.op is Op.DOWN)
+        origin = 8 * p
+        value = _evaluator_1d(axis_steps)
+        truth = {r: dict(value(len(axis_steps), r)) for r in range(origin + 1, origin + p + 1)}
+
+        def phases_1d(period: int, stride: int, truth=truth):
+            found: dict[int, dict[int, Fraction]] = {}
+            for r, comb in truth.items():
+                base = stride * -(-r // period)
+                w = {base - k: v for k, v in comb.items()}
+                if found.setdefault(r % period, w) != w:
+                    return None
+            return found
+
+        while p > 1 and st % 2 == 0 and phases_1d(p // 2, st // 2) is not None:
+            p, st = p // 2, st // 2
+        out.append((p, st, phases_1d(p, st)))
+    return tuple(out)
 
 
 def _phases(truth, period, stride) -> dict | None:

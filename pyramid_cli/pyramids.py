@@ -82,15 +82,17 @@ def blur_expression(levels: int, analysis: str, synthesis: str) -> Expr:
 
 
 def impulse_sigma(levels: int, analysis: str, synthesis: str) -> float:
-    """Standard deviation (input pixels) of the blur's equivalent kernel, averaged over phases."""
-    k = algebra.kernel(blur_expression(levels, analysis, synthesis))
+    """Standard deviation (input pixels) of the blur's equivalent kernel along a row, mean over phases."""
+    split = algebra.axis_kernels(algebra.chain_steps(blur_expression(levels, analysis, synthesis)))
+    if split is None:
+        raise UsageError("the blur's filters are not separable")
+    _, _, phases = split[1]
     total = 0.0
-    for w in k.phases.values():
+    for w in phases.values():
         s = sum(w.values())
-        mean = sum(v * d[1] for d, v in w.items()) / s
-        var = sum(v * (d[1] - mean) ** 2 for d, v in w.items()) / s
-        total += float(var)
-    return (total / len(k.phases)) ** 0.5
+        mean = sum(v * d for d, v in w.items()) / s
+        total += float(sum(v * (d - mean) ** 2 for d, v in w.items()) / s)
+    return (total / len(phases)) ** 0.5
 
 
 __all__ = ["blur_plan", "level_sizes", "lattice_mismatch", "impulse_sigma", "Fraction", "to_text"]

@@ -32,7 +32,7 @@ class Runner:
 
             executor = gl.GLExecutor(precision=precision)
             try:
-                executor.ctx  # makes the context now, so a missing EGL shows here
+                _ = executor.ctx  # makes the context now, so a missing EGL shows here
                 self._gl = executor
                 self.used = "gl"
             except BackendError as e:
