@@ -129,3 +129,13 @@ def test_plan_cli_report_and_bad_size():
     assert r.exit_code == 0 and "fetches 3 (paper: 3)" in r.output
     r = CliRunner().invoke(main, ["plan", "quadratic", "--size", "13"])
     assert r.exit_code == 2 and "WIDTHxHEIGHT" in r.output
+
+
+def test_readme_fetch_table_is_generated_and_current():
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    script = Path(__file__).parent.parent / "scripts" / "fetch_table.py"
+    r = subprocess.run([sys.executable, str(script), "--check"], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
