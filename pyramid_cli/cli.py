@@ -234,6 +234,15 @@ def blur(input_path: str, output_path: str, levels: int, analysis: str, synthesi
     _process(input_path, output_path, work, opts)
 
 
+def _register() -> None:
+    from .diff_cli import diff
+
+    main.add_command(diff)
+
+
+_register()
+
+
 def run() -> None:  # console-script entry point
     main(prog_name="pyramid")
 
