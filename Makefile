@@ -34,6 +34,7 @@ lint: $(STAMP)
 	$(PY) -m ruff check pyramid_cli tests
 
 bench: $(STAMP) check-gl
+	$(PY) -m pip install -q -e '.[test,bench]'
 	$(PY) bench/run.py
 
 clean:
