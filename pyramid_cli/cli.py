@@ -8,6 +8,7 @@ commands so that ``pyramid --help`` stays fast.
 from __future__ import annotations
 
 import json
+import os
 import sys
 
 import click
@@ -142,7 +143,8 @@ def io_options(f):
     """Options every command that reads and writes images shares."""
     options = [
         click.option("--backend", type=click.Choice(["auto", "gl", "cpu"]), default="auto", show_default=True,
-                     help="gl: OpenGL through headless EGL; cpu: numpy; auto: gl, else cpu with a warning."),
+                     help="gl: OpenGL through headless EGL; cpu: the numpy reference of the paper's formulas "
+                          "(slow, exact); auto: gl, else cpu with a warning."),
         click.option("--type", "pixel_type", type=click.Choice(["uint8", "uint16", "half", "float"]),
                      help="Output pixel type (default: the input's, as the output format allows)."),
         click.option("--colorspace", type=click.Choice(["auto", "linear", "srgb"]), default="auto",
@@ -161,47 +163,98 @@ def io_options(f):
     return f
 
 
-def _process(input_path: str, output_path: str, work, opts: dict) -> None:
-    """Read, transform with ``work(runner, pixels)``, write atomically; report unless --quiet."""
-    from . import io
+def batch_options(f):
+    """Many inputs in one process: an output template, failure and freshness policies, I/O overlap."""
+    options = [
+        click.option("-o", "--output", "template", metavar="TEMPLATE",
+                     help="Output path template for several inputs: {stem} {name} {ext} {dir}."),
+        click.option("--keep-going", is_flag=True, help="Go on past a bad file; report failures at the end."),
+        click.option("--skip-existing", is_flag=True, help="Skip inputs whose output is newer (like make)."),
+        click.option("-j", "--jobs", type=click.IntRange(1, 64), default=2, show_default=True,
+                     help="Threads decoding/encoding images while the GPU works on another."),
+    ]
+    for option in reversed(options):
+        f = option(f)
+    return f
+
+
+def _process(paths: tuple[str, ...], work, opts: dict) -> None:
+    """Read each input, ``work(runner, pixels)``, write atomically; one runner for the whole batch."""
+    from . import batch, io
     from .run import Runner
 
-    image = io.read_image(input_path, colorspace=opts["colorspace"], alpha=opts["alpha"], nan=opts["nan_policy"])
+    jobs = batch.plan_jobs(list(paths), opts["template"])
+    quiet = opts["quiet"]
     runner = Runner(opts["backend"])
-    try:
+
+    def read(job):
+        image = io.read_image(job.input, colorspace=opts["colorspace"], alpha=opts["alpha"], nan=opts["nan_policy"])
+        bad = io.count_nonfinite(image.pixels) if opts["nan_policy"] == "keep" else 0
+        if bad and not quiet:
+            click.echo(f"pyramid: warning: {job.input}: {bad} NaN/Inf value(s) kept; they spread through the "
+                       "filter (--nan zero or --nan fail to change that)", err=True)
         if opts["verbose"]:
             click.echo(f"pyramid: {io.describe_rules(image.spec)}; backend {runner.name}", err=True)
+        return image
+
+    def compute(image):
         image.pixels = work(runner, image.pixels)
+        return image
+
+    def write(job, image):
+        out_dir = os.path.dirname(job.output)
+        if out_dir and len(jobs) > 1:
+            os.makedirs(out_dir, exist_ok=True)
+        io.write_image(job.output, image, pixel_type=opts["pixel_type"], dither=opts["dither"],
+                       force=opts["force"], inputs=(job.input,))
+        if not quiet and not show_bar:
+            h, w = image.pixels.shape[:2]
+            click.echo(f"wrote {job.output} ({w}×{h}, {runner.name})")
+
+    show_bar = len(jobs) > 1 and not quiet and sys.stderr.isatty()
+    try:
+        if show_bar:
+            with click.progressbar(length=len(jobs), label="pyramid", file=sys.stderr) as bar:
+                report = batch.run(jobs, read, compute, write, keep_going=opts["keep_going"],
+                                   skip_existing=opts["skip_existing"], workers=opts["jobs"],
+                                   progress=lambda job: bar.update(1))
+        else:
+            report = batch.run(jobs, read, compute, write, keep_going=opts["keep_going"],
+                               skip_existing=opts["skip_existing"], workers=opts["jobs"])
     finally:
         runner.close()
-    io.write_image(output_path, image, pixel_type=opts["pixel_type"], dither=opts["dither"], force=opts["force"],
-                   inputs=(input_path,))
-    if not opts["quiet"]:
-        h, w = image.pixels.shape[:2]
-        click.echo(f"wrote {output_path} ({w}×{h}, {runner.name})")
+    if len(jobs) == 1 and report.failed:
+        raise report.failed[0][1]
+    if not quiet and len(jobs) > 1:
+        click.echo(f"pyramid: {len(report.done)} written, {len(report.skipped)} up to date, "
+                   f"{len(report.failed)} failed", err=True)
+    for _job, err in report.failed:
+        click.echo(f"pyramid: error: {err}", err=True)
+    if report.failed:
+        sys.exit(report.exit_code)
 
 
 @main.command()
 @click.argument("expression", type=EXPR)
-@click.argument("input_path", metavar="INPUT", type=click.Path(dir_okay=False))
-@click.argument("output_path", metavar="OUTPUT", type=click.Path(dir_okay=False))
+@click.argument("paths", metavar="INPUT OUTPUT | INPUT... -o TEMPLATE", nargs=-1, required=True)
 @click.option("--border", type=click.Choice(["clamp", "mirror", "wrap", "zero"]), default="clamp",
               show_default=True, help="How pixels outside the image are read (non-clamp borders run on the CPU).")
 @io_options
-def apply(expression, input_path: str, output_path: str, border: str, **opts) -> None:
+@batch_options
+def apply(expression, paths, border: str, **opts) -> None:
     """Apply EXPRESSION to INPUT and write OUTPUT (format from its extension).
 
     \b
     Example:
       pyramid apply 'box4 *v g' render.exr render_half.exr
       pyramid apply --backend cpu 'h_Doo-Sabin ⊗↑ g' small.png big.png
+      pyramid apply 'quadratic *v g' 'frames/*.exr' -o 'half/{stem}.exr'
     """
-    _process(input_path, output_path, lambda runner, px: runner.run_expr(expression, px, border), opts)
+    _process(paths, lambda runner, px: runner.run_expr(expression, px, border), opts)
 
 
 @main.command()
-@click.argument("input_path", metavar="INPUT", type=click.Path(dir_okay=False))
-@click.argument("output_path", metavar="OUTPUT", type=click.Path(dir_okay=False))
+@click.argument("paths", metavar="INPUT OUTPUT | INPUT... -o TEMPLATE", nargs=-1, required=True)
 @click.option("--levels", "-m", type=click.IntRange(1, 16), default=4, show_default=True,
               help="Analysis steps down (and synthesis steps back up).")
 @click.option("--analysis", default="box4", show_default=True,
@@ -211,7 +264,8 @@ def apply(expression, input_path: str, output_path: str, border: str, **opts) ->
 @click.option("--quasi", is_flag=True, help="Apply the §5.5 quasi-interpolation prefilter at the coarsest level.")
 @click.option("--allow-mixed-lattice", is_flag=True, help="Do not warn when analysis and synthesis lattices differ.")
 @io_options
-def blur(input_path: str, output_path: str, levels: int, analysis: str, synthesis: str, quasi: bool,
+@batch_options
+def blur(paths, levels: int, analysis: str, synthesis: str, quasi: bool,
          allow_mixed_lattice: bool, **opts) -> None:
     """Pyramidal blur: LEVELS analysis steps, then synthesis back to the input size.
 
@@ -221,17 +275,18 @@ def blur(input_path: str, output_path: str, levels: int, analysis: str, synthesi
     Example:
       pyramid blur --levels 5 render.exr soft.exr
       pyramid blur --analysis box --synthesis doosabin photo.png blocky.png
+      pyramid blur --levels 4 'in/*.exr' -o 'out/{stem}_blur.exr' --keep-going
     """
-    from .pyramids import blur_plan, lattice_mismatch
+    from .pyramids import lattice_mismatch
 
     warning = None if allow_mixed_lattice else lattice_mismatch(analysis, synthesis)
     if warning and not opts["quiet"]:
         click.echo(f"pyramid: warning: {warning}", err=True)
 
     def work(runner, px):
-        return runner.run_plan(blur_plan(px.shape[:2], levels, analysis, synthesis, quasi), px)
+        return runner.run_blur(px, levels, analysis, synthesis, quasi)
 
-    _process(input_path, output_path, work, opts)
+    _process(paths, work, opts)
 
 
 def _register() -> None:

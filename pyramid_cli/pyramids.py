@@ -63,6 +63,23 @@ def blur_plan(size: tuple[int, int], levels: int, analysis: str = "box4", synthe
     return plan_steps(step_list, size, crops, text=text)
 
 
+def blur_reference(pixels, levels: int, analysis: str = "box4", synthesis: str = "doosabin",
+                   quasi: bool = False):
+    """The blur by the numpy reference, level by level, cropping each synthesis to its level's size."""
+    from . import reference
+
+    sizes = level_sizes(pixels.shape[:2], levels)
+    down, up = _one_step(analysis, Op.DOWN), _one_step(synthesis, Op.UP)
+    x = pixels
+    for _ in range(levels):
+        x = reference.run(down, x)
+    if quasi:
+        x = reference.run(Apply(Op.CONV, Named("quasi"), Input()), x)
+    for k in range(levels, 0, -1):
+        x = reference.run(up, x)[:sizes[k - 1][0], :sizes[k - 1][1]]
+    return x
+
+
 def lattice_mismatch(analysis: str, synthesis: str) -> str | None:
     """A warning when analysis and synthesis sit on different lattices (DESIGN.md §4), else None."""
     down = algebra.lattice(algebra.kernel(_one_step(analysis, Op.DOWN)))[0]

@@ -58,6 +58,15 @@ class Runner:
 
         return reference.run(expr, pixels, Border.parse(border)).astype(np.float32)
 
+    def run_blur(self, pixels: np.ndarray, levels: int, analysis: str, synthesis: str,
+                 quasi: bool = False) -> np.ndarray:
+        """Pyramid blur: one planned GL job, or the reference composed level by level on the CPU."""
+        from . import pyramids
+
+        if self._gl is not None:
+            return self.run_plan(pyramids.blur_plan(pixels.shape[:2], levels, analysis, synthesis, quasi), pixels)
+        return pyramids.blur_reference(pixels, levels, analysis, synthesis, quasi).astype(np.float32)
+
     @property
     def name(self) -> str:
         if self._gl is None:

@@ -7,11 +7,20 @@ from click.testing import CliRunner
 from pyramid_cli import emulate, reference
 from pyramid_cli.cli import main
 from pyramid_cli.parse import parse
-from pyramid_cli.pyramids import ANALYSIS, SYNTHESIS, blur_plan, impulse_sigma, lattice_mismatch, level_sizes
+from pyramid_cli.pyramids import (
+    ANALYSIS,
+    SYNTHESIS,
+    blur_plan,
+    blur_reference,
+    impulse_sigma,
+    lattice_mismatch,
+    level_sizes,
+)
 
 
 def reference_blur(g, levels, analysis, synthesis, quasi=False):
-    """m reference analysis steps, then m synthesis steps, each cropped to the level's size."""
+    """m reference analysis steps, then m synthesis steps, each cropped to the level's size (written here,
+    independently of pyramids.blur_reference, which the next test checks against it)."""
     sizes = level_sizes(g.shape[:2], levels)
     x = g
     for _ in range(levels):
@@ -21,6 +30,12 @@ def reference_blur(g, levels, analysis, synthesis, quasi=False):
     for k in range(levels, 0, -1):
         x = reference.run(parse(f"{synthesis} *^ g"), x)[:sizes[k - 1][0], :sizes[k - 1][1]]
     return x
+
+
+def test_library_blur_reference_matches():
+    g = np.random.default_rng(5).random((19, 23, 2))
+    np.testing.assert_allclose(blur_reference(g, 3, "quadratic", "cubic", True),
+                               reference_blur(g, 3, "quadratic", "cubic", True), atol=0)
 
 
 @pytest.mark.parametrize("analysis", ANALYSIS)
