@@ -13,7 +13,7 @@ import sys
 
 import click
 
-from .errors import EXIT_CODES, ExpressionError, PyramidError
+from .errors import EXIT_CODES, ExpressionError, PyramidError, UsageError
 
 EXIT_CODE_HELP = "\b\nExit codes:\n" + "\n".join(f"  {code}  {text}" for code, text in EXIT_CODES.values())
 
@@ -262,10 +262,12 @@ def apply(expression, paths, border: str, **opts) -> None:
 @click.option("--synthesis", default="doosabin", show_default=True,
               help="nearest, midpoint, doosabin, cubic, fourpoint, or a ⊗↑ expression.")
 @click.option("--quasi", is_flag=True, help="Apply the §5.5 quasi-interpolation prefilter at the coarsest level.")
+@click.option("--sigma", type=float, help="Blur strength as a Gaussian sigma in input pixels: picks the levels "
+              "and blends two neighbouring level counts, so the strength changes continuously.")
 @click.option("--allow-mixed-lattice", is_flag=True, help="Do not warn when analysis and synthesis lattices differ.")
 @io_options
 @batch_options
-def blur(paths, levels: int, analysis: str, synthesis: str, quasi: bool,
+def blur(paths, levels: int, analysis: str, synthesis: str, quasi: bool, sigma: float | None,
          allow_mixed_lattice: bool, **opts) -> None:
     """Pyramidal blur: LEVELS analysis steps, then synthesis back to the input size.
 
@@ -283,10 +285,180 @@ def blur(paths, levels: int, analysis: str, synthesis: str, quasi: bool,
     if warning and not opts["quiet"]:
         click.echo(f"pyramid: warning: {warning}", err=True)
 
-    def work(runner, px):
-        return runner.run_blur(px, levels, analysis, synthesis, quasi)
+    if sigma is not None:
+        from .pyramids import blur_plan_sigma
+
+        if quasi:
+            raise UsageError("--quasi and --sigma cannot be combined")
+        _, m, t = blur_plan_sigma((2 ** 10, 2 ** 10), sigma, analysis, synthesis)
+        if not opts["quiet"]:
+            click.echo(f"pyramid: sigma {sigma:g}: {1 - t:.3f} × {m} level(s) + {t:.3f} × {m + 1} "
+                       f"(the blend's equivalent kernel has standard deviation {sigma:g} px)", err=True)
+
+        def work(runner, px):
+            return runner.run_plan(blur_plan_sigma(px.shape[:2], sigma, analysis, synthesis)[0], px)
+    else:
+        def work(runner, px):
+            return runner.run_blur(px, levels, analysis, synthesis, quasi)
 
     _process(paths, work, opts)
+
+
+def _level_path(pattern: str, level: int) -> str:
+    if "{level}" not in pattern:
+        raise UsageError(f"output pattern {pattern!r} needs {{level}}, e.g. out_{{level}}.exr "
+                         "(or use --multipart)")
+    return pattern.replace("{level}", str(level))
+
+
+def _read_one(path: str, opts: dict):
+    from . import io
+
+    return io.read_image(path, colorspace=opts["colorspace"], alpha=opts["alpha"], nan=opts["nan_policy"])
+
+
+@main.command()
+@click.argument("input_path", metavar="INPUT")
+@click.argument("pattern", metavar="OUTPUT_PATTERN")
+@click.option("--levels", "-m", type=click.IntRange(1, 16), default=4, show_default=True)
+@click.option("--analysis", default="box4", show_default=True, help="box, box4, quadratic, cubic or a ⊗↓ expression.")
+@click.option("--laplacian", is_flag=True, help="Write band-pass levels L_k = G_k − expand(G_k+1) and the coarsest "
+              "G_m, which `pyramid collapse` sums back to the input.")
+@click.option("--synthesis", default="doosabin", show_default=True, help="Expansion used by --laplacian.")
+@click.option("--multipart", is_flag=True, help="Write one multi-part EXR (OUTPUT_PATTERN is its path).")
+@click.option("--sheet", type=click.Path(dir_okay=False), help="Also draw all levels side by side (Figure 1a).")
+@io_options
+def levels(input_path, pattern, levels, analysis, laplacian, synthesis, multipart, sheet, **opts) -> None:
+    """Write every level of the analysis pyramid (level 0 is the input).
+
+    \b
+    Example:
+      pyramid levels render.exr 'pyr/render_{level}.exr' --levels 5
+      pyramid levels --laplacian --multipart render.exr bands.exr
+      pyramid collapse bands.exr rebuilt.exr
+    """
+    from . import io
+    from .pyramids import levels_plan
+    from .run import Runner
+
+    image = _read_one(input_path, opts)
+    runner = Runner(opts["backend"])
+    try:
+        outs = runner.run_outputs(levels_plan(image.pixels.shape[:2], levels, analysis, laplacian, synthesis),
+                                  image.pixels)
+    finally:
+        runner.close()
+    stack = outs if laplacian else [image.pixels] + outs
+    images = [io.Image(px, image.spec) for px in stack]
+    write = {"pixel_type": opts["pixel_type"] or ("float" if laplacian else None), "dither": opts["dither"],
+             "force": opts["force"], "inputs": (input_path,)}
+    if laplacian:
+        for im in images:
+            im.spec.attributes["pyramid:synthesis"] = synthesis
+    if multipart:
+        io.write_levels(pattern, images, mode="multipart", **write)
+        written = [pattern]
+    else:
+        written = [_level_path(pattern, k) for k in range(len(images))]
+        for path, im in zip(written, images, strict=True):
+            io.write_image(path, im, **write)
+    if sheet:
+        from .demo import sheet as draw
+
+        panel = draw([im.pixels if not laplacian or k == len(images) - 1 else im.pixels + 0.5
+                      for k, im in enumerate(images)])
+        info = io.ImageInfo(path=sheet, format="png", pixel_type="uint8", channel_names=["R", "G", "B"],
+                            alpha_channel=-1, colorspace="srgb", alpha_mode="none")
+        io.write_image(sheet, io.Image(panel, info), pixel_type="uint8")
+        written.append(sheet)
+    if not opts["quiet"]:
+        for path in written:
+            click.echo(f"wrote {path}")
+
+
+@main.command()
+@click.argument("inputs", nargs=-1, required=True, metavar="BANDS... | BANDS.exr")
+@click.argument("output_path", metavar="OUTPUT")
+@click.option("--synthesis", default=None, help="Expansion the bands were made with (default: as recorded, "
+              "else doosabin).")
+@io_options
+def collapse(inputs, output_path, synthesis, **opts) -> None:
+    """Sum Laplacian bands back to the image: G_k = L_k + expand(G_k+1).
+
+    INPUT is the multi-part EXR of `pyramid levels --laplacian --multipart`, or the
+    level files L_0 … L_m-1, G_m in order.
+
+    \b
+    Example:
+      pyramid collapse bands.exr rebuilt.exr
+      pyramid collapse 'pyr/band_*.exr' rebuilt.exr
+    """
+    from . import batch, io
+    from .pyramids import collapse_plan
+    from .run import Runner
+
+    paths = batch.expand(list(inputs))
+    if len(paths) == 1:
+        bands = io.read_parts(paths[0], colorspace=opts["colorspace"], alpha=opts["alpha"], nan=opts["nan_policy"])
+    else:
+        bands = [_read_one(p, opts) for p in sorted(paths, key=_level_key)]
+    if len(bands) < 2:
+        raise UsageError(f"collapse needs at least two levels, {paths[0]} holds {len(bands)}")
+    synthesis = synthesis or bands[0].spec.attributes.get("pyramid:synthesis", "doosabin")
+    sizes = [b.pixels.shape[:2] for b in bands]
+    runner = Runner(opts["backend"])
+    try:
+        (out,) = runner.run_outputs(collapse_plan(sizes, synthesis), [b.pixels for b in bands])
+    finally:
+        runner.close()
+    io.write_image(output_path, io.Image(out, bands[0].spec), pixel_type=opts["pixel_type"], dither=opts["dither"],
+                   force=opts["force"], inputs=paths)
+    if not opts["quiet"]:
+        click.echo(f"wrote {output_path} ({sizes[0][1]}×{sizes[0][0]}, {runner.name})")
+
+
+def _level_key(path: str):
+    import re
+
+    digits = re.findall(r"\d+", os.path.basename(path))
+    return (int(digits[-1]) if digits else 0, path)
+
+
+@main.command()
+@click.argument("paths", metavar="INPUT OUTPUT | INPUT... -o TEMPLATE", nargs=-1, required=True)
+@click.option("--analysis", default="quadratic", show_default=True,
+              help="box, box4, quadratic, cubic or a ⊗↓ expression.")
+@click.option("--tile", type=click.IntRange(8, 4096), default=64, show_default=True, help="Tile size.")
+@io_options
+@batch_options
+def mipmap(paths, analysis, tile, **opts) -> None:
+    """Write a tiled MIP-mapped EXR or TIFF down to 1×1 (what maketx makes, with better filters).
+
+    \b
+    Example:
+      pyramid mipmap albedo.exr albedo.tx.exr
+      pyramid mipmap --analysis cubic 'tex/*.png' -o 'tx/{stem}.tif'
+    """
+    from . import batch, io
+    from .pyramids import levels_plan, mip_levels
+    from .run import Runner
+
+    jobs = batch.plan_jobs(list(paths), opts["template"])
+    runner = Runner(opts["backend"])
+    try:
+        for job in jobs:
+            if opts["skip_existing"] and batch.is_fresh(job):
+                continue
+            image = _read_one(job.input, opts)
+            m = mip_levels(image.pixels.shape[:2])
+            outs = runner.run_outputs(levels_plan(image.pixels.shape[:2], m, analysis), image.pixels) if m else []
+            images = [io.Image(px, image.spec) for px in [image.pixels] + outs]
+            io.write_levels(job.output, images, mode="mipmap", tile=tile, pixel_type=opts["pixel_type"],
+                            dither=opts["dither"], force=opts["force"], inputs=(job.input,))
+            if not opts["quiet"]:
+                click.echo(f"wrote {job.output} ({len(images)} MIP levels, {runner.name})")
+    finally:
+        runner.close()
 
 
 def _register() -> None:

@@ -34,12 +34,22 @@ def sample(src: np.ndarray, guard_lo: tuple[int, int], rows: np.ndarray, cols: n
 
 def run(plan: Plan, image: np.ndarray) -> np.ndarray:
     """Execute ``plan`` on ``image`` (H, W) or (H, W, C); returns the output's logical pixels, float64."""
-    stored: list[np.ndarray | None] = [np.asarray(image, dtype=np.float64)]
+    return _logical(plan, _execute(plan, image), plan.outputs[-1])
+
+
+def _execute(plan: Plan, image) -> list[np.ndarray]:
+    """``image``: one array, or one per ``plan.inputs``."""
+    images = image if isinstance(image, (list, tuple)) else [image]
+    assert len(images) == len(plan.inputs)
+    stored: list[np.ndarray | None] = [None] * len(plan.images)
+    for index, px in zip(plan.inputs, images, strict=True):
+        stored[index] = np.asarray(px, dtype=np.float64)
+    channels = stored[0].shape[2:]
     for ps in plan.passes:
         target = plan.images[ps.target]
         h, w = target.stored
         top, left = target.guard[0], target.guard[1]
-        out = np.zeros((h, w) + stored[0].shape[2:])
+        out = np.zeros((h, w) + channels)
         r_all = np.arange(h) + 1 - top
         c_all = np.arange(w) + 1 - left
         (pr, pc), (sr, sc) = ps.period, ps.stride
@@ -54,10 +64,20 @@ def run(plan: Plan, image: np.ndarray) -> np.ndarray:
             for t in taps:
                 acc += float(t.weight) * _read(plan, stored, t, base_r, base_c)
             out[np.ix_(ri, ci)] = acc
-        stored.append(out)
-    last = plan.images[-1]
-    t, l, b, r = last.guard
-    return stored[-1][t:t + last.size[0], l:l + last.size[1]]
+        stored[ps.target] = out
+    return stored
+
+
+def run_outputs(plan: Plan, image: np.ndarray) -> list[np.ndarray]:
+    """Like :func:`run`, returning every image in ``plan.outputs``."""
+    stored = _execute(plan, image)
+    return [_logical(plan, stored, i) for i in plan.outputs]
+
+
+def _logical(plan: Plan, stored, index: int) -> np.ndarray:
+    img = plan.images[index]
+    t, l = img.guard[0], img.guard[1]
+    return stored[index][t:t + img.size[0], l:l + img.size[1]]
 
 
 def _read(plan: Plan, stored, t: Tap, base_r: np.ndarray, base_c: np.ndarray) -> np.ndarray:

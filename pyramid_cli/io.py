@@ -418,7 +418,7 @@ def output_pixel_type(fmt: str, pixel_type: str) -> str:
 
 
 def read_image(path: str | os.PathLike[str], *, colorspace: str = "auto",
-               alpha: str = "auto", nan: str = "keep") -> Image:
+               alpha: str = "auto", nan: str = "keep", subimage: int = 0) -> Image:
     """Read an image into linear, premultiplied float32 pixels.
 
     Parameters
@@ -472,7 +472,7 @@ def read_image(path: str | os.PathLike[str], *, colorspace: str = "auto",
     if st.st_size == 0:
         raise InputError(f"cannot read {p}: the file is empty")
 
-    data, spec, fmt = _read_pixels(p)
+    data, spec, fmt = _read_pixels(p, subimage)
     names = [str(n) for n in spec.channelnames] or _default_names(spec.nchannels)
     pixel_type = _type_name(spec.format)
     alpha_channel = _find_alpha(spec, names)
@@ -546,8 +546,29 @@ def read_image(path: str | os.PathLike[str], *, colorspace: str = "auto",
     return Image(pixels=pixels, spec=info)
 
 
-def _read_pixels(p: str) -> tuple[np.ndarray, oiio.ImageSpec, str]:
-    """Open and fully read ``p``; float64 pixels normalised to the stored range."""
+def count_parts(path: str | os.PathLike[str]) -> int:
+    """How many subimages (EXR parts) a file holds; 1 for ordinary images."""
+    p = os.fspath(path)
+    inp = oiio.ImageInput.open(p)
+    if inp is None:
+        raise InputError(f"cannot read {p}: {_one_line(oiio.geterror(), 'open failed')}")
+    try:
+        n = 1
+        while inp.seek_subimage(n, 0):
+            n += 1
+        return n
+    finally:
+        inp.close()
+
+
+def read_parts(path: str | os.PathLike[str], **options) -> list[Image]:
+    """Every subimage of a multi-part file (as :func:`read_image` reads one), in order."""
+    first = read_image(path, **options)
+    return [first] + [read_image(path, subimage=k, **options) for k in range(1, count_parts(path))]
+
+
+def _read_pixels(p: str, subimage: int = 0) -> tuple[np.ndarray, oiio.ImageSpec, str]:
+    """Open and fully read ``p`` (one subimage); float64 pixels normalised to the stored range."""
     config = oiio.ImageSpec()
     # Ask for the stored values: without this hint OpenImageIO premultiplies
     # straight-alpha files itself, in the encoded (non-linear) space.
@@ -560,6 +581,8 @@ def _read_pixels(p: str) -> tuple[np.ndarray, oiio.ImageSpec, str]:
         msg = _one_line(oiio.geterror(), "not an image file OpenImageIO can read")
         raise InputError(f"cannot read {p}: {msg}")
     try:
+        if subimage and not inp.seek_subimage(subimage, 0):
+            raise InputError(f"cannot read {p}: it has no part {subimage}")
         spec = inp.spec()
         fmt = str(inp.format_name())
         if spec.deep:
@@ -574,7 +597,7 @@ def _read_pixels(p: str) -> tuple[np.ndarray, oiio.ImageSpec, str]:
         uniform = len({str(t) for t in spec.channelformats}) <= 1
         read_type = native if native in ("uint8", "uint16") and uniform else "float"
         try:
-            data = inp.read_image(0, 0, 0, spec.nchannels, read_type)
+            data = inp.read_image(subimage, 0, 0, spec.nchannels, read_type)
         except Exception as exc:
             data = None
             err = str(exc)
@@ -730,6 +753,62 @@ def write_image(path: str | os.PathLike[str], image: Image, *,
     UsageError
         An unknown ``pixel_type``, ``colorspace`` or ``alpha`` value.
     """
+    spec, data = _encode(path, image, pixel_type=pixel_type, colorspace=colorspace, alpha=alpha, dither=dither,
+                         compression=compression, force=force, inputs=inputs)
+    out_path = os.fspath(path)
+    _atomic_write(out_path, os.path.dirname(os.path.abspath(out_path)), spec, data)
+
+
+def write_levels(path: str | os.PathLike[str], images: list[Image], *, mode: str = "mipmap",
+                 tile: int = 64, **options) -> None:
+    """Write several images into one file atomically: MIP levels (tiled) or EXR parts.
+
+    Parameters
+    ----------
+    mode : {"mipmap", "multipart"}
+        ``mipmap``: level 0 first, each a MIP level of a tiled file that
+        OpenImageIO's ImageInput and TextureSystem read as MIP-mapped (EXR, TIFF).
+        ``multipart``: one subimage per image (multi-part OpenEXR), named ``level{k}``.
+    options
+        As for :func:`write_image` (pixel_type, colorspace, alpha, dither, compression, force, inputs).
+    """
+    out_path = os.fspath(path)
+    encoded = [_encode(out_path, im, **options) for im in images]
+    fmt = _format_from_path(out_path)
+    full = encoded[0][0]
+    if mode == "mipmap":
+        for spec, _ in encoded:
+            spec.tile_width = spec.tile_height = tile
+            spec.attribute("textureformat", "Plain Texture")
+            if fmt == "openexr":
+                spec.attribute("openexr:levelmode", 1)     # MIPMAP_LEVELS
+                spec.attribute("openexr:roundingmode", 1)  # ROUND_UP: level sizes ⌈n/2⌉, as ⊗↓ gives
+    else:
+        for k, (spec, _) in enumerate(encoded):
+            spec.attribute("name", f"level{k}")
+            # OpenEXR parts share one display window: level 0's
+            spec.full_x, spec.full_y, spec.full_width, spec.full_height = 0, 0, full.width, full.height
+    with atomic_path(out_path) as tmp:
+        out = oiio.ImageOutput.create(tmp)
+        feature = "mipmap" if mode == "mipmap" else "multiimage"
+        if out is None or not out.supports(feature):
+            raise OutputError(f"cannot write {out_path}: the {fmt} format cannot hold "
+                              f"{'MIP levels' if mode == 'mipmap' else 'several images'}")
+        ok = out.open(tmp, encoded[0][0], "Create") if mode == "mipmap" else \
+            out.open(tmp, tuple(spec for spec, _ in encoded))
+        for k, (spec, data) in enumerate(encoded):
+            if k:
+                ok = ok and out.open(tmp, spec, "AppendMIPLevel" if mode == "mipmap" else "AppendSubimage")
+            ok = ok and out.write_image(data)
+        ok = out.close() and ok
+        if not ok:
+            why = _one_line(out.geterror() or oiio.geterror(), "write failed")
+            raise OutputError(f"cannot write {out_path}: {why}")
+
+
+def _encode(path, image: Image, *, pixel_type=None, colorspace=None, alpha=None, dither=False, compression=None,
+            force=False, inputs=()) -> tuple[oiio.ImageSpec, np.ndarray]:
+    """The spec and encoded pixels :func:`write_image` would write (checks included)."""
     out_path = os.fspath(path)
     info = image.spec
     if pixel_type is not None:
@@ -842,7 +921,7 @@ def write_image(path: str | os.PathLike[str], image: Image, *,
     if compression is not None:
         spec.attribute("compression", compression)
 
-    _atomic_write(out_path, folder, spec, data)
+    return spec, data
 
 
 def _atomic_write(out_path: str, folder: str, spec: oiio.ImageSpec, data: np.ndarray) -> None:

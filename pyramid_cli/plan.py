@@ -77,10 +77,16 @@ class Plan:
     passes: list[Pass]
     expression: str
     paper_fetches: float | None = None
+    outputs: list[int] = field(default_factory=list)  # images read back, in order; default: the last
+    inputs: list[int] = field(default_factory=lambda: [0])  # images uploaded, in order
+
+    def __post_init__(self):
+        if not self.outputs:
+            self.outputs = [len(self.images) - 1]
 
     @property
     def output(self) -> Image:
-        return self.images[-1]
+        return self.images[self.outputs[-1]]
 
     @property
     def fetches(self) -> float:
@@ -337,50 +343,75 @@ def plan(expr: Expr, size: tuple[int, int]) -> Plan:
     return plan_steps(steps(expr), size, text=_text(expr), paper=algebra.paper_fetches(expr))
 
 
-def plan_steps(step_list, size: tuple[int, int], crops: dict[int, tuple[int, int]] | None = None,
-               text: str = "", paper: float | None = None) -> Plan:
-    """Plan written steps ``(op, filter, stride)`` (innermost first) as one job.
+class Builder:
+    """Assembles one job from written steps and combinations; any image can be read back."""
 
-    ``crops`` maps a step's index to the size its result is cut to (top-left
-    kept), as pyramid synthesis does to return to an odd level's size.
-    """
-    crops = crops or {}
-    images = [Image(tuple(size))]
-    passes: list[Pass] = []
-    current = 0
-    for index, (op, f, stride) in enumerate(step_list):
+    def __init__(self, size: tuple[int, int]):
+        self.images = [Image(tuple(size))]
+        self.passes: list[Pass] = []
+        self.inputs = [0]
+
+    def add_input(self, size: tuple[int, int]) -> int:
+        """Another uploaded image (before any pass); returns its index."""
+        assert not self.passes
+        self.images.append(Image(tuple(size)))
+        self.inputs.append(len(self.images) - 1)
+        return self.inputs[-1]
+
+    def step(self, source: int, op: Op, f, stride: int = 1, crop: tuple[int, int] | None = None) -> int:
+        """One written operator on image ``source`` (read clamped); returns the result's image index.
+
+        ``crop`` cuts the result to a size (top-left kept), as pyramid synthesis does for odd levels.
+        """
         stages = recipe(op, f, stride)
         if isinstance(f, Named) and not recipe_kernel_matches(stages, op, f, stride):
             raise AssertionError(f"recipe for {f.key} {op.unicode} does not match its mask")  # planner bug
-        first = len(images)
-        in_size = images[current].size
-        # logical sizes of each stage's output (a stage reading stage k takes its size)
-        sizes = []
-        for st in stages:
+        first = len(self.images)
+        sizes: list[tuple[int, int]] = []
+        for st in stages:  # a stage reading stage k takes its size
             srcs = {src for _, parts in st.phases for src, _ in parts}
-            base = in_size if max(srcs) == -1 else sizes[max(srcs)]
-            h = -(-base[0] * st.period[0] // st.stride[0])
-            w = -(-base[1] * st.period[1] // st.stride[1])
-            sizes.append((h, w))
-        if index in crops:
-            sizes[-1] = tuple(crops[index])
+            base = self.images[source].size if max(srcs) == -1 else sizes[max(srcs)]
+            sizes.append((-(-base[0] * st.period[0] // st.stride[0]), -(-base[1] * st.period[1] // st.stride[1])))
+        if crop is not None:
+            sizes[-1] = tuple(crop)
         for i, st in enumerate(stages):
-            images.append(Image(sizes[i]))
+            self.images.append(Image(sizes[i]))
             phases = {}
             for ph, parts in st.phases:
                 taps = []
                 for src, items in parts:
-                    taps += taps_for(dict(items), current if src == -1 else first + src)
+                    taps += taps_for(dict(items), source if src == -1 else first + src)
                 phases[ph] = taps
             label = f"{_label(op, f)}" + (f" [{i + 1}/{len(stages)}]" if len(stages) > 1 else "")
-            passes.append(Pass(label, first + i, st.period, st.stride, phases))
-        _infer_guards(images, passes[-len(stages):], first)
-        current = len(images) - 1
-    if not passes:  # the identity "g": one copy pass
-        images.append(Image(tuple(size)))
-        passes.append(Pass("g (copy)", 1, (1, 1), (1, 1), {(0, 0): [Tap(0, (Fraction(0), Fraction(0)),
-                                                                          Fraction(1), False)]}))
-    return Plan(images, passes, text, paper)
+            self.passes.append(Pass(label, first + i, st.period, st.stride, phases))
+        _infer_guards(self.images, self.passes[-len(stages):], first)
+        return len(self.images) - 1
+
+    def combine(self, terms: list[tuple[int, Fraction]], label: str) -> int:
+        """Σ weight · image, pixel by pixel, over images of one size (Laplacian bands, collapse)."""
+        size = self.images[terms[0][0]].size
+        assert all(self.images[i].size == size for i, _ in terms)
+        self.images.append(Image(size))
+        taps = [Tap(i, (Fraction(0), Fraction(0)), Fraction(w), False) for i, w in terms]
+        self.passes.append(Pass(label, len(self.images) - 1, (1, 1), (1, 1), {(0, 0): taps}))
+        return len(self.images) - 1
+
+    def build(self, text: str, outputs: list[int] | None = None, paper: float | None = None) -> Plan:
+        if not self.passes:  # the identity "g": one copy pass
+            self.combine([(0, Fraction(1))], "g (copy)")
+        return Plan(self.images, self.passes, text, paper, outputs or [len(self.images) - 1], self.inputs)
+
+
+def plan_steps(step_list, size: tuple[int, int], crops: dict[int, tuple[int, int]] | None = None,
+               text: str = "", paper: float | None = None) -> Plan:
+    """Plan written steps ``(op, filter, stride)`` (innermost first) as one job;
+    ``crops`` maps a step's index to the size its result is cut to."""
+    crops = crops or {}
+    b = Builder(size)
+    current = 0
+    for index, (op, f, stride) in enumerate(step_list):
+        current = b.step(current, op, f, stride, crops.get(index))
+    return b.build(text, paper=paper)
 
 
 def _infer_guards(images: list[Image], passes: list[Pass], first: int) -> None:

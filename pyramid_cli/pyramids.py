@@ -11,7 +11,7 @@ from fractions import Fraction
 from . import algebra
 from .errors import UsageError
 from .expr import Apply, Expr, Input, Named, Op, steps, to_text
-from .plan import Plan, plan_steps
+from .plan import Builder, Plan, plan_steps
 
 ANALYSIS = ["box", "box4", "quadratic", "cubic"]
 SYNTHESIS = ["nearest", "midpoint", "doosabin", "cubic", "fourpoint"]
@@ -54,6 +54,87 @@ def blur_steps(size: tuple[int, int], levels: int, analysis: str = "box4", synth
         step_list += up
         crops[len(step_list) - 1] = sizes[k - 1]
     return step_list, crops
+
+
+def blur_plan_sigma(size: tuple[int, int], sigma: float, analysis: str = "box4", synthesis: str = "doosabin"):
+    """A blur of Gaussian-equivalent ``sigma`` (input pixels): the blend of the m- and (m+1)-level blurs
+    whose variance is sigma², so the strength changes continuously with sigma. Returns (plan, levels, t)."""
+    if not sigma > 0:
+        raise UsageError("--sigma must be positive")
+    sig = [0.0]
+    while sig[-1] < sigma:
+        if len(sig) > 16:
+            raise UsageError(f"--sigma {sigma:g} needs more than 16 levels")
+        sig.append(impulse_sigma(len(sig), analysis, synthesis))
+    m = len(sig) - 2
+    t = (sigma ** 2 - sig[m] ** 2) / (sig[m + 1] ** 2 - sig[m] ** 2)
+    down = steps(_one_step(analysis, Op.DOWN))
+    up = steps(_one_step(synthesis, Op.UP))
+    sizes = level_sizes(size, m + 1)
+    b = Builder(size)
+    g = [0]
+    for _ in range(m + 1):
+        g.append(_run_steps(b, g[-1], down))
+    ends = []
+    for levels in (m, m + 1):
+        x = g[levels]
+        for k in range(levels, 0, -1):
+            x = _run_steps(b, x, up, crop=sizes[k - 1])
+        ends.append(x)
+    out = b.combine([(ends[0], Fraction(1) - Fraction(t)), (ends[1], Fraction(t))],
+                    f"blend {1 - t:.4f} × {m} level(s) + {t:.4f} × {m + 1}")
+    text = f"blur: sigma {sigma:g} = {1 - t:.4f} × {m} + {t:.4f} × {m + 1} levels, {analysis} ⊗↓ / {synthesis} ⊗↑"
+    return b.build(text, outputs=[out]), m, t
+
+
+def _run_steps(b: Builder, source: int, step_list, crop=None) -> int:
+    for i, (op, f, s) in enumerate(step_list):
+        source = b.step(source, op, f, s, crop if i == len(step_list) - 1 else None)
+    return source
+
+
+def levels_plan(size: tuple[int, int], levels: int, analysis: str = "box4", laplacian: bool = False,
+                synthesis: str = "doosabin") -> Plan:
+    """Levels 1..m of the analysis pyramid, or with ``laplacian`` the bands L_0..L_{m−1} and G_m
+    (L_k = G_k − expand(G_{k+1}), cropped to level k), as one job."""
+    if levels < 1:
+        raise UsageError("--levels must be at least 1")
+    down = steps(_one_step(analysis, Op.DOWN))
+    sizes = level_sizes(size, levels)
+    b = Builder(size)
+    g = [0]
+    for _ in range(levels):
+        g.append(_run_steps(b, g[-1], down))
+    if not laplacian:
+        return b.build(f"levels: {levels} × {analysis} ⊗↓", outputs=g[1:])
+    up = steps(_one_step(synthesis, Op.UP))
+    bands = []
+    for k in range(levels):
+        expanded = _run_steps(b, g[k + 1], up, crop=sizes[k])
+        bands.append(b.combine([(g[k], Fraction(1)), (expanded, Fraction(-1))], f"L{k} = G{k} − expand(G{k + 1})"))
+    return b.build(f"Laplacian: {levels} × {analysis} ⊗↓, {synthesis} ⊗↑", outputs=bands + [g[-1]])
+
+
+def collapse_plan(sizes: list[tuple[int, int]], synthesis: str = "doosabin") -> Plan:
+    """Rebuild G_0 from L_0..L_{m−1}, G_m (inputs 0..m): G_k = L_k + expand(G_{k+1})."""
+    up = steps(_one_step(synthesis, Op.UP))
+    b = Builder(sizes[0])
+    for sz in sizes[1:]:
+        b.add_input(sz)
+    x = len(sizes) - 1
+    for k in range(len(sizes) - 2, -1, -1):
+        expanded = _run_steps(b, x, up, crop=sizes[k])
+        x = b.combine([(k, Fraction(1)), (expanded, Fraction(1))], f"G{k} = L{k} + expand(G{k + 1})")
+    return b.build(f"collapse: {len(sizes) - 1} level(s), {synthesis} ⊗↑", outputs=[x])
+
+
+def mip_levels(size: tuple[int, int]) -> int:
+    """Reductions until 1×1."""
+    n = 0
+    while max(size) > 1:
+        size = (-(-size[0] // 2), -(-size[1] // 2))
+        n += 1
+    return n
 
 
 def blur_plan(size: tuple[int, int], levels: int, analysis: str = "box4", synthesis: str = "doosabin",

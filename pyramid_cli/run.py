@@ -48,6 +48,15 @@ class Runner:
 
         return emulate.run(plan, pixels).astype(np.float32)
 
+    def run_outputs(self, plan: Plan, images) -> list[np.ndarray]:
+        """Execute a plan with one image per ``plan.inputs``; every image of ``plan.outputs``, float32."""
+        images = images if isinstance(images, (list, tuple)) else [images]
+        if self._gl is not None:
+            return self._gl.run_outputs(plan, [np.asarray(im, dtype=np.float32) for im in images])
+        from . import emulate
+
+        return [o.astype(np.float32) for o in emulate.run_outputs(plan, images)]
+
     def run_expr(self, expr: Expr, pixels: np.ndarray, border: str = "clamp") -> np.ndarray:
         """Execute an expression: planned on GL, the numpy reference on the CPU (and for non-clamp borders)."""
         if self._gl is not None and border == "clamp":
