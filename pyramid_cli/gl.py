@@ -1,0 +1,437 @@
+"""The moderngl executor: a :class:`~pyramid_cli.plan.Plan` as hardware bilinear texture passes.
+
+Every GL call of the project lives here (moderngl is imported nowhere else). One
+headless EGL context per :class:`GLExecutor`, made on first use; one program per
+pass shape (:mod:`pyramid_cli.shaders.generate`), compiled once and cached; textures,
+framebuffers and numpy staging buffers pooled by size and reused across passes,
+plans and images. The input is uploaded once per image (and channel group); only
+the final image is read back.
+
+Coordinates (the contract of :mod:`pyramid_cli.emulate`, which this must equal):
+
+- numpy row 0 is texture row 0 (y = 0) on upload and read-back: nothing is flipped;
+- every texture has the smallest power-of-two dimensions that hold its stored extent
+  (logical size plus guard), so that the normalized coordinate ``(q + ½) / size`` of a
+  quarter-texel position ``q`` is an exact binary fraction, and the filtering unit gets
+  ``q`` and its fraction back without rounding (with non-power-of-two sizes the
+  coordinate carries an error of about size·2⁻²⁴ texel on llvmpipe, DESIGN.md §6);
+  nothing here depends on llvmpipe: any GPU converts such coordinates exactly;
+- the shader clamps each read position to the source's stored extent, which is the
+  emulator's clamp. Bilinear reads at the clamped last position also touch the next
+  texel (with weight 0); that texel repeats the edge: every pass renders one extra row
+  and column that copy its last ones (and the upload repeats the input's edge) where the
+  texture has room, and CLAMP_TO_EDGE gives the same where it has none, so stale pool
+  contents (a NaN left there, say) never leak in;
+- taps with integral offsets read one texel with ``texelFetch``; others use LINEAR
+  filtering with ``textureLod(…, 0)`` (no derivatives needed inside phase branches).
+
+Precision: the input texture is always RGBA32F (exact); intermediates and the target
+are RGBA32F (``precision="float"``, exact and unclamped) or RGBA16F (``"half"``,
+saturating at 65504 on llvmpipe).
+"""
+
+from __future__ import annotations
+
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .errors import BackendError, DataError
+from .io import check_size
+from .plan import Plan
+from .shaders import generate
+
+INSTALL_HINT = ("install the drivers: sudo apt-get install -y libegl1 libgl1 libgl1-mesa-dri libegl-mesa0, "
+                "or use --backend cpu")
+
+PRECISIONS = {"float": ("f4", np.float32), "half": ("f2", np.float16)}
+
+
+def _create_context():
+    """A standalone OpenGL 3.3 core context through EGL, or BackendError saying why and how to fix it."""
+    try:
+        import moderngl
+    except ImportError as e:  # pragma: no cover - moderngl is a dependency
+        raise BackendError(f"moderngl cannot be imported ({e}); pip install moderngl, or use --backend cpu") from e
+    try:
+        ctx = moderngl.create_standalone_context(require=330, backend="egl")
+    except Exception as e:  # moderngl/glcontext raise plain Exceptions for missing EGL, display, driver
+        reason = " ".join(str(e).split()) or type(e).__name__
+        raise BackendError(f"no OpenGL context through EGL ({reason}); {INSTALL_HINT}") from e
+    return ctx
+
+
+def available() -> tuple[bool, str]:
+    """Can an EGL context be made here? ``(True, renderer)`` or ``(False, reason with the fix)``."""
+    try:
+        ctx = _create_context()
+    except BackendError as e:
+        return False, e.message
+    try:
+        with ctx:
+            return True, ctx.info["GL_RENDERER"]
+    finally:
+        ctx.release()
+
+
+def info() -> dict:
+    """Renderer, version and limits of the GL behind the executor (for ``--verbose``)."""
+    ctx = _create_context()
+    try:
+        with ctx:
+            return _context_info(ctx)
+    finally:
+        ctx.release()
+
+
+def _context_info(ctx) -> dict:
+    return {
+        "vendor": ctx.info["GL_VENDOR"],
+        "renderer": ctx.info["GL_RENDERER"],
+        "version": ctx.info["GL_VERSION"],
+        "version_code": ctx.version_code,
+        "max_texture_size": int(ctx.info["GL_MAX_TEXTURE_SIZE"]),
+    }
+
+
+def _pow2(n: int) -> int:
+    return 1 << max(0, n - 1).bit_length()
+
+
+def texture_size(stored: tuple[int, int]) -> tuple[int, int]:
+    """Texture (rows, columns) for a stored extent: powers of two, one spare texel when there is room."""
+    return _pow2(stored[0]), _pow2(stored[1])
+
+
+def _written(stored: tuple[int, int], tex: tuple[int, int]) -> tuple[int, int]:
+    """Rows and columns a pass writes: the extent plus the repeated edge where the texture has room."""
+    return min(stored[0] + 1, tex[0]), min(stored[1] + 1, tex[1])
+
+
+@dataclass
+class _Target:
+    texture: Any
+    fbo: Any
+    size: tuple[int, int]  # texture (rows, columns)
+    dtype: str
+
+
+@dataclass
+class _Program:
+    program: Any
+    vao: Any
+    uniforms: set[str] = field(default_factory=set)
+
+    def set(self, name: str, value) -> None:
+        if name in self.uniforms:  # the compiler drops unused uniforms
+            self.program[name].value = value
+
+
+class GLExecutor:
+    """Runs plans on one headless EGL context.
+
+    Parameters
+    ----------
+    precision : {"float", "half"}
+        Format of intermediate and target textures: RGBA32F (exact, default) or
+        RGBA16F (half the memory traffic; saturates at 65504).
+
+    The context is created on first use; :meth:`close` (or ``with``) releases it.
+    """
+
+    def __init__(self, precision: str = "float"):
+        if precision not in PRECISIONS:
+            raise ValueError(f"precision must be one of {sorted(PRECISIONS)}, not {precision!r}")
+        self.precision = precision
+        self._ctx = None
+        self._vertex = None
+        self._programs: dict[generate.PassShape, _Program] = {}
+        self._free: dict[tuple[tuple[int, int], str], list[_Target]] = {}
+        self._buffers: dict[tuple[tuple[int, ...], str], np.ndarray] = {}
+        self.compiles = 0  # programs built so far (the cache's misses)
+        self._info: dict = {}
+        self._depth = 0
+
+    # ------------------------------------------------------------ context
+    @property
+    def ctx(self):
+        """The executor's context (created on first use). GL work on it must run inside :meth:`current`."""
+        return self.open()
+
+    def open(self):
+        """Create the context now if it does not exist yet (BackendError if it cannot be made); returns it."""
+        if self._ctx is None:
+            ctx = _create_context()
+            with ctx:
+                self._info = _context_info(ctx)
+            self._ctx = ctx
+        return self._ctx
+
+    @contextmanager
+    def current(self):
+        """Make the executor's context current for the block (re-entrant).
+
+        moderngl does not switch contexts by itself: with two executors (or a context
+        made by :func:`available`) in one process, GL calls go to whichever context was
+        made current last, and leaving ``with ctx`` leaves none current. Every public
+        method therefore runs its GL calls inside this.
+        """
+        ctx = self.ctx
+        if self._depth:
+            yield ctx
+            return
+        self._depth += 1
+        try:
+            with ctx:
+                yield ctx
+        finally:
+            self._depth -= 1
+
+    @property
+    def max_texture_size(self) -> int:
+        self.open()
+        return self._info["max_texture_size"]
+
+    def info(self) -> dict:
+        self.open()
+        return dict(self._info)
+
+    @property
+    def error(self) -> str:
+        """``ctx.error`` of this executor's context (reading it clears the GL error flag)."""
+        with self.current() as ctx:
+            return ctx.error
+
+    def close(self) -> None:
+        """Release every GL object and the context (the executor can be used again afterwards)."""
+        if self._ctx is not None:
+            self._ctx.release()
+        self._ctx = None
+        self._programs.clear()
+        self._free.clear()
+        self._buffers.clear()
+
+    def __enter__(self) -> GLExecutor:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    # ------------------------------------------------------------ programs
+    def program(self, ps) -> _Program:
+        """The compiled program of a pass's shape (cached for the executor's lifetime)."""
+        key = generate.shape(ps)
+        prog = self._programs.get(key)
+        if prog is None:
+            with self.current():
+                prog = self._programs[key] = self._build(key)
+        return prog
+
+    def _build(self, key: generate.PassShape) -> _Program:
+        import moderngl
+
+        ctx = self.ctx
+        vert = generate.vertex_source()
+        frag = generate.fragment_source(key)
+        try:
+            program = ctx.program(vertex_shader=vert, fragment_shader=frag)
+        except moderngl.Error as e:
+            log = str(e)
+            stage, source = ("vertex", vert) if "vertex_shader" in log.split("\n", 1)[0] else ("fragment", frag)
+            raise generate.compile_error(log, stage, source) from e
+        self.compiles += 1
+        uniforms = {name for name in program if isinstance(program[name], moderngl.Uniform)}
+        prog = _Program(program, ctx.vertex_array(program, []), uniforms)
+        for k in range(key.n_sources):
+            prog.set(f"u_src{k}", k)  # slot k reads texture unit k
+        return prog
+
+    # ------------------------------------------------------------ pools
+    def _acquire(self, size: tuple[int, int], dtype: str) -> _Target:
+        free = self._free.get((size, dtype))
+        if free:
+            return free.pop()
+        import moderngl
+
+        ctx = self.ctx
+        tex = ctx.texture((size[1], size[0]), 4, dtype=dtype)
+        tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        tex.repeat_x = tex.repeat_y = False  # clamp to edge: the texture's own last texel
+        return _Target(tex, ctx.framebuffer(color_attachments=[tex]), size, dtype)
+
+    def _release(self, t: _Target) -> None:
+        self._free.setdefault((t.size, t.dtype), []).append(t)
+
+    def clear_pool(self) -> None:
+        """Release pooled textures and staging buffers (programs stay compiled)."""
+        if self._ctx is not None:
+            with self.current():
+                for free in self._free.values():
+                    for t in free:
+                        t.fbo.release()
+                        t.texture.release()
+        self._free.clear()
+        self._buffers.clear()
+
+    def _buffer(self, shape: tuple[int, ...], dtype, slot: int = 0) -> np.ndarray:
+        """A reused staging array; ``slot`` tells apart buffers of one shape needed at once."""
+        key = (shape, np.dtype(dtype).str, slot)
+        buf = self._buffers.get(key)
+        if buf is None:
+            buf = self._buffers[key] = np.zeros(shape, dtype=dtype)
+        return buf
+
+    # ------------------------------------------------------------ running
+    def check(self, plan: Plan) -> None:
+        """DataError if an image of ``plan`` or its texture exceeds GL_MAX_TEXTURE_SIZE."""
+        limit = self.max_texture_size
+        for k in plan.inputs:
+            rows, cols = plan.images[k].size
+            check_size(cols, rows, limit, where="input image" if len(plan.inputs) == 1 else f"input image {k}")
+        for k, im in enumerate(plan.images):
+            h, w = im.stored
+            check_size(w, h, limit, where=f"image {k} of the plan (logical {im.size[0]}x{im.size[1]} plus guard)")
+            th, tw = texture_size(im.stored)
+            if th > limit or tw > limit:
+                raise DataError(f"image {k} of the plan needs a {tw}x{th} texture (power-of-two sides), "
+                                f"over the GL limit of {limit}x{limit}")
+
+    def run(self, plan: Plan, image) -> np.ndarray:
+        """Execute ``plan`` on ``image`` (H, W) or (H, W, C); returns the output's logical pixels, float32.
+
+        ``image`` may also be a list with one array per ``plan.inputs``. The result is the
+        last of ``plan.outputs`` (:meth:`run_outputs` returns them all). More than four
+        channels run in groups of four through the same programs.
+        """
+        return self.run_outputs(plan, image)[-1]
+
+    def run_outputs(self, plan: Plan, images) -> list[np.ndarray]:
+        """Execute ``plan`` with one image per ``plan.inputs``; the logical pixels of every ``plan.outputs``.
+
+        Arrays are float32 with the inputs' channel layout: (H, W) for 2-D inputs, else (H, W, C).
+        Only these images are read back, after the last pass.
+        """
+        arrays = self._inputs(plan, images)
+        flat = arrays[0].ndim == 2
+        arrays = [a[:, :, None] if flat else a for a in arrays]
+        self.check(plan)
+        channels = arrays[0].shape[2]
+        outs = [np.empty(plan.images[k].size + (channels,), dtype=np.float32) for k in plan.outputs]
+        with self.current() as ctx:
+            programs = [self.program(ps) for ps in plan.passes]
+            for c0 in range(0, channels, 4):
+                n = min(4, channels - c0)
+                group = slice(c0, c0 + n)
+                self._run_group(plan, programs, [a[:, :, group] for a in arrays], [o[:, :, group] for o in outs])
+            err = ctx.error
+        if err != "GL_NO_ERROR":
+            raise BackendError(f"OpenGL reported {err} while running {plan.expression!r}")
+        return [np.ascontiguousarray(o[:, :, 0]) for o in outs] if flat else outs
+
+    @staticmethod
+    def _inputs(plan: Plan, images) -> list[np.ndarray]:
+        arrays = [np.asarray(a, dtype=np.float32) for a in (images if isinstance(images, (list, tuple)) else [images])]
+        if len(arrays) != len(plan.inputs):
+            raise ValueError(f"plan takes {len(plan.inputs)} input image(s), got {len(arrays)}")
+        for k, a in zip(plan.inputs, arrays, strict=True):
+            im = plan.images[k]
+            if a.ndim not in (2, 3) or 0 in a.shape:
+                raise ValueError(f"an image must be (H, W) or (H, W, C) with nonzero sizes, not {a.shape}")
+            if tuple(a.shape[:2]) != tuple(im.size):
+                raise ValueError(f"plan input {k} is {im.size[0]}x{im.size[1]} (rows x columns), image is "
+                                 f"{a.shape[0]}x{a.shape[1]}")
+            if any(im.guard):
+                raise ValueError(f"plan input {k} has a guard band {im.guard}: inputs are uploaded as given")
+            if a.shape[2:] != arrays[0].shape[2:]:
+                raise ValueError(f"all inputs must have one channel layout: {arrays[0].shape} and {a.shape}")
+        return arrays
+
+    def _upload(self, img: np.ndarray) -> _Target:
+        """The input in an RGBA32F texture, its edge repeated into the spare row and column."""
+        rows, cols, n = img.shape
+        tex_size = texture_size((rows, cols))
+        wr, wc = _written((rows, cols), tex_size)
+        t = self._acquire(tex_size, "f4")
+        if n == 4 and img.flags.c_contiguous:  # already RGBA: no staging copy of the whole image
+            t.texture.write(img, viewport=(0, 0, cols, rows))
+            if wc > cols:
+                t.texture.write(np.ascontiguousarray(img[:, cols - 1:]), viewport=(cols, 0, 1, rows))
+            if wr > rows:
+                edge = img[rows - 1:, np.minimum(np.arange(wc), cols - 1)]
+                t.texture.write(np.ascontiguousarray(edge), viewport=(0, rows, wc, 1))
+            return t
+        buf = self._buffer((wr, wc, 4), np.float32)
+        buf[:rows, :cols, :n] = img
+        if n < 4:
+            buf[:rows, :cols, n:] = 0.0
+        if wr > rows:
+            buf[rows] = buf[rows - 1]
+        if wc > cols:
+            buf[:, cols] = buf[:, cols - 1]
+        t.texture.write(buf, viewport=(0, 0, wc, wr))
+        return t
+
+    def _run_group(self, plan: Plan, programs: list[_Program], inputs: list[np.ndarray],
+                   outs: list[np.ndarray]) -> None:
+        """All passes for one group of ≤ 4 channels; writes the read-back images into ``outs``."""
+        ctx = self.ctx
+        dtype, np_dtype = PRECISIONS[self.precision]
+        keep = set(plan.outputs)
+        last_read: dict[int, int] = {}
+        for i, ps in enumerate(plan.passes):
+            for s in ps.sources():
+                last_read[s] = i
+        held: dict[int, _Target] = {k: self._upload(a) for k, a in zip(plan.inputs, inputs, strict=True)}
+        for i, (ps, prog) in enumerate(zip(plan.passes, programs, strict=True)):
+            target_image = plan.images[ps.target]
+            stored = target_image.stored
+            tex_size = texture_size(stored)
+            target = self._acquire(tex_size, dtype)
+            for k, src in enumerate(generate.sources(ps)):
+                im, t = plan.images[src], held[src]
+                t.texture.use(location=k)
+                prog.set(f"u_guard{k}", (im.guard[1], im.guard[0]))
+                prog.set(f"u_extent{k}", (im.stored[1], im.stored[0]))
+                prog.set(f"u_inv{k}", (1.0 / t.size[1], 1.0 / t.size[0]))
+            prog.set("u_out_guard", (target_image.guard[1], target_image.guard[0]))
+            prog.set("u_out_extent", (stored[1], stored[0]))
+            wr, wc = _written(stored, tex_size)
+            target.fbo.use()                  # bind first: ctx.viewport is stored with the bound framebuffer
+            ctx.viewport = (0, 0, wc, wr)
+            prog.vao.render(vertices=3)
+            held[ps.target] = target
+            for s in ps.sources():
+                if last_read[s] == i and s not in keep:
+                    self._release(held.pop(s))
+        inputs_by_index = dict(zip(plan.inputs, inputs, strict=True))
+        for j, (k, out) in enumerate(zip(plan.outputs, outs, strict=True)):
+            if k in inputs_by_index:  # an input read back as given (e.g. level 0 of a pyramid)
+                out[...] = inputs_by_index[k]
+                continue
+            im, n = plan.images[k], out.shape[2]
+            rows, cols = im.size
+            viewport = (im.guard[1], im.guard[0], cols, rows)
+            if n == 4 and np_dtype is np.float32 and out.flags.c_contiguous:
+                held[k].fbo.read_into(out, viewport=viewport, components=4, dtype=dtype)
+                continue
+            buf = self._buffer((rows, cols, 4), np_dtype, slot=j)
+            held[k].fbo.read_into(buf, viewport=viewport, components=4, dtype=dtype)
+            out[...] = buf[:, :, :n]
+        for t in held.values():
+            self._release(t)
+
+
+_default: GLExecutor | None = None
+
+
+def default_executor() -> GLExecutor:
+    """A process-wide executor (float precision), so programs compile once per process."""
+    global _default
+    if _default is None:
+        _default = GLExecutor()
+    return _default
+
+
+__all__ = ["GLExecutor", "available", "info", "default_executor", "texture_size", "INSTALL_HINT"]

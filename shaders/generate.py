@@ -1,0 +1,172 @@
+"""GLSL for the GL executor: the templates beside this file, specialised per pass shape.
+
+This module is ``pyramid_cli.shaders.generate``: the top-level ``shaders/`` folder is
+installed as the package ``pyramid_cli.shaders`` (see ``pyproject.toml``), so the
+generator lives next to its templates. (A module ``pyramid_cli/shaders.py`` cannot
+exist beside that package: in an editable install it hides the package, in a wheel
+the package hides it.)
+
+A pass of a :class:`~pyramid_cli.plan.Plan` becomes a :class:`PassShape`: everything a
+fragment shader needs except sizes and guard bands (those are uniforms), so one compiled program serves every image
+size and every plan that has a pass of the same shape. The shape's taps are
+written into the fragment shader as constants (``#define`` for the period and
+stride, one generated line per tap), which keeps the program free of loops and
+dynamic indexing.
+
+This module has no GL dependency: it only produces text, so it can be tested
+without a context.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from fractions import Fraction
+from functools import cache
+from importlib.resources import files
+
+import numpy as np
+
+from ..errors import BackendError
+from ..plan import Pass
+
+VERTEX = "fullscreen.vert.glsl"
+FRAGMENT = "pass.frag.glsl"
+
+
+class ShaderCompileError(BackendError):
+    """A generated program failed to compile or link; the message carries a numbered listing."""
+
+
+@cache
+def load(name: str) -> str:
+    """Text of the template ``name`` from the package ``pyramid_cli.shaders`` (this folder)."""
+    return files(__package__).joinpath(name).read_text(encoding="utf-8")
+
+
+@dataclass(frozen=True)
+class ShapeTap:
+    slot: int                          # index into the pass's sorted sources
+    offset: tuple[Fraction, Fraction]  # (rows, columns), reads source index R − t
+    weight: Fraction
+
+    @property
+    def exact_texel(self) -> bool:
+        """Integral offset: one texel, read with texelFetch (equals bilinear there)."""
+        return all(o.denominator == 1 for o in self.offset)
+
+
+@dataclass(frozen=True)
+class PassShape:
+    """The canonical description of a pass, the key of the program cache."""
+
+    period: tuple[int, int]
+    stride: tuple[int, int]
+    n_sources: int
+    phases: tuple[tuple[tuple[int, int], tuple[ShapeTap, ...]], ...]  # sorted by phase
+
+
+def sources(ps: Pass) -> list[int]:
+    """The pass's source images in slot order (slot k is texture unit k)."""
+    return sorted(ps.sources())
+
+
+def shape(ps: Pass) -> PassShape:
+    """Canonical shape of ``ps``: its taps with image indices replaced by slots."""
+    slot = {src: k for k, src in enumerate(sources(ps))}
+    phases = tuple(sorted(
+        (tuple(ph), tuple(ShapeTap(slot[t.source], (Fraction(t.offset[0]), Fraction(t.offset[1])),
+                                   Fraction(t.weight)) for t in taps))
+        for ph, taps in ps.phases.items()))
+    return PassShape(tuple(ps.period), tuple(ps.stride), len(slot), phases)
+
+
+# ------------------------------------------------------------------ GLSL text
+def _float(x) -> str:
+    """A GLSL float literal: the float32 nearest to ``x``, written so that it parses back to it."""
+    text = f"{float(np.float32(float(x))):.9g}"
+    return text if any(ch in text for ch in ".en") else text + ".0"
+
+
+def _vec2(col, row) -> str:
+    return f"vec2({_float(col)}, {_float(row)})"
+
+
+def _tap_line(t: ShapeTap) -> str:
+    tr, tc = t.offset
+    if t.exact_texel:
+        read = f"nearest{t.slot}(R - ivec2({int(tc)}, {int(tr)}))"
+    else:
+        read = f"linear{t.slot}(Rf - {_vec2(tc, tr)})"
+    if t.weight == 1:
+        return f"acc += {read};"
+    if t.weight == -1:
+        return f"acc -= {read};"
+    return f"acc += {_float(t.weight)} * {read};"
+
+
+def _source_lines(k: int) -> list[str]:
+    return [
+        f"uniform sampler2D u_src{k};",
+        f"uniform ivec2 u_guard{k};   // (left, top) guard band of source {k}",
+        f"uniform ivec2 u_extent{k};  // stored (columns, rows) of source {k}",
+        f"uniform vec2 u_inv{k};      // 1 / texture size (a power of two: exact)",
+        f"vec4 linear{k}(vec2 pos) {{ return bilinear(u_src{k}, pos, u_guard{k}, u_extent{k}, u_inv{k}); }}",
+        f"vec4 nearest{k}(ivec2 pos) {{ return nearest(u_src{k}, pos, u_guard{k}, u_extent{k}); }}",
+    ]
+
+
+def _tap_lines(s: PassShape) -> list[str]:
+    lines: list[str] = []
+    single = s.period == (1, 1)
+    for (pr, pc), taps in s.phases:
+        body = [_tap_line(t) for t in taps]
+        if single:
+            lines += body
+        else:
+            lines.append(f"if (phase == ivec2({pc}, {pr})) {{")
+            lines += ["    " + b for b in body]
+            lines.append("}")
+    return lines
+
+
+def _inject(template: str, marker: str, lines: list[str]) -> str:
+    token = f"// {{{{{marker}}}}}"
+    for raw in template.splitlines():
+        if raw.strip() == token:
+            indent = raw[: len(raw) - len(raw.lstrip())]
+            return template.replace(raw, "\n".join(indent + ln for ln in lines), 1)
+    raise ValueError(f"template has no {token} line")  # a broken template is a packaging bug
+
+
+def vertex_source() -> str:
+    return load(VERTEX)
+
+
+def fragment_source(s: PassShape) -> str:
+    """The fragment shader of one pass shape."""
+    pr, pc = s.period
+    sr, sc = s.stride
+    defines = [
+        f"#define N_SOURCES {s.n_sources}",
+        f"#define PERIOD ivec2({pc}, {pr})",
+        f"#define STRIDE ivec2({sc}, {sr})",
+    ]
+    text = _inject(load(FRAGMENT), "DEFINES", defines)
+    text = _inject(text, "SOURCES", [ln for k in range(s.n_sources) for ln in _source_lines(k)])
+    return _inject(text, "TAPS", _tap_lines(s))
+
+
+def numbered(source: str) -> str:
+    """``source`` with 1-based line numbers, as compilers report them."""
+    lines = source.splitlines()
+    width = len(str(len(lines)))
+    return "\n".join(f"{i:>{width}}: {ln}" for i, ln in enumerate(lines, 1))
+
+
+def compile_error(log: str, stage: str, source: str) -> ShaderCompileError:
+    """An error that carries the compiler's log and the numbered listing of the generated source."""
+    return ShaderCompileError(f"{stage} shader failed to compile: {log.strip()}\n{numbered(source)}")
+
+
+__all__ = ["PassShape", "ShapeTap", "ShaderCompileError", "shape", "sources", "vertex_source",
+           "fragment_source", "numbered", "compile_error", "load"]

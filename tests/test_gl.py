@@ -1,0 +1,268 @@
+"""The GL executor against the float64 oracle (``reference``) and the plan's living definition (``emulate``)."""
+
+from functools import cache
+
+import numpy as np
+import pytest
+from pyramid_cli.shaders import generate
+
+from pyramid_cli import emulate, reference
+from pyramid_cli.errors import BackendError, DataError
+from pyramid_cli.parse import parse
+from pyramid_cli.plan import plan
+
+CHAINS = [
+    "box *v g", "box^nw *v g", "box4 *v g", "quadratic *v g", "cubic *v g", "bartlett *v g",
+    "gauss5 *v g", "box * g", "box^nw * g", "bartlett", "gauss5", "gauss7", "quasi", "nearest",
+    "midpoint", "doosabin", "cubic *^ g", "fourpoint", "box\\ *v bartlett", "bartlett * (bartlett * g)",
+    "(box4)^3 *v g", "doosabin *^ (box4 *v g)", "box\\ * (doosabin *^ g)", "quasi * g", "box *v^2 g",
+    "1/8 [1 2 1; 0 2 0; 1 0 1] *v g", "[1 -1] * g", "(doosabin)^2 *^ ((box4)^2 *v g)",
+    "fourpoint *^ (cubic *v g)", "box *v (midpoint *^ g)",
+]
+SIZES = [(1, 1), (1, 7), (2, 2), (5, 3), (17, 13), (64, 64), (129, 67), (7, 1), (3, 5), (67, 129)]
+CHANNELS = [None, 3, 4, 6, 1]  # None: a 2-D (H, W) image
+
+gl_mark = pytest.mark.gl
+
+
+@cache
+def planned(text: str, size: tuple[int, int]):
+    return parse(text), plan(parse(text), size)
+
+
+def random_image(size, channels, seed):
+    rng = np.random.default_rng(seed)
+    return rng.random(size if channels is None else size + (channels,)).astype(np.float32)
+
+
+@gl_mark
+@pytest.mark.parametrize("size", SIZES, ids=lambda s: f"{s[0]}x{s[1]}")
+@pytest.mark.parametrize("text", CHAINS)
+def test_gl_equals_reference(gl, text, size):
+    seed = CHAINS.index(text) * len(SIZES) + SIZES.index(size)
+    channels = CHANNELS[seed % len(CHANNELS)]
+    image = random_image(size, channels, seed)
+    expr, p = planned(text, size)
+    out = gl.run(p, image)
+    assert out.dtype == np.float32 and out.shape == (p.output.size + image.shape[2:])
+    np.testing.assert_allclose(out, reference.run(expr, image), rtol=0, atol=1e-5)
+    np.testing.assert_allclose(out, emulate.run(p, image), rtol=0, atol=1e-5)
+
+
+def _step(builder, source, text, crop=None):
+    from pyramid_cli.expr import steps
+
+    ((op, f, stride),) = steps(parse(text))
+    return builder.step(source, op, f, stride, crop)
+
+
+@gl_mark
+@pytest.mark.parametrize("channels", [None, 4, 6])
+def test_several_inputs_and_outputs(gl, channels):
+    """A Laplacian-style job: two inputs, intermediate levels read back (and reused), the input itself read back."""
+    from pyramid_cli.plan import Builder
+
+    size = (17, 13)
+    b = Builder(size)
+    other = b.add_input(size)
+    coarse = _step(b, 0, "box4 *v g")
+    coarser = _step(b, coarse, "box *v g")
+    up = _step(b, coarse, "doosabin *^ g", crop=size)
+    band = b.combine([(0, 1), (up, -1)], "band")
+    final = b.combine([(band, 1), (other, 2)], "sum")
+    p = b.build("job", outputs=[0, coarse, band, coarser, final])
+    images = [random_image(size, channels, 20), random_image(size, channels, 21)]
+    outs = gl.run_outputs(p, images)
+    expected = emulate.run_outputs(p, images)
+    assert [o.shape for o in outs] == [e.shape for e in expected]
+    for o, e in zip(outs, expected, strict=True):
+        assert o.dtype == np.float32
+        np.testing.assert_allclose(o, e, rtol=0, atol=1e-5)
+    np.testing.assert_array_equal(outs[0], images[0])
+    np.testing.assert_allclose(gl.run(p, images), expected[-1], rtol=0, atol=1e-5)
+
+
+@gl_mark
+def test_row_zero_is_numpy_row_zero(gl):
+    """The identity copies a non-symmetric image bit for bit: no flip, no transpose."""
+    image = np.arange(6 * 9 * 2, dtype=np.float32).reshape(6, 9, 2)
+    _, p = planned("g", (6, 9))
+    np.testing.assert_array_equal(gl.run(p, image), image)
+
+
+@gl_mark
+def test_box_se_moves_a_bright_pixel_down_right(gl):
+    """box↘ = ¼[[0,0,0],[0,1,1],[0,1,1]]: f[r,c] = ¼(g[r,c] + g[r−1,c] + g[r,c−1] + g[r−1,c−1])."""
+    image = np.zeros((6, 9), dtype=np.float32)
+    image[2, 5] = 1.0
+    expr, p = planned("box\\ * g", (6, 9))
+    out = gl.run(p, image)
+    expected = np.zeros_like(image)
+    expected[2:4, 5:7] = 0.25
+    np.testing.assert_allclose(out, expected, rtol=0, atol=1e-7)
+    np.testing.assert_allclose(out, reference.run(expr, image), rtol=0, atol=1e-7)
+
+
+@gl_mark
+def test_more_than_four_channels_run_in_groups(gl):
+    image = random_image((17, 13), 6, seed=7)
+    expr, p = planned("doosabin *^ (box4 *v g)", (17, 13))
+    out = gl.run(p, image)
+    assert out.shape == (18, 14, 6)
+    np.testing.assert_allclose(out, reference.run(expr, image), rtol=0, atol=1e-5)
+    for c in range(6):  # each channel as if alone
+        np.testing.assert_allclose(out[:, :, c], gl.run(p, image[:, :, c]), rtol=0, atol=0)
+
+
+@gl_mark
+@pytest.mark.parametrize("text", ["cubic *^ g", "fourpoint", "box *v g", "gauss5"])
+def test_quarter_taps_are_exact_at_non_power_of_two_sizes(gl, text):
+    """Normalized coordinates of non-power-of-two textures would be off by ~width·2⁻²⁴ texel (≈6e-5 here)."""
+    size = (600, 1001)
+    image = random_image(size, None, seed=3)
+    _, p = planned(text, size)
+    np.testing.assert_allclose(gl.run(p, image), emulate.run(p, image), rtol=0, atol=1e-6)
+
+
+@gl_mark
+@pytest.mark.parametrize("text", ["gauss7", "(doosabin)^2 *^ ((box4)^2 *v g)", "fourpoint", "box4 *v g"])
+def test_half_precision_within_half_tolerance(gl, text):
+    from pyramid_cli.gl import GLExecutor
+
+    size = (33, 20)
+    image = random_image(size, 3, seed=11)
+    expr, p = planned(text, size)
+    with GLExecutor(precision="half") as half:
+        out = half.run(p, image)
+        assert half.error == "GL_NO_ERROR"
+    assert out.dtype == np.float32
+    ref = reference.run(expr, image)
+    # each RGBA16F pass rounds to 11 significant bits: at most 2⁻¹¹ relative per pass
+    np.testing.assert_allclose(out, ref, rtol=0, atol=len(p.passes) * 2.0 ** -11 * 1.5)
+    assert np.abs(out - ref).max() > 1e-7  # it really stored halves
+
+
+@gl_mark
+def test_half_precision_does_not_hold_values_above_65504(gl):
+    from pyramid_cli.gl import GLExecutor
+
+    image = np.full((2, 3), 1e5, dtype=np.float32)
+    _, p = planned("g", (2, 3))
+    with GLExecutor(precision="half") as half:
+        out = half.run(p, image)
+        assert half.error == "GL_NO_ERROR"  # saturation is not a GL error
+    assert np.all(out >= 65504) and not np.any(np.isclose(out, 1e5))
+    np.testing.assert_array_equal(gl.run(p, image), image)  # RGBA32F is unclamped
+
+
+@gl_mark
+def test_program_cache_compiles_each_shape_once(gl):
+    from pyramid_cli.gl import GLExecutor
+
+    _, p = planned("gauss5", (17, 13))
+    shapes = {generate.shape(ps) for ps in p.passes}
+    assert len(shapes) == 2 < len(p.passes)  # box↖ and box↘ alternate
+    with GLExecutor() as fresh:
+        fresh.run(p, random_image((17, 13), None, 0))
+        assert fresh.compiles == 2
+        pooled = sum(len(v) for v in fresh._free.values())
+        fresh.run(p, random_image((17, 13), 4, 1))
+        _, other = planned("gauss5", (64, 129))
+        fresh.run(other, random_image((64, 129), 6, 2))
+        assert fresh.compiles == 2
+        fresh.run(p, random_image((17, 13), 3, 3))
+        assert sum(len(v) for v in fresh._free.values()) >= pooled
+        assert fresh.compiles == 2
+        _, box = planned("box\\ * g", (5, 3))  # the second shape of gauss5: nothing new
+        fresh.run(box, random_image((5, 3), None, 4))
+        assert fresh.compiles == 2
+        assert fresh.error == "GL_NO_ERROR"
+
+
+@gl_mark
+def test_executors_and_probes_interleave(gl):
+    """Each executor makes its own context current: another context, or available(), cannot steal its calls."""
+    from pyramid_cli.gl import GLExecutor, available
+
+    image = random_image((9, 5), 3, seed=5)
+    expr, p = planned("cubic *^ g", (9, 5))
+    ref = reference.run(expr, image)
+    with GLExecutor() as other:
+        np.testing.assert_allclose(other.run(p, image), ref, rtol=0, atol=1e-5)
+        np.testing.assert_allclose(gl.run(p, image), ref, rtol=0, atol=1e-5)
+        assert available()[0]
+        np.testing.assert_allclose(other.run(p, image), ref, rtol=0, atol=1e-5)
+    np.testing.assert_allclose(gl.run(p, image), ref, rtol=0, atol=1e-5)
+    info = gl.info()
+    assert info["max_texture_size"] >= 4096 and info["renderer"]
+
+
+@gl_mark
+def test_too_large_for_the_gpu_is_a_data_error(gl):
+    limit = gl.max_texture_size
+    _, wide = planned("box *v g", (1, limit + 1))
+    with pytest.raises(DataError, match=f"{limit + 1}x1 exceeds the limit of {limit}x{limit}"):
+        gl.run(wide, np.zeros((1, limit + 1), dtype=np.float32))
+    _, up = planned("nearest", (limit // 2 + 1, 1))  # the input fits, the output does not
+    with pytest.raises(DataError, match=str(limit)):
+        gl.run(up, np.zeros((limit // 2 + 1, 1), dtype=np.float32))
+
+
+@gl_mark
+def test_compile_error_shows_numbered_source(gl, monkeypatch):
+    monkeypatch.setattr(generate, "fragment_source", lambda s: "#version 330 core\nvoid main() { oops; }\n")
+    _, p = planned("1/3 [1 1 1] * g", (4, 4))
+    with pytest.raises(generate.ShaderCompileError) as info:
+        gl.run(p, np.zeros((4, 4), dtype=np.float32))
+    assert "fragment shader failed to compile" in str(info.value)
+    assert "2: void main() { oops; }" in str(info.value)
+
+
+# ---------------------------------------------------------------- without GL
+def test_no_context_is_a_backend_error_naming_the_fix(monkeypatch):
+    import moderngl
+
+    from pyramid_cli import gl as glmod
+
+    def refuse(*args, **kwargs):
+        raise Exception("libEGL.so.1: cannot open shared object file")
+
+    monkeypatch.setattr(moderngl, "create_standalone_context", refuse)
+    ok, why = glmod.available()
+    assert not ok and "libEGL.so.1" in why and "apt-get install -y libegl1" in why and "--backend cpu" in why
+    assert "\n" not in why
+    with pytest.raises(BackendError, match="--backend cpu"):
+        glmod.GLExecutor().run(planned("g", (1, 1))[1], np.zeros((1, 1), dtype=np.float32))
+
+
+def test_texture_sizes_are_powers_of_two():
+    from pyramid_cli.gl import texture_size
+
+    assert texture_size((1, 1)) == (1, 1)
+    assert texture_size((2160, 3840)) == (4096, 4096)
+    assert texture_size((129, 64)) == (256, 64)
+
+
+def test_generated_source_is_canonical_per_shape():
+    _, a = planned("gauss7", (9, 9))
+    _, b = planned("bartlett", (40, 3))
+    sources = {generate.fragment_source(generate.shape(ps)) for ps in a.passes + b.passes}
+    assert len(sources) == 2
+    text = generate.fragment_source(generate.shape(planned("fourpoint", (3, 3))[1].passes[0]))
+    assert text.startswith("#version 330 core\n")
+    assert "#define PERIOD ivec2(1, 2)" in text and "if (phase == ivec2(0, 1))" in text
+    assert "acc += -0.0625 * nearest0(R - ivec2(0, -1));" in text
+    assert "acc += 1.125 * linear0(Rf - vec2(0.0, 0.5));" in text
+
+
+@gl_mark
+@pytest.mark.parametrize("channels", [None, 4], ids=["staged", "rgba-direct"])
+@pytest.mark.parametrize("text", ["cubic *^ g", "box *v g", "bartlett"])
+def test_stale_pool_contents_never_leak(gl, text, channels):
+    """A NaN image leaves NaN in pooled textures; the next, smaller image must not read it at its edges."""
+    _, dirty = planned(text, (7, 7))
+    gl.run(dirty, np.full((7, 7) + ((channels,) if channels else ()), np.nan, dtype=np.float32))
+    expr, p = planned(text, (5, 6))  # the same power-of-two textures
+    image = random_image((5, 6), channels, seed=9)
+    out = gl.run(p, image)
+    np.testing.assert_allclose(out, reference.run(expr, image), rtol=0, atol=1e-5)
