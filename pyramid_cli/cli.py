@@ -143,8 +143,8 @@ def io_options(f):
     """Options every command that reads and writes images shares."""
     options = [
         click.option("--backend", type=click.Choice(["auto", "gl", "cpu"]), default="auto", show_default=True,
-                     help="gl: OpenGL through headless EGL; cpu: the numpy reference of the paper's formulas "
-                          "(slow, exact); auto: gl, else cpu with a warning."),
+                     help="gl: OpenGL through headless EGL; cpu: numpy (for apply and blur the reference of "
+                          "the paper's formulas, slow and exact); auto: gl, else cpu with a warning."),
         click.option("--type", "pixel_type", type=click.Choice(["uint8", "uint16", "half", "float"]),
                      help="Output pixel type (default: the input's, as the output format allows)."),
         click.option("--colorspace", type=click.Choice(["auto", "linear", "srgb"]), default="auto",

@@ -11,7 +11,7 @@ import sys
 import numpy as np
 
 from .border import Border
-from .errors import BackendError
+from .errors import BackendError, DataError
 from .expr import Expr
 from .plan import Plan
 
@@ -42,17 +42,18 @@ class Runner:
 
     def run_plan(self, plan: Plan, pixels: np.ndarray) -> np.ndarray:
         """Execute a plan; float32 out."""
-        if self._gl is not None:
-            return self._gl.run(plan, np.asarray(pixels, dtype=np.float32))
-        from . import emulate
-
-        return emulate.run(plan, pixels).astype(np.float32)
+        return self.run_outputs(plan, [pixels])[-1]
 
     def run_outputs(self, plan: Plan, images) -> list[np.ndarray]:
         """Execute a plan with one image per ``plan.inputs``; every image of ``plan.outputs``, float32."""
         images = images if isinstance(images, (list, tuple)) else [images]
         if self._gl is not None:
-            return self._gl.run_outputs(plan, [np.asarray(im, dtype=np.float32) for im in images])
+            try:
+                return self._gl.run_outputs(plan, [np.asarray(im, dtype=np.float32) for im in images])
+            except DataError as e:  # larger than the GL texture limit
+                if self.requested == "gl":
+                    raise
+                self._warn(f"{e.message}; running this image on the CPU")
         from . import emulate
 
         return [o.astype(np.float32) for o in emulate.run_outputs(plan, images)]
