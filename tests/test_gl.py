@@ -4,12 +4,12 @@ from functools import cache
 
 import numpy as np
 import pytest
-from pyramid_cli.shaders import generate
 
 from pyramid_cli import emulate, reference
 from pyramid_cli.errors import BackendError, DataError
 from pyramid_cli.parse import parse
 from pyramid_cli.plan import plan
+from pyramid_cli.shaders import generate
 
 CHAINS = [
     "box *v g", "box^nw *v g", "box4 *v g", "quadratic *v g", "cubic *v g", "bartlett *v g",

@@ -9,8 +9,8 @@ from fractions import Fraction
 
 import numpy as np
 import pytest
-from oracles import extended_chain, printed, printed_outer
 
+from oracles import extended_chain, printed, printed_outer
 from pyramid_cli import algebra, catalogue, reference
 from pyramid_cli.parse import parse
 

@@ -5,9 +5,9 @@ from fractions import Fraction
 
 import numpy as np
 import pytest
-from cases import CHAINS, NAMED, SHAPES
 from click.testing import CliRunner
 
+from cases import CHAINS, NAMED, SHAPES
 from pyramid_cli import catalogue, emulate, reference
 from pyramid_cli.cli import main
 from pyramid_cli.expr import Named, Op

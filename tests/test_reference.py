@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from oracles import apply_kernel
 
+from oracles import apply_kernel
 from pyramid_cli import algebra, reference
 from pyramid_cli.border import Border
 from pyramid_cli.parse import parse
