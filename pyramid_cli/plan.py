@@ -24,8 +24,8 @@ from fractions import Fraction
 from functools import cache
 
 from . import algebra, catalogue
-from .algebra import Step, Weights, mask_weights
-from .expr import Expr, Literal, Named, Op, steps
+from .algebra import Weights, mask_weights
+from .expr import Expr, Named, Op, steps
 
 Half = Fraction(1, 2)
 
@@ -152,10 +152,9 @@ def _split_1d_synthesis(phases: dict[tuple[int, int], Weights]) -> tuple[dict, d
         cols.setdefault(pc, split[1])
     # rebuild and verify exactness with these factors
     for (pr, pc), w in phases.items():
-        m, a = algebra.as_matrix(w)
+        m, _ = algebra.as_matrix(w)
         rebuilt = [[x * y for y in cols[pc]] for x in rows[pr]]
-        if rebuilt != m:
-            # factors of different phases may carry different scales
+        if rebuilt != m:  # factors of different phases may carry different scales
             return None
     return rows, cols
 
@@ -452,7 +451,7 @@ def check(p: Plan) -> None:
                     assert o % Fraction(1, 4) == 0, f"tap offset {o} not on a quarter texel"
 
 
-__all__ = ["Plan", "Pass", "Tap", "Image", "plan", "check", "Literal", "Step"]
+__all__ = ["Plan", "Pass", "Tap", "Image", "Builder", "plan", "plan_steps", "check"]
 
 
 # ------------------------------------------------------------------ reports

@@ -10,7 +10,7 @@ from fractions import Fraction
 
 from . import algebra
 from .errors import UsageError
-from .expr import Apply, Expr, Input, Named, Op, steps, to_text
+from .expr import Apply, Expr, Input, Named, Op, steps
 from .plan import Builder, Plan, plan_steps
 
 ANALYSIS = ["box", "box4", "quadratic", "cubic"]
@@ -193,4 +193,3 @@ def impulse_sigma(levels: int, analysis: str, synthesis: str) -> float:
     return (total / len(phases)) ** 0.5
 
 
-__all__ = ["blur_plan", "level_sizes", "lattice_mismatch", "impulse_sigma", "Fraction", "to_text"]

@@ -26,7 +26,6 @@ class Runner:
         self.precision = precision
         self._gl = None
         self._warn = warn or (lambda msg: print(f"pyramid: warning: {msg}", file=sys.stderr))
-        self.used = "cpu"
         if backend in ("gl", "auto"):
             from . import gl
 
@@ -34,7 +33,6 @@ class Runner:
             try:
                 _ = executor.ctx  # makes the context now, so a missing EGL shows here
                 self._gl = executor
-                self.used = "gl"
             except BackendError as e:
                 if backend == "gl":
                     raise
