@@ -147,3 +147,30 @@ def test_console_script_and_help_do_not_import_heavy_modules():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env={**os.environ})
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip().splitlines()[-1] == "HEAVY="
+
+
+def test_srgb_gradient_blur_matches_linear_light_not_gamma_space(tmp_path):
+    """An 8-bit sRGB gradient is linearised, blurred, re-encoded (issue: colour in linear light)."""
+    x = np.linspace(0, 1, 64)
+    enc = np.repeat(np.repeat(x[None, :, None], 8, axis=0), 3, axis=2)
+    enc[:, ::2] = 0  # alternate black columns so that averaging differs a lot between the two spaces
+    src, dst = tmp_path / "grad.png", tmp_path / "blur.png"
+    out = oiio.ImageOutput.create(str(src))
+    out.open(str(src), oiio.ImageSpec(64, 8, 3, "uint8"))
+    out.write_image(np.round(enc * 255).astype(np.uint8))
+    out.close()
+    r = invoke("apply", "--backend", "cpu", "box *v g", str(src), str(dst))
+    assert r.exit_code == 0, r.output
+    got, _ = read(dst)
+
+    def to_linear(v):
+        return np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4)
+
+    def to_srgb(v):
+        return np.where(v <= 0.0031308, 12.92 * v, 1.055 * v ** (1 / 2.4) - 0.055)
+
+    stored = np.round(enc * 255) / 255
+    linear = to_srgb(reference.run(parse("box *v g"), to_linear(stored)))
+    gamma = reference.run(parse("box *v g"), stored)
+    assert np.abs(got - linear).max() <= 1 / 255 + 1e-6
+    assert np.abs(got - gamma).max() > 20 / 255
