@@ -410,7 +410,7 @@ def collapse(inputs, output_path, synthesis, **opts) -> None:
     sizes = [b.pixels.shape[:2] for b in bands]
     runner = Runner(opts["backend"], opts["precision"])
     try:
-        (out,) = runner.run_outputs(collapse_plan(sizes, synthesis), [b.pixels for b in bands])
+        (out,) = runner.run_outputs(collapse_plan(tuple(sizes), synthesis), [b.pixels for b in bands])
     finally:
         runner.close()
     io.write_image(output_path, io.Image(out, bands[0].spec), pixel_type=opts["pixel_type"], dither=opts["dither"],

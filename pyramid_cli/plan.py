@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from fractions import Fraction
-from functools import cache
+from functools import cache, lru_cache
 
 from . import algebra, catalogue
 from .algebra import Weights, mask_weights
@@ -215,6 +215,15 @@ def recipe(op: Op, f, stride: int = 1) -> list[Stage]:
     return [down(w, stride)] if op is Op.DOWN else [conv(w)]
 
 
+@cache
+def checked_recipe(op: Op, f, stride: int = 1) -> list[Stage]:
+    """:func:`recipe`, verified once per filter against the filter's own exact masks."""
+    stages = recipe(op, f, stride)
+    if isinstance(f, Named) and not recipe_kernel_matches(stages, op, f, stride):
+        raise AssertionError(f"recipe for {f.key} {op.unicode} does not match its mask")  # planner bug
+    return stages
+
+
 # ------------------------------------------------------------------ recipe check
 def _stage_reads(stage: Stage, r: int, c: int):
     pr, pc = stage.period
@@ -337,9 +346,10 @@ def _ceil(x) -> int:
 
 
 # ------------------------------------------------------------------ planning
+@lru_cache(maxsize=64)  # batches re-use a plan per image size
 def plan(expr: Expr, size: tuple[int, int]) -> Plan:
     """Plan ``expr`` for an input of ``size`` = (rows, columns)."""
-    return plan_steps(steps(expr), size, text=_text(expr), paper=algebra.paper_fetches(expr))
+    return plan_steps(steps(expr), tuple(size), text=_text(expr), paper=algebra.paper_fetches(expr))
 
 
 class Builder:
@@ -362,9 +372,7 @@ class Builder:
 
         ``crop`` cuts the result to a size (top-left kept), as pyramid synthesis does for odd levels.
         """
-        stages = recipe(op, f, stride)
-        if isinstance(f, Named) and not recipe_kernel_matches(stages, op, f, stride):
-            raise AssertionError(f"recipe for {f.key} {op.unicode} does not match its mask")  # planner bug
+        stages = checked_recipe(op, f, stride)
         first = len(self.images)
         sizes: list[tuple[int, int]] = []
         for st in stages:  # a stage reading stage k takes its size

@@ -7,6 +7,7 @@ an executor runs it without read-back between levels.
 from __future__ import annotations
 
 from fractions import Fraction
+from functools import lru_cache
 
 from . import algebra
 from .errors import UsageError
@@ -56,6 +57,7 @@ def blur_steps(size: tuple[int, int], levels: int, analysis: str = "box4", synth
     return step_list, crops
 
 
+@lru_cache(maxsize=32)  # batches re-use a plan per image size
 def blur_plan_sigma(size: tuple[int, int], sigma: float, analysis: str = "box4", synthesis: str = "doosabin"):
     """A blur of Gaussian-equivalent ``sigma`` (input pixels): the blend of the m- and (m+1)-level blurs
     whose variance is sigma², so the strength changes continuously with sigma. Returns (plan, levels, t)."""
@@ -93,6 +95,7 @@ def _run_steps(b: Builder, source: int, step_list, crop=None) -> int:
     return source
 
 
+@lru_cache(maxsize=32)  # batches re-use a plan per image size
 def levels_plan(size: tuple[int, int], levels: int, analysis: str = "box4", laplacian: bool = False,
                 synthesis: str = "doosabin") -> Plan:
     """Levels 1..m of the analysis pyramid, or with ``laplacian`` the bands L_0..L_{m−1} and G_m
@@ -115,7 +118,8 @@ def levels_plan(size: tuple[int, int], levels: int, analysis: str = "box4", lapl
     return b.build(f"Laplacian: {levels} × {analysis} ⊗↓, {synthesis} ⊗↑", outputs=bands + [g[-1]])
 
 
-def collapse_plan(sizes: list[tuple[int, int]], synthesis: str = "doosabin") -> Plan:
+@lru_cache(maxsize=32)  # batches re-use a plan per image size
+def collapse_plan(sizes: tuple[tuple[int, int], ...], synthesis: str = "doosabin") -> Plan:
     """Rebuild G_0 from L_0..L_{m−1}, G_m (inputs 0..m): G_k = L_k + expand(G_{k+1})."""
     up = steps(_one_step(synthesis, Op.UP))
     b = Builder(sizes[0])
@@ -137,6 +141,7 @@ def mip_levels(size: tuple[int, int]) -> int:
     return n
 
 
+@lru_cache(maxsize=32)  # batches re-use a plan per image size
 def blur_plan(size: tuple[int, int], levels: int, analysis: str = "box4", synthesis: str = "doosabin",
               quasi: bool = False) -> Plan:
     step_list, crops = blur_steps(size, levels, analysis, synthesis, quasi)

@@ -119,7 +119,7 @@ def test_laplacian_bands_collapse_back_exactly(synthesis):
     # each band is G_k − expand(G_k+1) by the reference
     g1 = reference.run(parse("quadratic *v g"), g)
     np.testing.assert_allclose(bands[0], g - reference.run(parse(f"{synthesis} *^ g"), g1)[:37, :29], atol=1e-12)
-    back = emulate.run(collapse_plan([b.shape[:2] for b in bands], synthesis), bands)
+    back = emulate.run(collapse_plan(tuple(b.shape[:2] for b in bands), synthesis), bands)
     np.testing.assert_allclose(back, g, atol=1e-12)
 
 
