@@ -119,7 +119,10 @@ def _size(ctx, param, value):
 @click.argument("expression", type=EXPR)
 @click.option("--size", required=True, callback=_size, metavar="WxH", help="Input image size, e.g. 1920x1080.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of the report.")
-def plan_command(expression, size, as_json: bool) -> None:
+@click.option("--strategy", type=click.Choice(["cost", "paper"]), default="cost", show_default=True,
+              help="cost: per filter, the paper's decomposition or one fused pass, whichever the cost model "
+                   "(fetches per output pixel + a per-pass cost) finds cheaper; paper: always the paper's.")
+def plan_command(expression, size, as_json: bool, strategy: str) -> None:
     """Show the render passes and bilinear taps that compute EXPRESSION.
 
     \b
@@ -134,7 +137,7 @@ def plan_command(expression, size, as_json: bool) -> None:
     from .plan import check, plan, render, to_json
 
     w, h = size
-    p = plan(expression, (h, w))
+    p = plan(expression, (h, w), strategy)
     check(p)
     click.echo(json.dumps(to_json(p), ensure_ascii=False) if as_json else render(p))
 

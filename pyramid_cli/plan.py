@@ -61,6 +61,7 @@ class Pass:
     period: tuple[int, int]
     stride: tuple[int, int]
     phases: dict[tuple[int, int], list[Tap]]     # keyed by (r mod Pr, c mod Pc)
+    why: str = ""                                # the cost model's choice, on a filter's first pass
 
     def sources(self) -> set[int]:
         return {t.source for taps in self.phases.values() for t in taps}
@@ -208,11 +209,52 @@ def recipe(op: Op, f, stride: int = 1) -> list[Stage]:
                                                    for p, v in cols.items()})
                 return [row_pass, col_pass]
         return [up(phases)]
+    return direct_recipe(op, f, stride)
+
+
+def direct_recipe(op: Op, f, stride: int = 1) -> list[Stage]:
+    """One pass straight from the filter's own mask (or phase masks), taps fitted by :func:`taps_for`."""
     step = algebra.step_of(op, f, stride)
     if op is Op.UP:
-        return [up(dict(step.weights))]
+        return [up({p: dict(w) for p, w in step.weights})]
     w = dict(step.weights)
     return [down(w, stride)] if op is Op.DOWN else [conv(w)]
+
+
+# ------------------------------------------------------------------ cost model
+PASS_COST = 0.25  # a render-target switch, in fetches per output pixel (llvmpipe: bench/results)
+
+
+def _stage_sizes(stages: list[Stage], size: tuple[int, int]) -> list[tuple[int, int]]:
+    sizes: list[tuple[int, int]] = []
+    for st in stages:  # a stage reading stage k takes its size
+        srcs = {src for _, parts in st.phases for src, _ in parts}
+        base = size if max(srcs) == -1 else sizes[max(srcs)]
+        sizes.append((-(-base[0] * st.period[0] // st.stride[0]), -(-base[1] * st.period[1] // st.stride[1])))
+    return sizes
+
+
+def recipe_cost(stages: list[Stage], size: tuple[int, int]) -> float:
+    """Fetches per output pixel plus a per-pass cost: what the planner minimises (DESIGN.md §5)."""
+    sizes = _stage_sizes(stages, size)
+    out = sizes[-1][0] * sizes[-1][1]
+    total = 0.0
+    for st, (h, w) in zip(stages, sizes, strict=True):
+        per_fragment = sum(len(taps_for(dict(items), 0)) for _, parts in st.phases for _, items in parts)
+        total += per_fragment / len(st.phases) * h * w / out + PASS_COST
+    return total
+
+
+def choose_recipe(op: Op, f, stride: int, size: tuple[int, int], strategy: str = "cost") -> tuple[list[Stage], str]:
+    """The paper's decomposition, or one fused pass when the cost model says it is cheaper; and why."""
+    paper = checked_recipe(op, f, stride)
+    if strategy == "paper" or len(paper) == 1:
+        return paper, ""
+    fused = direct_recipe(op, f, stride)
+    cp, cf = recipe_cost(paper, size), recipe_cost(fused, size)
+    if cf < cp:
+        return fused, f"one fused pass: cost {cf:.2f} < {cp:.2f} for the paper's {len(paper)} passes"
+    return paper, f"paper's {len(paper)} passes: cost {cp:.2f} ≤ {cf:.2f} for one fused pass"
 
 
 @cache
@@ -347,18 +389,24 @@ def _ceil(x) -> int:
 
 # ------------------------------------------------------------------ planning
 @lru_cache(maxsize=64)  # batches re-use a plan per image size
-def plan(expr: Expr, size: tuple[int, int]) -> Plan:
-    """Plan ``expr`` for an input of ``size`` = (rows, columns)."""
-    return plan_steps(steps(expr), tuple(size), text=_text(expr), paper=algebra.paper_fetches(expr))
+def plan(expr: Expr, size: tuple[int, int], strategy: str = "cost") -> Plan:
+    """Plan ``expr`` for an input of ``size`` = (rows, columns).
+
+    ``strategy`` "paper" keeps the paper's decompositions (its fetch counts);
+    "cost" lets the cost model fuse a filter into one pass where that is cheaper.
+    """
+    return plan_steps(steps(expr), tuple(size), text=_text(expr), paper=algebra.paper_fetches(expr),
+                      strategy=strategy)
 
 
 class Builder:
     """Assembles one job from written steps and combinations; any image can be read back."""
 
-    def __init__(self, size: tuple[int, int]):
+    def __init__(self, size: tuple[int, int], strategy: str = "cost"):
         self.images = [Image(tuple(size))]
         self.passes: list[Pass] = []
         self.inputs = [0]
+        self.strategy = strategy  # "cost": cheapest of paper/fused per filter; "paper": always the paper's
 
     def add_input(self, size: tuple[int, int]) -> int:
         """Another uploaded image (before any pass); returns its index."""
@@ -372,13 +420,9 @@ class Builder:
 
         ``crop`` cuts the result to a size (top-left kept), as pyramid synthesis does for odd levels.
         """
-        stages = checked_recipe(op, f, stride)
+        stages, why = choose_recipe(op, f, stride, self.images[source].size, self.strategy)
         first = len(self.images)
-        sizes: list[tuple[int, int]] = []
-        for st in stages:  # a stage reading stage k takes its size
-            srcs = {src for _, parts in st.phases for src, _ in parts}
-            base = self.images[source].size if max(srcs) == -1 else sizes[max(srcs)]
-            sizes.append((-(-base[0] * st.period[0] // st.stride[0]), -(-base[1] * st.period[1] // st.stride[1])))
+        sizes = _stage_sizes(stages, self.images[source].size)
         if crop is not None:
             sizes[-1] = tuple(crop)
         for i, st in enumerate(stages):
@@ -390,7 +434,7 @@ class Builder:
                     taps += taps_for(dict(items), source if src == -1 else first + src)
                 phases[ph] = taps
             label = f"{_label(op, f)}" + (f" [{i + 1}/{len(stages)}]" if len(stages) > 1 else "")
-            self.passes.append(Pass(label, first + i, st.period, st.stride, phases))
+            self.passes.append(Pass(label, first + i, st.period, st.stride, phases, why if i == 0 else ""))
         _infer_guards(self.images, self.passes[-len(stages):], first)
         return len(self.images) - 1
 
@@ -410,11 +454,11 @@ class Builder:
 
 
 def plan_steps(step_list, size: tuple[int, int], crops: dict[int, tuple[int, int]] | None = None,
-               text: str = "", paper: float | None = None) -> Plan:
+               text: str = "", paper: float | None = None, strategy: str = "cost") -> Plan:
     """Plan written steps ``(op, filter, stride)`` (innermost first) as one job;
     ``crops`` maps a step's index to the size its result is cut to."""
     crops = crops or {}
-    b = Builder(size)
+    b = Builder(size, strategy)
     current = 0
     for index, (op, f, stride) in enumerate(step_list):
         current = b.step(current, op, f, stride, crops.get(index))
@@ -477,6 +521,8 @@ def to_json(p: Plan) -> dict:
         entry = {"label": ps.label, "size": [img.size[1], img.size[0]], "guard": list(img.guard),
                  "period": [ps.period[1], ps.period[0]], "stride": [ps.stride[1], ps.stride[0]],
                  "fetches": ps.fetches}
+        if ps.why:
+            entry["why"] = ps.why
         if len(ps.phases) == 1:
             entry["taps"] = [_tap_json(t) for t in next(iter(ps.phases.values()))]
         else:
@@ -500,6 +546,8 @@ def render(p: Plan) -> str:
         srcs = ", ".join("input" if s == 0 else f"pass {s}" for s in sorted(ps.sources()))
         lines.append(f"pass {n}  {ps.label}: {img.size[1]}×{img.size[0]}{guard}, reads {srcs}, "
                      f"{ps.fetches:g} fetch(es) per fragment")
+        if ps.why:
+            lines.append(f"        chosen: {ps.why}")
         for ph, taps in sorted(ps.phases.items(), reverse=True):
             head = f"  phase {ph[0]},{ph[1]}" if len(ps.phases) > 1 else "  "
             for i, tap in enumerate(taps):

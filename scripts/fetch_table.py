@@ -22,15 +22,17 @@ BEGIN, END = "<!-- fetch-table:begin -->", "<!-- fetch-table:end -->"
 
 def table() -> str:
     exe = os.path.join(os.path.dirname(sys.executable), "pyramid")
-    lines = [f"| filter | expression | passes | fetches | fetches per output pixel ({SIZE}) | paper |",
-             "|---|---|---|---|---|---|"]
+    lines = ["| filter | expression | paper's count | passes | fetches | fetches per output pixel | "
+             "cost model: passes | fetches | per output pixel |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for name, expr in ROWS:
-        out = subprocess.run([exe, "plan", "--json", expr, "--size", SIZE], check=True, capture_output=True,
-                             text=True).stdout
-        d = json.loads(out)
+        d, c = (json.loads(subprocess.run([exe, "plan", "--json", "--strategy", strategy, expr, "--size", SIZE],
+                                          check=True, capture_output=True, text=True).stdout)
+                for strategy in ("paper", "cost"))
         paper = "–" if d["paper_fetches"] is None else f"{d['paper_fetches']:g}"
-        lines.append(f"| {name} | `{expr}` | {len(d['passes'])} | {d['fetches']:g} | "
-                     f"{d['fetches_per_output_pixel']:.2f} | {paper} |")
+        lines.append(f"| {name} | `{expr}` | {paper} | {len(d['passes'])} | {d['fetches']:g} | "
+                     f"{d['fetches_per_output_pixel']:.2f} | {len(c['passes'])} | {c['fetches']:g} | "
+                     f"{c['fetches_per_output_pixel']:.2f} |")
     return "\n".join(lines)
 
 

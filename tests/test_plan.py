@@ -15,13 +15,14 @@ from pyramid_cli.parse import parse
 from pyramid_cli.plan import check, plan, recipe, recipe_kernel_matches, taps_for
 
 
+@pytest.mark.parametrize("strategy", ["cost", "paper"])
 @pytest.mark.parametrize("text", NAMED + CHAINS)
-def test_emulated_plan_equals_reference_everywhere(text):
+def test_emulated_plan_equals_reference_everywhere(text, strategy):
     expr = parse(text)
     rng = np.random.default_rng(abs(hash(text)) % 2 ** 32)
     for shape in SHAPES:
         g = rng.random(shape + (2,))
-        p = plan(expr, shape)
+        p = plan(expr, shape, strategy)
         check(p)
         want = reference.run(expr, g)
         got = emulate.run(p, g)
@@ -49,9 +50,19 @@ PAPER = {"box * g": 1, "box^nw * g": 1, "bartlett": 2, "gauss5": 4, "gauss7": 6,
 
 @pytest.mark.parametrize("text, count", PAPER.items())
 def test_fetches_match_or_beat_the_paper(text, count):
-    p = plan(parse(text), (256, 256))
+    p = plan(parse(text), (256, 256), "paper")
     assert p.paper_fetches == count  # the catalogue records the paper's count
     assert p.fetches <= count
+    # the cost model never makes the real cost worse than the paper's decomposition
+    assert plan(parse(text), (256, 256)).fetches_per_output_pixel <= p.fetches_per_output_pixel
+
+
+def test_cost_model_fuses_quadratic_and_says_why():
+    p = plan(parse("quadratic *v g"), (1080, 1920))
+    assert len(p.passes) == 1 and p.fetches == 4 and p.fetches_per_output_pixel == 4
+    assert "one fused pass" in p.passes[0].why
+    keep = plan(parse("box4 *v g"), (1080, 1920))
+    assert len(keep.passes) == 2 and "paper's 2 passes" in keep.passes[0].why
 
 
 @pytest.mark.parametrize("key", ["bartlett", "gauss5", "gauss7", "gauss9", "quasi"])
@@ -93,7 +104,7 @@ def test_tap_fitting_pairs_bilinear_weights_and_keeps_the_rest_nearest():
 
 
 def test_guard_band_keeps_row_zero_of_box4():
-    p = plan(parse("box4 *v g"), (8, 8))
+    p = plan(parse("box4 *v g"), (8, 8), "paper")
     assert p.images[1].guard == [1, 1, 0, 0]  # §4.2: the 0-th row and column are stored
     assert p.images[-1].guard == [0, 0, 0, 0]
 
@@ -104,7 +115,7 @@ def test_written_operators_share_no_guard():
 
 
 def test_fetches_per_output_pixel_weighs_pass_sizes():
-    p = plan(parse("quadratic *v g"), (256, 256))
+    p = plan(parse("quadratic *v g"), (256, 256), "paper")
     # two full-resolution passes (+guard) and one at the output size
     assert p.fetches == 3
     assert 8.9 < p.fetches_per_output_pixel < 9.2
@@ -125,8 +136,10 @@ def test_plan_cli_json_schema():
 
 
 def test_plan_cli_report_and_bad_size():
-    r = CliRunner().invoke(main, ["plan", "quadratic", "--size", "13x17"])
+    r = CliRunner().invoke(main, ["plan", "--strategy", "paper", "quadratic", "--size", "13x17"])
     assert r.exit_code == 0 and "fetches 3 (paper: 3)" in r.output
+    r = CliRunner().invoke(main, ["plan", "quadratic", "--size", "13x17"])
+    assert r.exit_code == 0 and "chosen: one fused pass" in r.output and "fetches 4 (paper: 3)" in r.output
     r = CliRunner().invoke(main, ["plan", "quadratic", "--size", "13"])
     assert r.exit_code == 2 and "WIDTHxHEIGHT" in r.output
 
