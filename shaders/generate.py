@@ -115,7 +115,44 @@ def _source_lines(k: int) -> list[str]:
     ]
 
 
+def _uniform_phases(s: PassShape) -> bool:
+    """Every phase has the same taps but for offsets and weights, all bilinear or all single texels."""
+    layouts = {tuple((t.slot, t.exact_texel) for t in taps) for _, taps in s.phases}
+    kinds = {t.exact_texel for _, taps in s.phases for t in taps}
+    return len(layouts) == 1 and len(kinds) == 1 and len(s.phases) == s.period[0] * s.period[1]
+
+
+def _phase_table_lines(s: PassShape) -> list[str]:
+    """Branch-free taps: per-phase offsets and weights in constant arrays indexed by the phase.
+
+    Neighbouring fragments have different phases, so branching on the phase makes SIMD
+    hardware (and llvmpipe) run every branch; indexing runs one.
+    """
+    pr, pc = s.period
+    table = dict(s.phases)
+    order = [(i, j) for i in range(pr) for j in range(pc)]
+    n = len(order)
+    lines = ["int idx = phase.y * PERIOD.x + phase.x;"]
+    for k, first in enumerate(table[order[0]]):
+        offs = [table[ph][k].offset for ph in order]
+        weights = [table[ph][k].weight for ph in order]
+        w = ", ".join(_float(x) for x in weights)
+        if first.exact_texel:
+            o = ", ".join(f"ivec2({int(tc)}, {int(tr)})" for tr, tc in offs)
+            lines.append(f"const ivec2 OFF{k}[{n}] = ivec2[]({o});")
+            read = f"nearest{first.slot}(R - OFF{k}[idx])"
+        else:
+            o = ", ".join(_vec2(tc, tr) for tr, tc in offs)
+            lines.append(f"const vec2 OFF{k}[{n}] = vec2[]({o});")
+            read = f"linear{first.slot}(Rf - OFF{k}[idx])"
+        lines.append(f"const float W{k}[{n}] = float[]({w});")
+        lines.append(f"acc += W{k}[idx] * {read};")
+    return lines
+
+
 def _tap_lines(s: PassShape) -> list[str]:
+    if s.period != (1, 1) and _uniform_phases(s):
+        return _phase_table_lines(s)
     lines: list[str] = []
     single = s.period == (1, 1)
     for (pr, pc), taps in s.phases:
