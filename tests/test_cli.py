@@ -174,3 +174,18 @@ def test_srgb_gradient_blur_matches_linear_light_not_gamma_space(tmp_path):
     gamma = reference.run(parse("box *v g"), stored)
     assert np.abs(got - linear).max() <= 1 / 255 + 1e-6
     assert np.abs(got - gamma).max() > 20 / 255
+
+
+def test_without_egl_auto_falls_back_with_a_warning_and_gl_exits_6(tmp_path):
+    src = tmp_path / "in.exr"
+    write_exr(src, np.random.default_rng(3).random((9, 7, 3)))
+    env = {**os.environ, "__EGL_VENDOR_LIBRARY_FILENAMES": "/nonexistent.json"}
+    base = [sys.executable, "-m", "pyramid_cli.cli", "apply", "quadratic"]
+    auto = subprocess.run(base + [str(src), str(tmp_path / "a.exr")], capture_output=True, text=True, env=env)
+    assert auto.returncode == 0, auto.stderr
+    warning = [ln for ln in auto.stderr.splitlines() if "warning" in ln]
+    assert len(warning) == 1 and "apt-get install" in warning[0] and "running on the CPU" in warning[0]
+    gl = subprocess.run(base[:4] + ["--backend", "gl", "quadratic", str(src), str(tmp_path / "b.exr")],
+                        capture_output=True, text=True, env=env)
+    assert gl.returncode == 6 and "--backend cpu" in gl.stderr
+    assert not (tmp_path / "b.exr").exists()
