@@ -159,6 +159,8 @@ def io_options(f):
         click.option("--nan", "nan_policy", type=click.Choice(["keep", "zero", "fail"]), default="keep",
                      show_default=True, help="What to do with NaN/Inf pixels in float input."),
         click.option("--dither", is_flag=True, help="Dither 8-bit output."),
+        click.option("--compression", metavar="C", help="Output compression: EXR none|zip|zips|piz|dwaa|... "
+                     "(default: the input's), PNG zlib level 0-9 (default 6)."),
         click.option("--force", is_flag=True, help="Allow OUTPUT to overwrite INPUT."),
         click.option("-v", "--verbose", is_flag=True, help="Say which backend, colour and alpha rules are in force."),
         click.option("-q", "--quiet", is_flag=True, help="Print nothing but errors."),
@@ -211,7 +213,7 @@ def _process(paths: tuple[str, ...], work, opts: dict) -> None:
         if out_dir and len(jobs) > 1:
             os.makedirs(out_dir, exist_ok=True)
         io.write_image(job.output, image, pixel_type=opts["pixel_type"], dither=opts["dither"],
-                       force=opts["force"], inputs=(job.input,))
+                       compression=opts["compression"], force=opts["force"], inputs=(job.input,))
         if not quiet and not show_bar:
             h, w = image.pixels.shape[:2]
             click.echo(f"wrote {job.output} ({w}×{h}, {runner.name})")
@@ -356,7 +358,7 @@ def levels(input_path, pattern, levels, analysis, laplacian, synthesis, multipar
     stack = outs if laplacian else [image.pixels] + outs
     images = [io.Image(px, image.spec) for px in stack]
     write = {"pixel_type": opts["pixel_type"] or ("float" if laplacian else None), "dither": opts["dither"],
-             "force": opts["force"], "inputs": (input_path,)}
+             "compression": opts["compression"], "force": opts["force"], "inputs": (input_path,)}
     if laplacian:
         for im in images:
             im.spec.attributes["pyramid:synthesis"] = synthesis
@@ -417,7 +419,7 @@ def collapse(inputs, output_path, synthesis, **opts) -> None:
     finally:
         runner.close()
     io.write_image(output_path, io.Image(out, bands[0].spec), pixel_type=opts["pixel_type"], dither=opts["dither"],
-                   force=opts["force"], inputs=paths)
+                   compression=opts["compression"], force=opts["force"], inputs=paths)
     if not opts["quiet"]:
         click.echo(f"wrote {output_path} ({sizes[0][1]}×{sizes[0][0]}, {runner.name})")
 
@@ -459,7 +461,8 @@ def mipmap(paths, analysis, tile, **opts) -> None:
             outs = runner.run_outputs(levels_plan(image.pixels.shape[:2], m, analysis), image.pixels) if m else []
             images = [io.Image(px, image.spec) for px in [image.pixels] + outs]
             io.write_levels(job.output, images, mode="mipmap", tile=tile, pixel_type=opts["pixel_type"],
-                            dither=opts["dither"], force=opts["force"], inputs=(job.input,))
+                            dither=opts["dither"], compression=opts["compression"], force=opts["force"],
+                            inputs=(job.input,))
             if not opts["quiet"]:
                 click.echo(f"wrote {job.output} ({len(images)} MIP levels, {runner.name})")
     finally:

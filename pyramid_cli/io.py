@@ -919,7 +919,10 @@ def _encode(path, image: Image, *, pixel_type=None, colorspace=None, alpha=None,
         # OpenImageIO from unpremultiplying them again.
         spec.attribute("oiio:UnassociatedAlpha", 1)
     if compression is not None:
-        spec.attribute("compression", compression)
+        if fmt == "png" and compression.isdigit():
+            spec.attribute("png:compressionLevel", int(compression))  # zlib level 0-9
+        else:
+            spec.attribute("compression", compression)
 
     return spec, data
 

@@ -189,3 +189,13 @@ def test_without_egl_auto_falls_back_with_a_warning_and_gl_exits_6(tmp_path):
                         capture_output=True, text=True, env=env)
     assert gl.returncode == 6 and "--backend cpu" in gl.stderr
     assert not (tmp_path / "b.exr").exists()
+
+
+def test_compression_option_reaches_the_file(tmp_path):
+    src = tmp_path / "in.exr"
+    write_exr(src, np.random.default_rng(4).random((16, 16, 3)))
+    r = invoke("apply", "--backend", "cpu", "--compression", "piz", "bartlett", str(src), str(tmp_path / "o.exr"))
+    assert r.exit_code == 0, r.output
+    assert read(tmp_path / "o.exr")[1].get_string_attribute("compression") == "piz"
+    r = invoke("apply", "--backend", "cpu", "bartlett", str(src), str(tmp_path / "same.exr"))
+    assert read(tmp_path / "same.exr")[1].get_string_attribute("compression") == "zip"  # follows the input
