@@ -185,8 +185,11 @@ def batch_options(f):
     return f
 
 
-def _process(paths: tuple[str, ...], work, opts: dict) -> None:
-    """Read each input, ``work(runner, pixels)``, write atomically; one runner for the whole batch."""
+def _process(paths: tuple[str, ...], work, opts: dict, mip_tile: int | None = None) -> None:
+    """Read each input, ``work(runner, pixels)``, write atomically; one runner for the whole batch.
+
+    With ``mip_tile``, ``work`` returns every MIP level and they go into one tiled file.
+    """
     from . import batch, io
     from .run import Runner
 
@@ -205,18 +208,23 @@ def _process(paths: tuple[str, ...], work, opts: dict) -> None:
         return image
 
     def compute(image):
-        image.pixels = work(runner, image.pixels)
-        return image
+        return [io.Image(px, image.spec) for px in work(runner, image.pixels)] if mip_tile else \
+            [io.Image(work(runner, image.pixels), image.spec)]
 
-    def write(job, image):
+    def write(job, images):
         out_dir = os.path.dirname(job.output)
         if out_dir and len(jobs) > 1:
             os.makedirs(out_dir, exist_ok=True)
-        io.write_image(job.output, image, pixel_type=opts["pixel_type"], dither=opts["dither"],
-                       compression=opts["compression"], force=opts["force"], inputs=(job.input,))
+        options = {"pixel_type": opts["pixel_type"], "dither": opts["dither"], "compression": opts["compression"],
+                   "force": opts["force"], "inputs": (job.input,)}
+        if mip_tile:
+            io.write_levels(job.output, images, mode="mipmap", tile=mip_tile, **options)
+        else:
+            io.write_image(job.output, images[0], **options)
         if not quiet and not show_bar:
-            h, w = image.pixels.shape[:2]
-            click.echo(f"wrote {job.output} ({w}×{h}, {runner.name})")
+            h, w = images[0].pixels.shape[:2]
+            levels = f", {len(images)} MIP levels" if mip_tile else ""
+            click.echo(f"wrote {job.output} ({w}×{h}{levels}, {runner.name})")
 
     show_bar = len(jobs) > 1 and not quiet and sys.stderr.isatty()
     try:
@@ -446,27 +454,13 @@ def mipmap(paths, analysis, tile, **opts) -> None:
       pyramid mipmap albedo.exr albedo.tx.exr
       pyramid mipmap --analysis cubic 'tex/*.png' -o 'tx/{stem}.tif'
     """
-    from . import batch, io
     from .pyramids import levels_plan, mip_levels
-    from .run import Runner
 
-    jobs = batch.plan_jobs(list(paths), opts["template"])
-    runner = Runner(opts["backend"], opts["precision"])
-    try:
-        for job in jobs:
-            if opts["skip_existing"] and batch.is_fresh(job):
-                continue
-            image = _read_one(job.input, opts)
-            m = mip_levels(image.pixels.shape[:2])
-            outs = runner.run_outputs(levels_plan(image.pixels.shape[:2], m, analysis), image.pixels) if m else []
-            images = [io.Image(px, image.spec) for px in [image.pixels] + outs]
-            io.write_levels(job.output, images, mode="mipmap", tile=tile, pixel_type=opts["pixel_type"],
-                            dither=opts["dither"], compression=opts["compression"], force=opts["force"],
-                            inputs=(job.input,))
-            if not opts["quiet"]:
-                click.echo(f"wrote {job.output} ({len(images)} MIP levels, {runner.name})")
-    finally:
-        runner.close()
+    def work(runner, px):
+        m = mip_levels(px.shape[:2])
+        return [px] + (runner.run_outputs(levels_plan(px.shape[:2], m, analysis), px) if m else [])
+
+    _process(paths, work, opts, mip_tile=tile)
 
 
 def _register() -> None:
