@@ -447,12 +447,15 @@ def _level_key(path: str):
 @io_options
 @batch_options
 def mipmap(paths, analysis, tile, **opts) -> None:
-    """Write a tiled MIP-mapped EXR or TIFF down to 1×1 (what maketx makes, with better filters).
+    """Write a tiled MIP-mapped OpenEXR down to 1×1 (what maketx makes, with better filters).
+
+    Level sizes are ⌈n/2⌉ (OpenEXR's round-up mode), as ⊗↓ gives. OpenImageIO 3.2
+    cannot write MIP-mapped TIFF; a .tif output exits 4 saying so.
 
     \b
     Example:
       pyramid mipmap albedo.exr albedo.tx.exr
-      pyramid mipmap --analysis cubic 'tex/*.png' -o 'tx/{stem}.tif'
+      pyramid mipmap --analysis cubic 'tex/*.png' -o 'tx/{stem}.tx.exr'
     """
     from .pyramids import levels_plan, mip_levels
 
