@@ -511,7 +511,7 @@ def read_image(path: str | os.PathLike[str], *, colorspace: str = "auto",
             _premultiply(px, alpha_channel, colour)
     elif has_alpha and alpha_mode == "straight":
         _premultiply(px, alpha_channel, colour)
-    pixels = px.astype(np.float32)
+    pixels = px.astype(np.float32, copy=False)
 
     bad = count_nonfinite(pixels)
     if bad and nan == "fail":
@@ -568,7 +568,8 @@ def read_parts(path: str | os.PathLike[str], **options) -> list[Image]:
 
 
 def _read_pixels(p: str, subimage: int = 0) -> tuple[np.ndarray, oiio.ImageSpec, str]:
-    """Open and fully read ``p`` (one subimage); float64 pixels normalised to the stored range."""
+    """Open and fully read ``p`` (one subimage), normalised to the stored range: integer files as
+    float64 (exact sRGB decoding), float files as float32 (as stored, without a copy)."""
     config = oiio.ImageSpec()
     # Ask for the stored values: without this hint OpenImageIO premultiplies
     # straight-alpha files itself, in the encoded (non-linear) space.
@@ -614,7 +615,7 @@ def _read_pixels(p: str, subimage: int = 0) -> tuple[np.ndarray, oiio.ImageSpec,
         return data.astype(np.float64) / 255.0, spec, fmt
     if read_type == "uint16":
         return data.astype(np.float64) / 65535.0, spec, fmt
-    return data.astype(np.float64), spec, fmt
+    return np.asarray(data, dtype=np.float32), spec, fmt  # float files stay float32: no 2× copy
 
 
 # ---------------------------------------------------------------------------
@@ -850,7 +851,7 @@ def _encode(path, image: Image, *, pixel_type=None, colorspace=None, alpha=None,
     memory_premultiplied = alpha_channel >= 0 and info.alpha_mode != "none"
     mode = "none" if alpha_channel < 0 else (alpha or _output_alpha_mode(info, fmt, out_type))
 
-    px = pixels.astype(np.float64)
+    px = pixels.astype(np.float64 if out_int else np.float32)  # a copy: encoded in place below
     if fmt in _NO_ALPHA_FORMATS and alpha_channel >= 0:
         # No alpha in the file: premultiplied linear colour alone is the image
         # composited over black.
@@ -876,7 +877,7 @@ def _encode(path, image: Image, *, pixel_type=None, colorspace=None, alpha=None,
     if out_int:
         data = _encode_integer(px, out_type, dither, colour)
     else:
-        data = px.astype(np.float32)
+        data = px.astype(np.float32, copy=False)
     data = np.ascontiguousarray(data)
 
     spec = oiio.ImageSpec(width, height, nch, out_type)
