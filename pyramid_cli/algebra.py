@@ -139,7 +139,7 @@ def kernel_of_steps(stps: list[Step]) -> Kernel:
     return Kernel(tuple(period), tuple(stride), phases)
 
 
-def _split_step(step: Step) -> tuple[dict, dict] | None:
+def split_step(step: Step) -> tuple[dict, dict] | None:
     """Per-axis 1-D phase weights {phase: {d: w}} of a separable step, or None."""
     phases = dict(step.weights) if step.op is Op.UP else {(0, 0): step.weights}
     rows: dict[int, dict[int, Fraction]] = {}
@@ -179,7 +179,7 @@ def _evaluator_1d(axis_steps):
 
 def axis_kernels(stps: list[Step]):
     """For a chain of separable steps: per axis (period, stride, {phase: {d: w}}); else None."""
-    splits = [_split_step(s) for s in stps]
+    splits = [split_step(s) for s in stps]
     if any(sp is None for sp in splits):
         return None
     out = []

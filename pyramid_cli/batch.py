@@ -97,18 +97,18 @@ def run(jobs: list[Job], read: Callable, work: Callable, write: Callable, *, kee
             todo.append(j)
     pool = ThreadPoolExecutor(max_workers=max(1, workers)) if workers > 1 else None
 
-    def reads() -> Iterator[tuple[Job, Future | None, object]]:
+    def reads() -> Iterator[tuple[Job, Future | None]]:
         if pool is None:
             for j in todo:
-                yield j, None, None
+                yield j, None
             return
         ahead: list[tuple[Job, Future]] = []
         for j in todo:
             ahead.append((j, pool.submit(read, j)))
             if len(ahead) > workers:
-                yield (*ahead.pop(0), None)
+                yield ahead.pop(0)
         for j, f in ahead:
-            yield j, f, None
+            yield j, f
 
     pending_writes: list[tuple[Job, Future]] = []
 
@@ -122,7 +122,7 @@ def run(jobs: list[Job], read: Callable, work: Callable, write: Callable, *, kee
                 report.failed.append((j, e))
 
     try:
-        for job, fut, _ in reads():
+        for job, fut in reads():
             if report.failed and not keep_going:
                 break
             try:

@@ -301,11 +301,11 @@ def blur(paths, levels: int, analysis: str, synthesis: str, quasi: bool, sigma: 
         click.echo(f"pyramid: warning: {warning}", err=True)
 
     if sigma is not None:
-        from .pyramids import blur_plan_sigma
+        from .pyramids import blur_plan_sigma, sigma_blend
 
         if quasi:
             raise UsageError("--quasi and --sigma cannot be combined")
-        _, m, t = blur_plan_sigma((2 ** 10, 2 ** 10), sigma, analysis, synthesis)
+        m, t = sigma_blend(sigma, analysis, synthesis)
         if not opts["quiet"]:
             click.echo(f"pyramid: sigma {sigma:g}: {1 - t:.3f} × {m} level(s) + {t:.3f} × {m + 1} "
                        f"(the blend's equivalent kernel has standard deviation {sigma:g} px)", err=True)

@@ -141,25 +141,6 @@ def _chain(*stages_outermost_last: Stage) -> list[Stage]:
     return out
 
 
-def _split_1d_synthesis(phases: dict[tuple[int, int], Weights]) -> tuple[dict, dict] | None:
-    """Split separable synthesis phases into a row pass and a column pass (§5.5 four-point)."""
-    rows, cols = {}, {}
-    for (pr, pc), w in phases.items():
-        m, _ = algebra.as_matrix(w)
-        split = algebra.separate(m)
-        if split is None:
-            return None
-        rows.setdefault(pr, split[0])
-        cols.setdefault(pc, split[1])
-    # rebuild and verify exactness with these factors
-    for (pr, pc), w in phases.items():
-        m, _ = algebra.as_matrix(w)
-        rebuilt = [[x * y for y in cols[pc]] for x in rows[pr]]
-        if rebuilt != m:  # factors of different phases may carry different scales
-            return None
-    return rows, cols
-
-
 def recipe(op: Op, f, stride: int = 1) -> list[Stage]:
     """The paper's decomposition of one named filter into box-sized stages (§3–§5).
 
@@ -198,15 +179,13 @@ def recipe(op: Op, f, stride: int = 1) -> list[Stage]:
             ds = {p: mask_weights(m) for p, m in catalogue.synthesis("doosabin").phases.items()}
             return _chain(up(ds), conv(box))
         if f.key == "fourpoint":                    # §5.5: rows, then columns
-            split = _split_1d_synthesis(phases)
+            split = algebra.split_step(algebra.step_of(op, f))
             if split:
                 rows, cols = split
-                row_pass = _stage((2, 1), (1, 1), {(p, 0): [(-1, {(i - algebra.anchor(len(v)), 0): x
-                                                                  for i, x in enumerate(v) if x})]
-                                                   for p, v in rows.items()})
-                col_pass = _stage((1, 2), (1, 1), {(0, p): [(0, {(0, j - algebra.anchor(len(v))): x
-                                                                 for j, x in enumerate(v) if x})]
-                                                   for p, v in cols.items()})
+                row_pass = _stage((2, 1), (1, 1), {(p, 0): [(-1, {(d, 0): x for d, x in w.items()})]
+                                                   for p, w in rows.items()})
+                col_pass = _stage((1, 2), (1, 1), {(0, p): [(0, {(0, d): x for d, x in w.items()})]
+                                                   for p, w in cols.items()})
                 return [row_pass, col_pass]
         return [up(phases)]
     return direct_recipe(op, f, stride)

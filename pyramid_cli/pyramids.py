@@ -57,10 +57,8 @@ def blur_steps(size: tuple[int, int], levels: int, analysis: str = "box4", synth
     return step_list, crops
 
 
-@lru_cache(maxsize=32)  # batches re-use a plan per image size
-def blur_plan_sigma(size: tuple[int, int], sigma: float, analysis: str = "box4", synthesis: str = "doosabin"):
-    """A blur of Gaussian-equivalent ``sigma`` (input pixels): the blend of the m- and (m+1)-level blurs
-    whose variance is sigma², so the strength changes continuously with sigma. Returns (plan, levels, t)."""
+def sigma_blend(sigma: float, analysis: str = "box4", synthesis: str = "doosabin") -> tuple[int, float]:
+    """(m, t): blending (1 − t) × the m-level blur with t × the (m+1)-level one has variance sigma²."""
     if not sigma > 0:
         raise UsageError("--sigma must be positive")
     sig = [0.0]
@@ -69,7 +67,14 @@ def blur_plan_sigma(size: tuple[int, int], sigma: float, analysis: str = "box4",
             raise UsageError(f"--sigma {sigma:g} needs more than 16 levels")
         sig.append(impulse_sigma(len(sig), analysis, synthesis))
     m = len(sig) - 2
-    t = (sigma ** 2 - sig[m] ** 2) / (sig[m + 1] ** 2 - sig[m] ** 2)
+    return m, (sigma ** 2 - sig[m] ** 2) / (sig[m + 1] ** 2 - sig[m] ** 2)
+
+
+@lru_cache(maxsize=32)  # batches re-use a plan per image size
+def blur_plan_sigma(size: tuple[int, int], sigma: float, analysis: str = "box4", synthesis: str = "doosabin"):
+    """A blur of Gaussian-equivalent ``sigma`` (input pixels): the blend of the m- and (m+1)-level blurs
+    whose variance is sigma², so the strength changes continuously with sigma. Returns (plan, levels, t)."""
+    m, t = sigma_blend(sigma, analysis, synthesis)
     down = steps(_one_step(analysis, Op.DOWN))
     up = steps(_one_step(synthesis, Op.UP))
     sizes = level_sizes(size, m + 1)

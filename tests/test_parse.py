@@ -11,16 +11,13 @@ from pyramid_cli.parse import parse
 G = Input()
 
 
-def conv(k, x=G, **kw):
-    return Apply(Op.CONV, Named(k), x, **kw)
+def _node(op):
+    def make(key, x=G, **kw):
+        return Apply(op, Named(key), x, **kw)
+    return make
 
 
-def down(k, x=G, **kw):
-    return Apply(Op.DOWN, Named(k), x, **kw)
-
-
-def up(k, x=G, **kw):
-    return Apply(Op.UP, Named(k), x, **kw)
+conv, down, up = _node(Op.CONV), _node(Op.DOWN), _node(Op.UP)
 
 
 @pytest.mark.parametrize("text, expected", [
