@@ -150,6 +150,45 @@ def _phase_table_lines(s: PassShape) -> list[str]:
     return lines
 
 
+def affine_taps(s: PassShape) -> list[ShapeTap] | None:
+    """The pass's taps as offsets from ``r · STRIDE / PERIOD`` when they are the same in every phase.
+
+    A tap with offset ``t`` in phase ``p`` reads logical index ``S·⌈r/P⌉ − t``, which for
+    ``r ≡ p (mod P)`` is ``r·S/P + c`` with ``c = S·([p > 0] − p/P) − t``. When each tap
+    has one ``c`` and one weight across all phases (box⊗↓, Doo-Sabin ⊗↑, the midpoint ⊗↑
+    and every single-phase pass), the shader needs no phase arithmetic, and ``c`` is
+    returned in each tap's ``offset`` (rows, columns). None otherwise.
+    """
+    (pr, pc), (sr, sc) = s.period, s.stride
+    if len(s.phases) != pr * pc:
+        return None
+
+    def c(n: int, p: int, stride: int, t: Fraction) -> Fraction:
+        return stride * ((1 if n else 0) - Fraction(n, p)) - t
+
+    found: list[ShapeTap] | None = None
+    for (nr, nc), taps in s.phases:
+        these = [ShapeTap(t.slot, (c(nr, pr, sr, t.offset[0]), c(nc, pc, sc, t.offset[1])), t.weight)
+                 for t in taps]
+        if found is None:
+            found = these
+        elif these != found:
+            return None
+    if found is None or any(t.exact_texel and (sr % pr or sc % pc) for t in found):
+        return None
+    return found
+
+
+def _affine_lines(taps: list[ShapeTap]) -> list[str]:
+    lines = []
+    for t in taps:
+        tr, tc = t.offset
+        pos = f"base + {_vec2(tc, tr)}"
+        read = f"nearest{t.slot}(ivec2({pos}))" if t.exact_texel else f"linear{t.slot}({pos})"
+        lines.append(f"acc += {_float(t.weight)} * {read};" if t.weight != 1 else f"acc += {read};")
+    return lines
+
+
 def _tap_lines(s: PassShape) -> list[str]:
     if s.period != (1, 1) and _uniform_phases(s):
         return _phase_table_lines(s)
@@ -188,9 +227,14 @@ def fragment_source(s: PassShape) -> str:
         f"#define PERIOD ivec2({pc}, {pr})",
         f"#define STRIDE ivec2({sc}, {sr})",
     ]
+    affine = affine_taps(s)
+    if affine is not None:
+        defines += ["#define AFFINE", f"#define SLOPE {_vec2(Fraction(sc, pc), Fraction(sr, pr))}"]
     text = _inject(load(FRAGMENT), "DEFINES", defines)
     text = _inject(text, "SOURCES", [ln for k in range(s.n_sources) for ln in _source_lines(k)])
-    return _inject(text, "TAPS", _tap_lines(s))
+    if affine is not None:
+        return _inject(_inject(text, "AFFINE_TAPS", _affine_lines(affine)), "TAPS", [])
+    return _inject(_inject(text, "TAPS", _tap_lines(s)), "AFFINE_TAPS", [])
 
 
 def numbered(source: str) -> str:
@@ -205,5 +249,5 @@ def compile_error(log: str, stage: str, source: str) -> ShaderCompileError:
     return ShaderCompileError(f"{stage} shader failed to compile: {log.strip()}\n{numbered(source)}")
 
 
-__all__ = ["PassShape", "ShapeTap", "ShaderCompileError", "shape", "sources", "vertex_source",
+__all__ = ["PassShape", "ShapeTap", "affine_taps", "ShaderCompileError", "shape", "sources", "vertex_source",
            "fragment_source", "numbered", "compile_error", "load"]

@@ -37,6 +37,17 @@ int ceil_div(int a, int p) { return -floor_div(-a, p); }
 
 // {{SOURCES}}
 
+#ifdef AFFINE
+// Every tap reads at r * SLOPE + c, the same offset c in every phase (SLOPE = STRIDE / PERIOD):
+// no phase arithmetic at all. Positions are exact multiples of 1/4 (sizes stay far below 2^20).
+void main() {
+    vec2 r = min(gl_FragCoord.xy, vec2(u_out_extent) - 0.5) + 0.5 - vec2(u_out_guard);
+    vec2 base = r * SLOPE;
+    vec4 acc = vec4(0.0);
+    // {{AFFINE_TAPS}}
+    frag_color = acc;
+}
+#else
 void main() {
     ivec2 stored = min(ivec2(gl_FragCoord.xy), u_out_extent - 1);
     ivec2 r = stored + 1 - u_out_guard;
@@ -48,3 +59,4 @@ void main() {
     // {{TAPS}}
     frag_color = acc;
 }
+#endif

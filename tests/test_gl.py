@@ -266,3 +266,38 @@ def test_stale_pool_contents_never_leak(gl, text, channels):
     image = random_image((5, 6), channels, seed=9)
     out = gl.run(p, image)
     np.testing.assert_allclose(out, reference.run(expr, image), rtol=0, atol=1e-5)
+
+
+@pytest.mark.parametrize("text", CHAINS)
+def test_affine_taps_read_where_the_phase_formula_reads(text):
+    """Where the generator drops the phase arithmetic, every phase's reads must be r·S/P + c."""
+    from fractions import Fraction
+
+    _, p = planned(text, (17, 13))
+    for ps in p.passes:
+        s = generate.shape(ps)
+        affine = generate.affine_taps(s)
+        if affine is None:
+            continue
+        table = dict(s.phases)
+        for r in range(-3, 9):
+            for c in range(-3, 9):
+                taps = table[(r % s.period[0], c % s.period[1])]
+                base = (s.stride[0] * -(-r // s.period[0]), s.stride[1] * -(-c // s.period[1]))
+                indexed = [(t.slot, (base[0] - t.offset[0], base[1] - t.offset[1]), t.weight) for t in taps]
+                slope = (Fraction(s.stride[0], s.period[0]), Fraction(s.stride[1], s.period[1]))
+                direct = [(t.slot, (r * slope[0] + t.offset[0], c * slope[1] + t.offset[1]), t.weight)
+                          for t in affine]
+                assert indexed == direct
+
+
+def test_affine_passes_skip_the_phase_arithmetic():
+    def sources(text):
+        return [generate.fragment_source(generate.shape(ps)) for ps in planned(text, (9, 9))[1].passes]
+
+    for text in ["doosabin", "box4 *v g", "quadratic", "gauss7"]:
+        assert all("#define AFFINE" in src for src in sources(text)), text
+    for text in ["fourpoint", "nearest", "midpoint"]:  # phases read at different offsets from r·S/P
+        assert not any("#define AFFINE" in src for src in sources(text)), text
+    (ds,) = sources("doosabin")
+    assert "#define SLOPE vec2(0.5, 0.5)" in ds and "acc += linear0(base + vec2(0.25, 0.25));" in ds
