@@ -5,7 +5,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 OUT    := samples/out
 
-.PHONY: demo test lint bench check-gl clean
+.PHONY: demo test lint bench calibrate check-gl clean
 
 $(STAMP): pyproject.toml
 	@$(PYTHON) -c 'import sys; sys.exit(sys.version_info < (3, 10))' || \
@@ -36,6 +36,12 @@ lint: $(STAMP)
 bench: $(STAMP) check-gl
 	$(PY) -m pip install -q -e '.[test,bench]'
 	$(PY) bench/run.py
+
+# Re-measure the planner's cost model on this machine's GL (about a minute) and
+# check the README's fetch table against the new model.
+calibrate: $(STAMP) check-gl
+	$(PY) bench/calibrate.py --write
+	$(PY) scripts/fetch_table.py --check || echo "README.md's fetch table changed: update it with $(PY) scripts/fetch_table.py"
 
 clean:
 	rm -rf $(VENV) $(OUT) build *.egg-info

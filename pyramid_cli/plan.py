@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 from fractions import Fraction
 from functools import cache, lru_cache
 
-from . import algebra, catalogue
+from . import algebra, catalogue, cost
 from .algebra import Weights, mask_weights
 from .expr import Expr, Named, Op, steps
 
@@ -201,9 +201,6 @@ def direct_recipe(op: Op, f, stride: int = 1) -> list[Stage]:
 
 
 # ------------------------------------------------------------------ cost model
-PASS_COST = 0.25  # a render-target switch, in fetches per output pixel (llvmpipe: bench/results)
-
-
 def _stage_sizes(stages: list[Stage], size: tuple[int, int]) -> list[tuple[int, int]]:
     sizes: list[tuple[int, int]] = []
     for st in stages:  # a stage reading stage k takes its size
@@ -213,27 +210,52 @@ def _stage_sizes(stages: list[Stage], size: tuple[int, int]) -> list[tuple[int, 
     return sizes
 
 
-def recipe_cost(stages: list[Stage], size: tuple[int, int]) -> float:
-    """Fetches per output pixel plus a per-pass cost: what the planner minimises (DESIGN.md §5)."""
-    sizes = _stage_sizes(stages, size)
-    out = sizes[-1][0] * sizes[-1][1]
-    total = 0.0
-    for st, (h, w) in zip(stages, sizes, strict=True):
-        per_fragment = sum(len(taps_for(dict(items), 0)) for _, parts in st.phases for _, items in parts)
-        total += per_fragment / len(st.phases) * h * w / out + PASS_COST
-    return total
+def pass_measures(images: list[Image], ps: Pass) -> tuple[int, tuple[int, int], float, float, int]:
+    """What the cost model weighs for one pass: (texture reads in its shader, the target's stored
+    size, bilinear and single-texel fetches each fragment executes, stored pixels of the sources read)."""
+    in_shader = sum(len(taps) for taps in ps.phases.values())
+    linear, nearest = cost.executed_fetches([[(t.source, t.linear) for t in taps] for _, taps in
+                                             sorted(ps.phases.items())])
+    read = sum(images[s].stored[0] * images[s].stored[1] for s in ps.sources())
+    return in_shader, images[ps.target].stored, linear, nearest, read
 
 
+def pass_seconds(images: list[Image], ps: Pass, model: cost.CostModel | None = None) -> float:
+    """The cost model's seconds for one pass: its stored target, executed fetches and sources read."""
+    return (model or cost.model()).pass_seconds(*pass_measures(images, ps))
+
+
+def estimate_seconds(p: Plan, model: cost.CostModel | None = None) -> float:
+    """The cost model's seconds for a whole plan (passes only: no upload, read-back or compile)."""
+    return sum(pass_seconds(p.images, ps, model) for ps in p.passes)
+
+
+def recipe_seconds(stages: list[Stage], size: tuple[int, int], model: cost.CostModel | None = None) -> float:
+    """Estimated seconds of a recipe applied to an input of ``size``, guard bands included."""
+    b = Builder(size)
+    b.add_stages(0, stages, "estimate")
+    return sum(pass_seconds(b.images, ps, model) for ps in b.passes)
+
+
+@lru_cache(maxsize=1024)
 def choose_recipe(op: Op, f, stride: int, size: tuple[int, int], strategy: str = "cost") -> tuple[list[Stage], str]:
-    """The paper's decomposition, or one fused pass when the cost model says it is cheaper; and why."""
+    """The paper's decomposition (§3–§5), or one fused pass when the calibrated cost model
+    (:mod:`pyramid_cli.cost`) estimates it faster for an input of ``size``; and why, in one line.
+
+    The choice depends on the size: a tiny pyramid level is all per-pass overhead, so fewer
+    passes win there, while at full resolution fewer fetches do. Both candidates compute the
+    same filter at every pixel (guard bands keep a named filter atomic, DESIGN.md §1).
+    """
     paper = checked_recipe(op, f, stride)
     if strategy == "paper" or len(paper) == 1:
         return paper, ""
     fused = direct_recipe(op, f, stride)
-    cp, cf = recipe_cost(paper, size), recipe_cost(fused, size)
-    if cf < cp:
-        return fused, f"one fused pass: cost {cf:.2f} < {cp:.2f} for the paper's {len(paper)} passes"
-    return paper, f"paper's {len(paper)} passes: cost {cp:.2f} ≤ {cf:.2f} for one fused pass"
+    model = cost.model()
+    tp, tf = recipe_seconds(paper, size, model), recipe_seconds(fused, size, model)
+    fmt = cost.format_seconds
+    if tf < tp:
+        return fused, f"one fused pass: {fmt(tf)} < {fmt(tp)} for the paper's {len(paper)} passes ({model.name})"
+    return paper, f"paper's {len(paper)} passes: {fmt(tp)} ≤ {fmt(tf)} for one fused pass ({model.name})"
 
 
 @cache
@@ -400,6 +422,13 @@ class Builder:
         ``crop`` cuts the result to a size (top-left kept), as pyramid synthesis does for odd levels.
         """
         stages, why = choose_recipe(op, f, stride, self.images[source].size, self.strategy)
+        return self.add_stages(source, stages, _label(op, f), why, crop)
+
+    def add_stages(self, source: int, stages: list[Stage], label: str, why: str = "",
+                   crop: tuple[int, int] | None = None) -> int:
+        """The passes of a recipe (a named filter's, or any list of :class:`Stage`) on image
+        ``source``, read clamped; intermediates get the guard bands later passes read.
+        Returns the last pass's image index."""
         first = len(self.images)
         sizes = _stage_sizes(stages, self.images[source].size)
         if crop is not None:
@@ -412,8 +441,8 @@ class Builder:
                 for src, items in parts:
                     taps += taps_for(dict(items), source if src == -1 else first + src)
                 phases[ph] = taps
-            label = f"{_label(op, f)}" + (f" [{i + 1}/{len(stages)}]" if len(stages) > 1 else "")
-            self.passes.append(Pass(label, first + i, st.period, st.stride, phases, why if i == 0 else ""))
+            name = label + (f" [{i + 1}/{len(stages)}]" if len(stages) > 1 else "")
+            self.passes.append(Pass(name, first + i, st.period, st.stride, phases, why if i == 0 else ""))
         _infer_guards(self.images, self.passes[-len(stages):], first)
         return len(self.images) - 1
 
@@ -482,7 +511,8 @@ def check(p: Plan) -> None:
                     assert o % Fraction(1, 4) == 0, f"tap offset {o} not on a quarter texel"
 
 
-__all__ = ["Plan", "Pass", "Tap", "Image", "Builder", "plan", "plan_steps", "check"]
+__all__ = ["Plan", "Pass", "Tap", "Image", "Builder", "plan", "plan_steps", "check", "estimate_seconds",
+           "choose_recipe"]
 
 
 # ------------------------------------------------------------------ reports
@@ -493,13 +523,16 @@ def _tap_json(t: Tap) -> dict:
 
 def to_json(p: Plan) -> dict:
     """The ``pyramid plan --json`` object. ``pos`` is [x, y] in source texels relative to the
-    source pixel ``R = S·⌈r/P⌉`` the output fragment maps to; sizes are [width, height]."""
+    source pixel ``R = S·⌈r/P⌉`` the output fragment maps to; sizes are [width, height].
+    ``estimate_s`` is the calibrated cost model's time (per pass and in all; passes only, no
+    upload, read-back or compile), ``cost_model`` where it was measured."""
+    model = cost.model()
     passes = []
     for ps in p.passes:
         img = p.images[ps.target]
         entry = {"label": ps.label, "size": [img.size[1], img.size[0]], "guard": list(img.guard),
                  "period": [ps.period[1], ps.period[0]], "stride": [ps.stride[1], ps.stride[0]],
-                 "fetches": ps.fetches}
+                 "fetches": ps.fetches, "estimate_s": pass_seconds(p.images, ps, model)}
         if ps.why:
             entry["why"] = ps.why
         if len(ps.phases) == 1:
@@ -510,7 +543,8 @@ def to_json(p: Plan) -> dict:
         passes.append(entry)
     return {"expression": p.expression, "input": [p.images[0].size[1], p.images[0].size[0]],
             "output": [p.output.size[1], p.output.size[0]], "passes": passes, "fetches": p.fetches,
-            "fetches_per_output_pixel": p.fetches_per_output_pixel, "paper_fetches": p.paper_fetches}
+            "fetches_per_output_pixel": p.fetches_per_output_pixel, "paper_fetches": p.paper_fetches,
+            "estimate_s": estimate_seconds(p, model), "cost_model": model.name}
 
 
 def render(p: Plan) -> str:
@@ -535,4 +569,7 @@ def render(p: Plan) -> str:
                              f"({float(-tap.offset[1]):+.2f}, {float(-tap.offset[0]):+.2f}) × {tap.weight}{src}")
     paper = "n/a" if p.paper_fetches is None else f"{p.paper_fetches:g}"
     lines.append(f"fetches {p.fetches:g} (paper: {paper}); per output pixel {p.fetches_per_output_pixel:.2f}")
+    model = cost.model()
+    lines.append(f"estimate {cost.format_seconds(estimate_seconds(p, model))} for the passes "
+                 f"(no upload, read-back or compile; {model.name})")
     return "\n".join(lines)

@@ -148,10 +148,10 @@ def mip_levels(size: tuple[int, int]) -> int:
 
 @lru_cache(maxsize=32)  # batches re-use a plan per image size
 def blur_plan(size: tuple[int, int], levels: int, analysis: str = "box4", synthesis: str = "doosabin",
-              quasi: bool = False) -> Plan:
+              quasi: bool = False, strategy: str = "cost") -> Plan:
     step_list, crops = blur_steps(size, levels, analysis, synthesis, quasi)
     text = f"blur: {levels} level(s), {analysis} ⊗↓ / {synthesis} ⊗↑" + (" + quasi" if quasi else "")
-    return plan_steps(step_list, size, crops, text=text)
+    return plan_steps(step_list, size, crops, text=text, strategy=strategy)
 
 
 def blur_reference(pixels, levels: int, analysis: str = "box4", synthesis: str = "doosabin",

@@ -22,17 +22,17 @@ BEGIN, END = "<!-- fetch-table:begin -->", "<!-- fetch-table:end -->"
 
 def table() -> str:
     exe = os.path.join(os.path.dirname(sys.executable), "pyramid")
-    lines = ["| filter | expression | paper's count | passes | fetches | fetches per output pixel | "
-             "cost model: passes | fetches | per output pixel |",
-             "|---|---|---|---|---|---|---|---|---|"]
+    lines = ["| filter | expression | paper's count | passes | fetches | fetches per output pixel | estimate | "
+             "cost model: passes | fetches | per output pixel | estimate |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     for name, expr in ROWS:
         d, c = (json.loads(subprocess.run([exe, "plan", "--json", "--strategy", strategy, expr, "--size", SIZE],
                                           check=True, capture_output=True, text=True).stdout)
                 for strategy in ("paper", "cost"))
         paper = "–" if d["paper_fetches"] is None else f"{d['paper_fetches']:g}"
         lines.append(f"| {name} | `{expr}` | {paper} | {len(d['passes'])} | {d['fetches']:g} | "
-                     f"{d['fetches_per_output_pixel']:.2f} | {len(c['passes'])} | {c['fetches']:g} | "
-                     f"{c['fetches_per_output_pixel']:.2f} |")
+                     f"{d['fetches_per_output_pixel']:.2f} | {d['estimate_s'] * 1e3:.1f} ms | {len(c['passes'])} | "
+                     f"{c['fetches']:g} | {c['fetches_per_output_pixel']:.2f} | {c['estimate_s'] * 1e3:.1f} ms |")
     return "\n".join(lines)
 
 
