@@ -771,3 +771,63 @@ def test_srgb_helpers_match_formula():
     v = np.linspace(0, 1, 1001)
     np.testing.assert_allclose(pio.srgb_to_linear(v), srgb_eotf(v), rtol=1e-12)
     np.testing.assert_allclose(pio.linear_to_srgb(v), srgb_oetf(v), rtol=1e-12)
+
+
+def test_keep_half_reads_and_writes_half_unchanged(tmp_path):
+    src = RNG.uniform(-2.0, 8.0, (9, 13, 4)).astype(np.float16)
+    src[2, 3, 1] = np.inf
+    path = tmp_path / "in.exr"
+    write_raw(path, src, "half", names=["R", "G", "B", "A"], alpha=3, compression="piz")
+    img = pio.read_image(path, keep_half=True)
+    assert img.pixels.dtype == np.float16
+    np.testing.assert_array_equal(img.pixels.view(np.uint16), src.view(np.uint16))
+    assert pio.read_image(path).pixels.dtype == np.float32  # only when asked
+
+    out = tmp_path / "out.exr"
+    assert pio.stores_half_unchanged(out, img.spec)
+    pio.write_image(out, img)
+    back, spec = read_raw(out)
+    assert str(spec.format) == "half" and spec.get_string_attribute("compression") == "piz"
+    np.testing.assert_array_equal(np.asarray(back).view(np.uint16), src.view(np.uint16))
+
+    as_float = tmp_path / "out_float.exr"
+    assert not pio.stores_half_unchanged(as_float, img.spec, pixel_type="float")
+    pio.write_image(as_float, img, pixel_type="float")
+    back, spec = read_raw(as_float)
+    assert str(spec.format) == "float"
+    np.testing.assert_array_equal(back, src.astype(np.float32))
+
+
+def test_keep_half_converts_where_decoding_applies(tmp_path):
+    """sRGB-tagged half or straight alpha: decoded in float32, exactly as without keep_half."""
+    src = RNG.uniform(0.0, 1.0, (5, 7, 4)).astype(np.float16)
+    srgb = tmp_path / "srgb.exr"
+    write_raw(srgb, src, "half", names=["R", "G", "B", "A"], alpha=3, oiio__ColorSpace="sRGB")
+    kept, plain = pio.read_image(srgb, keep_half=True), pio.read_image(srgb)
+    assert kept.pixels.dtype == np.float32
+    np.testing.assert_array_equal(kept.pixels, plain.pixels)
+    assert not pio.stores_half_unchanged(tmp_path / "o.exr", kept.spec)
+    straight = pio.read_image(srgb, keep_half=True, alpha="straight", colorspace="linear")
+    assert straight.pixels.dtype == np.float32
+    np.testing.assert_array_equal(straight.pixels[..., :3], (src[..., :3].astype(np.float32) * src[..., 3:]))
+
+
+def test_stores_half_unchanged_rules(tmp_path):
+    half = pio.ImageInfo(path="in.exr", format="openexr", pixel_type="half", channel_names=["R", "G", "B", "A"],
+                         alpha_channel=3, colorspace="linear", alpha_mode="premultiplied")
+    assert pio.stores_half_unchanged("o.exr", half)
+    assert not pio.stores_half_unchanged("o.png", half)            # integers
+    assert not pio.stores_half_unchanged("o.exr", half, pixel_type="float")
+    assert not pio.stores_half_unchanged("o.exr", half, colorspace="srgb")
+    assert not pio.stores_half_unchanged("o.exr", half, alpha="straight")
+    assert not pio.stores_half_unchanged("o.hdr", half)            # float-only format without half
+    assert not pio.stores_half_unchanged("o.unknown", half)
+
+
+def test_read_shape_reads_the_header_only(tmp_path):
+    path = tmp_path / "in.exr"
+    write_raw(path, np.zeros((9, 13, 5), np.float16), "half")
+    assert pio.read_shape(path) == (9, 13, 5)
+    assert pio.read_shape(tmp_path / "missing.exr") is None
+    (tmp_path / "bad.png").write_bytes(b"not a png")
+    assert pio.read_shape(tmp_path / "bad.png") is None
