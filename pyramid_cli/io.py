@@ -44,6 +44,7 @@ import os
 import stat
 from collections.abc import Iterable
 from dataclasses import dataclass, field
+from functools import cache
 from typing import Any
 
 import numpy as np
@@ -507,18 +508,22 @@ def read_image(path: str | os.PathLike[str], *, colorspace: str = "auto",
     px = data
     colour = _colour_mask(px.shape[2], alpha_channel, names)
     has_alpha = alpha_channel >= 0 and alpha_mode != "none"
-    if px.dtype == np.float16 and (encoding == "srgb" or has_alpha and alpha_mode == "straight"):
-        px = px.astype(np.float32)  # converted below: not in half precision
-    if encoding == "srgb":
-        if has_alpha and alpha_mode == "premultiplied":
-            # The file premultiplied the encoded values: divide them back out
-            # before decoding, premultiply again in linear light below.
-            _unpremultiply(px, alpha_channel, colour)
-        px[..., colour] = srgb_to_linear(px[..., colour])
-        if has_alpha:
+    if px.dtype in (np.uint8, np.uint16):
+        px = _decode_integer(px, encoding == "srgb", colour, alpha_channel if has_alpha else -1,
+                             alpha_mode == "straight")
+    else:
+        if px.dtype == np.float16 and (encoding == "srgb" or has_alpha and alpha_mode == "straight"):
+            px = px.astype(np.float32)  # converted below: not in half precision
+        if encoding == "srgb":
+            if has_alpha and alpha_mode == "premultiplied":
+                # The file premultiplied the encoded values: divide them back out
+                # before decoding, premultiply again in linear light below.
+                _unpremultiply(px, alpha_channel, colour)
+            px[..., colour] = srgb_to_linear(px[..., colour])
+            if has_alpha:
+                _premultiply(px, alpha_channel, colour)
+        elif has_alpha and alpha_mode == "straight":
             _premultiply(px, alpha_channel, colour)
-    elif has_alpha and alpha_mode == "straight":
-        _premultiply(px, alpha_channel, colour)
     pixels = px if px.dtype == np.float16 else px.astype(np.float32, copy=False)
 
     bad = count_nonfinite(pixels)
@@ -596,9 +601,8 @@ def read_parts(path: str | os.PathLike[str], **options) -> list[Image]:
 
 
 def _read_pixels(p: str, subimage: int = 0, keep_half: bool = False) -> tuple[np.ndarray, oiio.ImageSpec, str]:
-    """Open and fully read ``p`` (one subimage), normalised to the stored range: integer files as
-    float64 (exact sRGB decoding), float files as float32 (as stored, without a copy), half files
-    as float16 under ``keep_half``."""
+    """Open and fully read ``p`` (one subimage): integer files as stored (uint8, uint16), float
+    files as float32 (as stored, without a copy), half files as float16 under ``keep_half``."""
     config = oiio.ImageSpec()
     # Ask for the stored values: without this hint OpenImageIO premultiplies
     # straight-alpha files itself, in the encoded (non-linear) space.
@@ -641,10 +645,8 @@ def _read_pixels(p: str, subimage: int = 0, keep_half: bool = False) -> tuple[np
     finally:
         inp.close()
     data = np.asarray(data).reshape(spec.height, spec.width, spec.nchannels)
-    if read_type == "uint8":
-        return data.astype(np.float64) / 255.0, spec, fmt
-    if read_type == "uint16":
-        return data.astype(np.float64) / 65535.0, spec, fmt
+    if read_type in ("uint8", "uint16"):
+        return data, spec, fmt  # decoded by _decode_integer
     if read_type == "half":
         return np.asarray(data, dtype=np.float16), spec, fmt
     return np.asarray(data, dtype=np.float32), spec, fmt  # float files stay float32: no 2× copy
@@ -652,6 +654,82 @@ def _read_pixels(p: str, subimage: int = 0, keep_half: bool = False) -> tuple[np
 
 # ---------------------------------------------------------------------------
 # Writing
+
+
+@cache
+def _integer_levels(dtype: str, srgb: bool) -> np.ndarray:
+    """float64 value of every code of an 8/16-bit type: ``code / max``, sRGB-decoded if asked."""
+    levels = np.arange(256 if dtype == "uint8" else 65536) / (255.0 if dtype == "uint8" else 65535.0)
+    return srgb_to_linear(levels) if srgb else levels
+
+
+def _decode_integer(data: np.ndarray, srgb: bool, colour: np.ndarray, alpha: int, straight: bool) -> np.ndarray:
+    """Linear premultiplied float32 pixels of 8/16-bit codes, a channel at a time through per-code tables.
+
+    Every value is what decoding ``code / max`` in float64 with the exact sRGB EOTF, then
+    premultiplying in float64, gives (rounded once to float32), without float64 copies of
+    the whole image. ``alpha`` is the channel to premultiply by (-1: none).
+    """
+    linear = _integer_levels(data.dtype.name, False)
+    decoded = _integer_levels(data.dtype.name, True) if srgb else linear
+    if alpha >= 0 and srgb and not straight:
+        # Associated sRGB (rare): divide the encoded values out, decode, multiply back.
+        px = linear[data]
+        _unpremultiply(px, alpha, colour)
+        px[..., colour] = srgb_to_linear(px[..., colour])
+        _premultiply(px, alpha, colour)
+        return px.astype(np.float32)
+    out = np.empty(data.shape, dtype=np.float32)
+    a = linear[data[..., alpha]] if alpha >= 0 and straight else None
+    for c in range(data.shape[2]):
+        codes = data[..., c]
+        if colour[c]:
+            out[..., c] = decoded[codes] if a is None else decoded[codes] * a
+        else:
+            out[..., c] = linear[codes]
+    return out
+
+
+@cache
+def _srgb8_tables() -> tuple[np.ndarray, np.ndarray]:
+    """Exact 8-bit sRGB encoding of float32 values by table: (thresholds, codes by the top 20 bits).
+
+    ``thresholds[k - 1]`` is the smallest float32 that :func:`_encode_integer` turns into
+    code k (sRGB in float64, ×255, round half up). A float32's top 20 bits (sign, exponent,
+    11 mantissa bits) pick a bucket narrower than the gap between thresholds, so the code
+    is the bucket's code plus one comparison.
+    """
+    def code(bits: np.ndarray) -> np.ndarray:
+        x = bits.astype(np.uint32).view(np.float32).astype(np.float64)
+        return np.clip(np.floor(linear_to_srgb(x) * 255.0 + 0.5), 0, 255)
+
+    lo = np.zeros(255, dtype=np.int64)                 # bisection on the bit patterns of x ≥ 0
+    hi = np.full(255, 0x7F800000, dtype=np.int64)      # +inf encodes to 255
+    want = np.arange(1, 256)
+    while np.any(hi - lo > 1):
+        mid = (lo + hi) // 2
+        up = code(mid) >= want
+        hi, lo = np.where(up, mid, hi), np.where(up, lo, mid)
+    thresholds = hi.astype(np.uint32).view(np.float32)
+    firsts = (np.arange(1 << 19, dtype=np.uint32) << 12).view(np.float32)  # non-negative buckets
+    lasts = ((np.arange(1 << 19, dtype=np.uint32) << 12) | 0xFFF).view(np.float32)
+    with np.errstate(invalid="ignore"):
+        start = np.searchsorted(thresholds, firsts, side="right")
+        finite = np.isfinite(lasts)
+        assert np.all(np.searchsorted(thresholds, lasts[finite], side="right") - start[finite] <= 1)
+    codes = np.concatenate([start, np.zeros(1 << 19, dtype=start.dtype)]).astype(np.uint8)  # negatives: 0
+    return thresholds, codes
+
+
+def _srgb8(x: np.ndarray) -> np.ndarray:
+    """:func:`_encode_integer` of ``linear_to_srgb(x)`` for 8 bits without dither, from float32 ``x``."""
+    thresholds, codes = _srgb8_tables()
+    x = np.ascontiguousarray(x, dtype=np.float32)
+    k = codes[x.view(np.uint32) >> 12]
+    with np.errstate(invalid="ignore"):
+        k += (x >= thresholds[np.minimum(k, 254)]) & (k < 255)
+    k[np.isnan(x)] = 0
+    return k
 
 
 def _output_colorspace(info: ImageInfo, out_type: str) -> str:
@@ -883,6 +961,16 @@ def _encode(path, image: Image, *, pixel_type=None, colorspace=None, alpha=None,
     memory_premultiplied = alpha_channel >= 0 and info.alpha_mode != "none"
     mode = "none" if alpha_channel < 0 else (alpha or _output_alpha_mode(info, fmt, out_type))
 
+    if (out_type == "uint8" and encoding == "srgb" and mode == "none" and not dither
+            and not (fmt in _NO_ALPHA_FORMATS and alpha_channel >= 0)):
+        # The common 8-bit sRGB file without alpha: encoded by table, a channel at a time.
+        colour = _colour_mask(nch, alpha_channel, names)
+        data = np.empty(pixels.shape, dtype=np.uint8)
+        for c in range(nch):
+            data[..., c] = _srgb8(pixels[..., c]) if colour[c] else \
+                _encode_integer(pixels[..., c:c + 1].astype(np.float64), out_type, False, colour[c:c + 1])[..., 0]
+        return _output_spec(info, fmt, out_type, names, alpha_channel, nch, width, height, encoding, mode,
+                            pixel_type, compression), data
     if not out_int and not _converts(fmt, alpha_channel, memory_premultiplied, encoding, mode):
         # Stored as they are: no copy (float16 stays float16 for a half file; OIIO converts float32).
         px = pixels if pixels.dtype in (np.float16, np.float32) else pixels.astype(np.float32)
@@ -915,7 +1003,14 @@ def _encode(path, image: Image, *, pixel_type=None, colorspace=None, alpha=None,
     else:
         data = px if px.dtype == np.float16 and out_type == "half" else px.astype(np.float32, copy=False)
     data = np.ascontiguousarray(data)
+    return _output_spec(info, fmt, out_type, names, alpha_channel, nch, width, height, encoding, mode,
+                        pixel_type, compression), data
 
+
+def _output_spec(info: ImageInfo, fmt: str, out_type: str, names: list[str], alpha_channel: int, nch: int,
+                 width: int, height: int, encoding: str, mode: str, pixel_type: str | None,
+                 compression: str | None) -> oiio.ImageSpec:
+    """The file's spec: type, channels, windows, carried metadata, colour space, alpha and compression."""
     spec = oiio.ImageSpec(width, height, nch, out_type)
     spec.channelnames = tuple(names)
     spec.alpha_channel = alpha_channel
@@ -960,8 +1055,7 @@ def _encode(path, image: Image, *, pixel_type=None, colorspace=None, alpha=None,
             spec.attribute("png:compressionLevel", int(compression))  # zlib level 0-9
         else:
             spec.attribute("compression", compression)
-
-    return spec, data
+    return spec
 
 
 def _converts(fmt: str, alpha_channel: int, memory_premultiplied: bool, encoding: str, mode: str) -> bool:

@@ -831,3 +831,44 @@ def test_read_shape_reads_the_header_only(tmp_path):
     assert pio.read_shape(tmp_path / "missing.exr") is None
     (tmp_path / "bad.png").write_bytes(b"not a png")
     assert pio.read_shape(tmp_path / "bad.png") is None
+
+
+def _srgb8_by_formula(x: np.ndarray) -> np.ndarray:
+    """The float64 route the table replaces (linear_to_srgb, ×255, round half up, clamp; NaN → 0)."""
+    v = np.nan_to_num(pio.linear_to_srgb(x.astype(np.float64)), nan=0.0, posinf=1.0, neginf=0.0) * 255.0
+    return np.clip(np.floor(v + 0.5), 0, 255).astype(np.uint8)
+
+
+def test_srgb8_table_equals_the_float64_formula_everywhere_it_matters():
+    thresholds, _ = pio._srgb8_tables()
+    t = thresholds.view(np.uint32)
+    edges = np.concatenate([t - 2, t - 1, t, t + 1]).view(np.float32)  # around every code boundary
+    rng = np.random.default_rng(8)
+    x = np.concatenate([
+        edges, -edges, rng.random(200_000, dtype=np.float32), rng.random(50_000, dtype=np.float32) * 1e-2,
+        rng.standard_normal(50_000).astype(np.float32) * 3,
+        np.array([0.0, -0.0, 1.0, 1.0000001, 1e30, np.inf, -np.inf, np.nan, 1e-45, 0.0031308], np.float32),
+    ])
+    with np.errstate(over="ignore", invalid="ignore"):
+        np.testing.assert_array_equal(pio._srgb8(x), _srgb8_by_formula(x))
+    # every float32 pattern of [0, 1] in steps of 97 ulps, too
+    grid = np.arange(0, 0x3F800001, 97, dtype=np.uint32).view(np.float32)
+    np.testing.assert_array_equal(pio._srgb8(grid), _srgb8_by_formula(grid))
+
+
+@pytest.mark.parametrize("bits", [8, 16])
+@pytest.mark.parametrize("alpha", ["straight", "premultiplied", "none", "no alpha"])
+def test_integer_decoding_by_table_equals_float64_decoding(bits, alpha):
+    dtype = np.uint8 if bits == 8 else np.uint16
+    codes = np.random.default_rng(bits).integers(0, np.iinfo(dtype).max + 1, (17, 19, 4), dtype=dtype)
+    colour = np.array([True, True, True, alpha == "no alpha"])
+    a = -1 if alpha in ("none", "no alpha") else 3
+    got = pio._decode_integer(codes, True, colour, a, alpha == "straight")
+    v = codes.astype(np.float64) / np.iinfo(dtype).max  # the old route, whole image in float64
+    if alpha == "premultiplied":
+        pio._unpremultiply(v, 3, colour)
+    v[..., colour] = srgb_eotf(v[..., colour])
+    if a >= 0:
+        pio._premultiply(v, 3, colour)
+    assert got.dtype == np.float32
+    np.testing.assert_array_equal(got, v.astype(np.float32))
