@@ -160,6 +160,7 @@ class GLExecutor:
         self._ctx = None
         self._vertex = None
         self._programs: dict[generate.PassShape, _Program] = {}
+        self._plan_programs: dict[int, tuple[Plan, list[_Program]]] = {}
         self._free: dict[tuple[tuple[int, int], str], list[_Target]] = {}
         self._buffers: dict[tuple[tuple[int, ...], str], np.ndarray] = {}
         self.compiles = 0  # programs built so far (the cache's misses)
@@ -222,6 +223,7 @@ class GLExecutor:
             self._ctx.release()
         self._ctx = None
         self._programs.clear()
+        self._plan_programs.clear()
         self._free.clear()
         self._buffers.clear()
 
@@ -240,6 +242,17 @@ class GLExecutor:
             with self.current():
                 prog = self._programs[key] = self._build(key)
         return prog
+
+    def programs(self, plan: Plan) -> list[_Program]:
+        """The programs of ``plan``'s passes, remembered per plan (batches run one plan per size many times)."""
+        hit = self._plan_programs.get(id(plan))
+        if hit is not None and hit[0] is plan:
+            return hit[1]
+        programs = [self.program(ps) for ps in plan.passes]
+        if len(self._plan_programs) >= 64:
+            self._plan_programs.pop(next(iter(self._plan_programs)))
+        self._plan_programs[id(plan)] = (plan, programs)  # holds the plan: its id stays unique
+        return programs
 
     def _build(self, key: generate.PassShape) -> _Program:
         import moderngl
@@ -337,7 +350,7 @@ class GLExecutor:
         channels = arrays[0].shape[2]
         outs = [np.empty(plan.images[k].size + (channels,), dtype=dtype) for k in plan.outputs]
         with self.current() as ctx:
-            programs = [self.program(ps) for ps in plan.passes]
+            programs = self.programs(plan)
             for c0 in range(0, channels, 4):
                 n = min(4, channels - c0)
                 group = slice(c0, c0 + n)
@@ -430,8 +443,7 @@ class GLExecutor:
         self.check(plan)
         dtype = PRECISIONS[self.precision][0]
         with self.current():
-            for ps in plan.passes:
-                self.program(ps)
+            self.programs(plan)
             held = {k: self._acquire(texture_size(plan.images[k].stored), "f4") for k in plan.inputs}
             for ps, done in zip(plan.passes, self._releases(plan), strict=True):
                 held[ps.target] = self._acquire(texture_size(plan.images[ps.target].stored), dtype)
