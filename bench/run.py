@@ -526,7 +526,9 @@ print(time.perf_counter() - t1, t1 - t0)
 
 
 def in_process_profile(path: Path, out: Path) -> dict:
-    """``pyramid blur --levels 5`` in this process, split: read / context / plan / upload / GL / read-back / write."""
+    """``pyramid blur --levels 5`` in this process, split as the CLI runs it: read (half kept half) /
+    context / plan / compile / texture allocation (the CLI overlaps these with the read) / upload /
+    passes / read-back / write."""
     from pyramid_cli import io
     from pyramid_cli.gl import GLExecutor
     from pyramid_cli.pyramids import blur_plan
@@ -536,7 +538,7 @@ def in_process_profile(path: Path, out: Path) -> dict:
         "import numpy, OpenImageIO, moderngl, click, pyramid_cli.cli, pyramid_cli.io, pyramid_cli.run, "
         "pyramid_cli.gl, pyramid_cli.pyramids")])
     t0 = perf()
-    image = io.read_image(str(path))
+    image = io.read_image(str(path), keep_half=True)
     t["read (io.read_image)"] = perf() - t0
     t0 = perf()
     ex = GLExecutor()
@@ -547,23 +549,23 @@ def in_process_profile(path: Path, out: Path) -> dict:
     t["plan"] = perf() - t0
     t0 = perf()
     with ex.current():
-        for ps in plan.passes:
-            ex.program(ps)
+        ex.programs(plan)
     t["compile programs (this process's shader cache state)"] = perf() - t0
-    split = GLSplit(ex)
-    dtype_read = str(np.asarray(image.pixels).dtype)
     t0 = perf()
-    px = np.asarray(image.pixels, dtype=np.float32)
-    t["float64→float32 convert"] = perf() - t0
+    ex.prepare(plan)
+    t["allocate textures (first touch)"] = perf() - t0
+    dtype_read = str(image.pixels.dtype)
+    half = image.pixels.dtype == np.float16 and io.stores_half_unchanged(str(out), image.spec)
+    split = GLSplit(ex)
     if split.available:
-        s = split(plan, px)
+        s = split(plan, image.pixels)
         t["GL upload"], t["GL passes"], t["GL read-back + host"] = s["upload"], s["device"], s["readback_host"]
-    image.pixels = ex.run(plan, px)
+    image.pixels = ex.run_outputs(plan, [image.pixels], np.float16 if half else np.float32)[-1]
     ex.close()
     t0 = perf()
     io.write_image(str(out), image, inputs=(str(path),), force=True)
     t["write (io.write_image)"] = perf() - t0
-    return {"pixels_dtype_after_read": dtype_read, "split_s": t}
+    return {"pixels_dtype_after_read": dtype_read, "read_back_dtype": str(image.pixels.dtype), "split_s": t}
 
 
 def cprofile_top(argv: list[str], lines: int = 22) -> list[str]:

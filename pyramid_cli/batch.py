@@ -82,11 +82,22 @@ def is_fresh(job: Job) -> bool:
         return False
 
 
+def _prepare_quietly(prepare: Callable[[Job], None], job: Job) -> None:
+    try:
+        prepare(job)
+    except PyramidError:  # an optimisation only: the read and the work report real errors
+        pass
+
+
 def run(jobs: list[Job], read: Callable, work: Callable, write: Callable, *, keep_going: bool = False,
-        skip_existing: bool = False, workers: int = 1, progress: Callable[[Job], None] | None = None) -> Report:
+        skip_existing: bool = False, workers: int = 1, progress: Callable[[Job], None] | None = None,
+        prepare: Callable[[Job], None] | None = None) -> Report:
     """Run ``write(job, work(read(job)))`` for each job, overlapping I/O with work when ``workers`` > 1.
 
-    Stops at the first failure unless ``keep_going``; failures are collected in the report.
+    ``prepare(job)`` runs once, for the first job, while its read is under way (a cold
+    start's set-up overlapped with the first decode); its PyramidErrors are ignored, as
+    the read and the work report them. Stops at the first failure unless ``keep_going``;
+    failures are collected in the report.
     """
     report = Report()
     todo = []
@@ -126,6 +137,9 @@ def run(jobs: list[Job], read: Callable, work: Callable, write: Callable, *, kee
             if report.failed and not keep_going:
                 break
             try:
+                if prepare is not None:
+                    _prepare_quietly(prepare, job)
+                    prepare = None
                 image = fut.result() if fut is not None else read(job)
                 result = work(image)
                 if pool is None:

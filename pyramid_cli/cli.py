@@ -185,11 +185,16 @@ def batch_options(f):
     return f
 
 
-def _process(paths: tuple[str, ...], work, opts: dict, mip_tile: int | None = None) -> None:
-    """Read each input, ``work(runner, pixels)``, write atomically; one runner for the whole batch.
+def _process(paths: tuple[str, ...], work, opts: dict, mip_tile: int | None = None, plan_for=None) -> None:
+    """Read each input, ``work(runner, pixels, dtype)``, write atomically; one runner for the whole batch.
 
-    With ``mip_tile``, ``work`` returns every MIP level and they go into one tiled file.
+    ``dtype`` is float16 where the output stores the result as half unchanged (the input
+    was half too), else float32. With ``mip_tile``, ``work`` returns every MIP level and
+    they go into one tiled file. ``plan_for(shape)``, when given, names the plan ``work``
+    will run, so that the GL executor prepares it while the first image decodes.
     """
+    import numpy as np
+
     from . import batch, io
     from .run import Runner
 
@@ -197,19 +202,30 @@ def _process(paths: tuple[str, ...], work, opts: dict, mip_tile: int | None = No
     quiet = opts["quiet"]
     runner = Runner(opts["backend"], opts["precision"])
 
+    def prepare(job):
+        shape = io.read_shape(job.input)
+        p = plan_for(shape) if shape is not None else None
+        if p is not None:
+            runner.prepare(p)
+
     def read(job):
-        image = io.read_image(job.input, colorspace=opts["colorspace"], alpha=opts["alpha"], nan=opts["nan_policy"])
+        image = io.read_image(job.input, colorspace=opts["colorspace"], alpha=opts["alpha"], nan=opts["nan_policy"],
+                              keep_half=not mip_tile)
         bad = io.count_nonfinite(image.pixels) if opts["nan_policy"] == "keep" else 0
         if bad and not quiet:
             click.echo(f"pyramid: warning: {job.input}: {bad} NaN/Inf value(s) kept; they spread through the "
                        "filter (--nan zero or --nan fail to change that)", err=True)
         if opts["verbose"]:
             click.echo(f"pyramid: {io.describe_rules(image.spec)}; backend {runner.name}", err=True)
-        return image
+        return job, image
 
-    def compute(image):
-        return [io.Image(px, image.spec) for px in work(runner, image.pixels)] if mip_tile else \
-            [io.Image(work(runner, image.pixels), image.spec)]
+    def compute(job_image):
+        job, image = job_image
+        if mip_tile:
+            return [io.Image(px, image.spec) for px in work(runner, image.pixels, np.float32)]
+        half = image.pixels.dtype == np.float16 and io.stores_half_unchanged(
+            job.output, image.spec, pixel_type=opts["pixel_type"])
+        return [io.Image(work(runner, image.pixels, np.float16 if half else np.float32), image.spec)]
 
     def write(job, images):
         out_dir = os.path.dirname(job.output)
@@ -232,10 +248,11 @@ def _process(paths: tuple[str, ...], work, opts: dict, mip_tile: int | None = No
             with click.progressbar(length=len(jobs), label="pyramid", file=sys.stderr) as bar:
                 report = batch.run(jobs, read, compute, write, keep_going=opts["keep_going"],
                                    skip_existing=opts["skip_existing"], workers=opts["jobs"],
-                                   progress=lambda job: bar.update(1))
+                                   progress=lambda job: bar.update(1), prepare=plan_for and prepare)
         else:
             report = batch.run(jobs, read, compute, write, keep_going=opts["keep_going"],
-                               skip_existing=opts["skip_existing"], workers=opts["jobs"])
+                               skip_existing=opts["skip_existing"], workers=opts["jobs"],
+                               prepare=plan_for and prepare)
     finally:
         runner.close()
     if len(jobs) == 1 and report.failed:
@@ -265,7 +282,10 @@ def apply(expression, paths, border: str, **opts) -> None:
       pyramid apply --backend cpu 'h_Doo-Sabin ⊗↑ g' small.png big.png
       pyramid apply 'quadratic *v g' 'frames/*.exr' -o 'half/{stem}.exr'
     """
-    _process(paths, lambda runner, px: runner.run_expr(expression, px, border), opts)
+    from .plan import plan
+
+    _process(paths, lambda runner, px, dtype: runner.run_expr(expression, px, border, dtype), opts,
+             plan_for=(lambda shape: plan(expression, shape[:2])) if border == "clamp" else None)
 
 
 @main.command()
@@ -310,13 +330,21 @@ def blur(paths, levels: int, analysis: str, synthesis: str, quasi: bool, sigma: 
             click.echo(f"pyramid: sigma {sigma:g}: {1 - t:.3f} × {m} level(s) + {t:.3f} × {m + 1} "
                        f"(the blend's equivalent kernel has standard deviation {sigma:g} px)", err=True)
 
-        def work(runner, px):
-            return runner.run_plan(blur_plan_sigma(px.shape[:2], sigma, analysis, synthesis)[0], px)
-    else:
-        def work(runner, px):
-            return runner.run_blur(px, levels, analysis, synthesis, quasi)
+        def plan_for(shape):
+            return blur_plan_sigma(shape[:2], sigma, analysis, synthesis)[0]
 
-    _process(paths, work, opts)
+        def work(runner, px, dtype):
+            return runner.run_plan(plan_for(px.shape), px, dtype)
+    else:
+        from .pyramids import blur_plan
+
+        def plan_for(shape):
+            return blur_plan(shape[:2], levels, analysis, synthesis, quasi)
+
+        def work(runner, px, dtype):
+            return runner.run_blur(px, levels, analysis, synthesis, quasi, dtype)
+
+    _process(paths, work, opts, plan_for=plan_for)
 
 
 def _level_path(pattern: str, level: int) -> str:
@@ -459,11 +487,15 @@ def mipmap(paths, analysis, tile, **opts) -> None:
     """
     from .pyramids import levels_plan, mip_levels
 
-    def work(runner, px):
-        m = mip_levels(px.shape[:2])
-        return [px] + (runner.run_outputs(levels_plan(px.shape[:2], m, analysis), px) if m else [])
+    def plan_for(shape):
+        m = mip_levels(shape[:2])
+        return levels_plan(shape[:2], m, analysis) if m else None
 
-    _process(paths, work, opts, mip_tile=tile)
+    def work(runner, px, dtype):
+        p = plan_for(px.shape)
+        return [px] + (runner.run_outputs(p, px, dtype) if p else [])
+
+    _process(paths, work, opts, mip_tile=tile, plan_for=plan_for)
 
 
 def _register() -> None:

@@ -27,7 +27,17 @@ Coordinates (the contract of :mod:`pyramid_cli.emulate`, which this must equal):
 
 Precision: the input texture is always RGBA32F (exact); intermediates and the target
 are RGBA32F (``precision="float"``, exact and unclamped) or RGBA16F (``"half"``,
-saturating at 65504 on llvmpipe).
+saturating at 65504 on llvmpipe). Inputs may be float16 arrays (half files, kept half
+by :mod:`pyramid_cli.io`): they are converted band by band while uploading, so no
+full-size float32 copy is made. Outputs read back as float32, or as float16 when the
+caller will store half anyway: glReadPixels converts with round-to-nearest-even, the
+rounding of numpy and OpenEXR (``test_half_read_back_rounds_like_numpy``). Rendering
+into RGBA16F does not round that way on llvmpipe, which is why targets stay RGBA32F.
+
+Memory is the cost of a cold run (page faults: about 1 s per GB on the 2-core machines
+of DESIGN.md §6), so uploads and read-backs go through reused bands instead of
+full-size staging copies, and :meth:`GLExecutor.prepare` can compile the programs and
+allocate the textures of a plan while the image is still being decoded.
 """
 
 from __future__ import annotations
@@ -47,6 +57,8 @@ INSTALL_HINT = ("install the drivers: sudo apt-get install -y libegl1 libgl1 lib
                 "or use --backend cpu")
 
 PRECISIONS = {"float": ("f4", np.float32), "half": ("f2", np.float16)}
+READ_DTYPES = {np.dtype(np.float32): "f4", np.dtype(np.float16): "f2"}
+BAND_BYTES = 8 << 20  # upload staging: rows of RGBA32F per texture write
 
 
 def _create_context():
@@ -148,6 +160,7 @@ class GLExecutor:
         self._ctx = None
         self._vertex = None
         self._programs: dict[generate.PassShape, _Program] = {}
+        self._plan_programs: dict[int, tuple[Plan, list[_Program]]] = {}
         self._free: dict[tuple[tuple[int, int], str], list[_Target]] = {}
         self._buffers: dict[tuple[tuple[int, ...], str], np.ndarray] = {}
         self.compiles = 0  # programs built so far (the cache's misses)
@@ -210,6 +223,7 @@ class GLExecutor:
             self._ctx.release()
         self._ctx = None
         self._programs.clear()
+        self._plan_programs.clear()
         self._free.clear()
         self._buffers.clear()
 
@@ -228,6 +242,17 @@ class GLExecutor:
             with self.current():
                 prog = self._programs[key] = self._build(key)
         return prog
+
+    def programs(self, plan: Plan) -> list[_Program]:
+        """The programs of ``plan``'s passes, remembered per plan (batches run one plan per size many times)."""
+        hit = self._plan_programs.get(id(plan))
+        if hit is not None and hit[0] is plan:
+            return hit[1]
+        programs = [self.program(ps) for ps in plan.passes]
+        if len(self._plan_programs) >= 64:
+            self._plan_programs.pop(next(iter(self._plan_programs)))
+        self._plan_programs[id(plan)] = (plan, programs)  # holds the plan: its id stays unique
+        return programs
 
     def _build(self, key: generate.PassShape) -> _Program:
         import moderngl
@@ -307,20 +332,25 @@ class GLExecutor:
         """
         return self.run_outputs(plan, image)[-1]
 
-    def run_outputs(self, plan: Plan, images) -> list[np.ndarray]:
+    def run_outputs(self, plan: Plan, images, dtype=np.float32) -> list[np.ndarray]:
         """Execute ``plan`` with one image per ``plan.inputs``; the logical pixels of every ``plan.outputs``.
 
-        Arrays are float32 with the inputs' channel layout: (H, W) for 2-D inputs, else (H, W, C).
-        Only these images are read back, after the last pass.
+        Inputs are float32 or float16 arrays (others are converted to float32). Outputs have
+        the inputs' channel layout, (H, W) for 2-D inputs, else (H, W, C), and ``dtype``:
+        float32, or float16 (rounded to nearest even by the read-back). Only these images
+        are read back, after the last pass.
         """
+        dtype = np.dtype(dtype)
+        if dtype not in READ_DTYPES:
+            raise ValueError(f"outputs are float32 or float16, not {dtype}")
         arrays = self._inputs(plan, images)
         flat = arrays[0].ndim == 2
         arrays = [a[:, :, None] if flat else a for a in arrays]
         self.check(plan)
         channels = arrays[0].shape[2]
-        outs = [np.empty(plan.images[k].size + (channels,), dtype=np.float32) for k in plan.outputs]
+        outs = [np.empty(plan.images[k].size + (channels,), dtype=dtype) for k in plan.outputs]
         with self.current() as ctx:
-            programs = [self.program(ps) for ps in plan.passes]
+            programs = self.programs(plan)
             for c0 in range(0, channels, 4):
                 n = min(4, channels - c0)
                 group = slice(c0, c0 + n)
@@ -332,7 +362,8 @@ class GLExecutor:
 
     @staticmethod
     def _inputs(plan: Plan, images) -> list[np.ndarray]:
-        arrays = [np.asarray(a, dtype=np.float32) for a in (images if isinstance(images, (list, tuple)) else [images])]
+        arrays = [a if isinstance(a, np.ndarray) and a.dtype in READ_DTYPES else np.asarray(a, dtype=np.float32)
+                  for a in (images if isinstance(images, (list, tuple)) else [images])]
         if len(arrays) != len(plan.inputs):
             raise ValueError(f"plan takes {len(plan.inputs)} input image(s), got {len(arrays)}")
         for k, a in zip(plan.inputs, arrays, strict=True):
@@ -349,12 +380,16 @@ class GLExecutor:
         return arrays
 
     def _upload(self, img: np.ndarray) -> _Target:
-        """The input in an RGBA32F texture, its edge repeated into the spare row and column."""
+        """The input in an RGBA32F texture, its edge repeated into the spare row and column.
+
+        RGBA float32 goes straight from the array; anything else (float16, fewer channels,
+        a channel group of a wider image) through a reused staging band of about BAND_BYTES.
+        """
         rows, cols, n = img.shape
         tex_size = texture_size((rows, cols))
         wr, wc = _written((rows, cols), tex_size)
         t = self._acquire(tex_size, "f4")
-        if n == 4 and img.flags.c_contiguous:  # already RGBA: no staging copy of the whole image
+        if n == 4 and img.dtype == np.float32 and img.flags.c_contiguous:  # no staging copy at all
             t.texture.write(img, viewport=(0, 0, cols, rows))
             if wc > cols:
                 t.texture.write(np.ascontiguousarray(img[:, cols - 1:]), viewport=(cols, 0, 1, rows))
@@ -362,29 +397,68 @@ class GLExecutor:
                 edge = img[rows - 1:, np.minimum(np.arange(wc), cols - 1)]
                 t.texture.write(np.ascontiguousarray(edge), viewport=(0, rows, wc, 1))
             return t
-        buf = self._buffer((wr, wc, 4), np.float32)
-        buf[:rows, :cols, :n] = img
-        if n < 4:
-            buf[:rows, :cols, n:] = 0.0
-        if wr > rows:
-            buf[rows] = buf[rows - 1]
-        if wc > cols:
-            buf[:, cols] = buf[:, cols - 1]
-        t.texture.write(buf, viewport=(0, 0, wc, wr))
+        band = max(1, min(wr, BAND_BYTES // (16 * wc)))
+        buf = self._buffer((band, wc, 4), np.float32)
+        for y0 in range(0, wr, band):
+            b = buf[: min(band, wr - y0)]
+            src = img[y0:y0 + len(b)]
+            b[: len(src), :cols, :n] = src
+            b[len(src):, :cols, :n] = img[rows - 1]  # the spare edge row repeats the last one
+            b[:, :cols, n:] = 0.0
+            if wc > cols:
+                b[:, cols] = b[:, cols - 1]
+            t.texture.write(b, viewport=(0, y0, wc, len(b)))
         return t
 
-    def _run_group(self, plan: Plan, programs: list[_Program], inputs: list[np.ndarray],
-                   outs: list[np.ndarray]) -> None:
-        """All passes for one group of ≤ 4 channels; writes the read-back images into ``outs``."""
-        ctx = self.ctx
-        dtype, np_dtype = PRECISIONS[self.precision]
+    def _read_back(self, target: _Target, viewport: tuple[int, int, int, int], out: np.ndarray, slot: int) -> None:
+        """Read a viewport of ``target`` into ``out`` (rows, columns, ≤ 4 channels), converted by GL to its dtype."""
+        dtype, n = READ_DTYPES[out.dtype], out.shape[2]
+        if out.flags.c_contiguous:  # GL_RED / RG / RGB / RGBA straight into the array
+            target.fbo.read_into(out, viewport=viewport, components=n, dtype=dtype)
+            return
+        buf = self._buffer(out.shape[:2] + (4,), out.dtype, slot=slot)
+        target.fbo.read_into(buf, viewport=viewport, components=4, dtype=dtype)
+        out[...] = buf[:, :, :n]
+
+    @staticmethod
+    def _releases(plan: Plan) -> list[list[int]]:
+        """For each pass, the images no later pass reads and the plan does not return (their textures go back)."""
         keep = set(plan.outputs)
         last_read: dict[int, int] = {}
         for i, ps in enumerate(plan.passes):
             for s in ps.sources():
                 last_read[s] = i
+        out: list[list[int]] = [[] for _ in plan.passes]
+        for s, i in last_read.items():
+            if s not in keep:
+                out[i].append(s)
+        return out
+
+    def prepare(self, plan: Plan) -> None:
+        """Compile ``plan``'s programs and put the textures one run takes into the pool.
+
+        Nothing is rendered. Called while the image is still being decoded, it moves the
+        shader compiles and the page faults of fresh textures off the critical path.
+        """
+        self.check(plan)
+        dtype = PRECISIONS[self.precision][0]
+        with self.current():
+            self.programs(plan)
+            held = {k: self._acquire(texture_size(plan.images[k].stored), "f4") for k in plan.inputs}
+            for ps, done in zip(plan.passes, self._releases(plan), strict=True):
+                held[ps.target] = self._acquire(texture_size(plan.images[ps.target].stored), dtype)
+                for s in done:
+                    self._release(held.pop(s))
+            for t in held.values():
+                self._release(t)
+
+    def _run_group(self, plan: Plan, programs: list[_Program], inputs: list[np.ndarray],
+                   outs: list[np.ndarray]) -> None:
+        """All passes for one group of ≤ 4 channels; writes the read-back images into ``outs``."""
+        ctx = self.ctx
+        dtype = PRECISIONS[self.precision][0]
         held: dict[int, _Target] = {k: self._upload(a) for k, a in zip(plan.inputs, inputs, strict=True)}
-        for i, (ps, prog) in enumerate(zip(plan.passes, programs, strict=True)):
+        for ps, prog, done in zip(plan.passes, programs, self._releases(plan), strict=True):
             target_image = plan.images[ps.target]
             stored = target_image.stored
             tex_size = texture_size(stored)
@@ -402,23 +476,16 @@ class GLExecutor:
             ctx.viewport = (0, 0, wc, wr)
             prog.vao.render(vertices=3)
             held[ps.target] = target
-            for s in ps.sources():
-                if last_read[s] == i and s not in keep:
-                    self._release(held.pop(s))
+            for s in done:
+                self._release(held.pop(s))
         inputs_by_index = dict(zip(plan.inputs, inputs, strict=True))
         for j, (k, out) in enumerate(zip(plan.outputs, outs, strict=True)):
             if k in inputs_by_index:  # an input read back as given (e.g. level 0 of a pyramid)
                 out[...] = inputs_by_index[k]
                 continue
-            im, n = plan.images[k], out.shape[2]
+            im = plan.images[k]
             rows, cols = im.size
-            viewport = (im.guard[1], im.guard[0], cols, rows)
-            if n == 4 and np_dtype is np.float32 and out.flags.c_contiguous:
-                held[k].fbo.read_into(out, viewport=viewport, components=4, dtype=dtype)
-                continue
-            buf = self._buffer((rows, cols, 4), np_dtype, slot=j)
-            held[k].fbo.read_into(buf, viewport=viewport, components=4, dtype=dtype)
-            out[...] = buf[:, :, :n]
+            self._read_back(held[k], (im.guard[1], im.guard[0], cols, rows), out, slot=j)
         for t in held.values():
             self._release(t)
 

@@ -1,10 +1,11 @@
 """Reading and writing images with OpenImageIO, in linear premultiplied light.
 
-Everything the rest of the tool filters is an :class:`Image`: float32 pixels of
-shape ``(H, W, C)`` (row 0 is the top row of the file, nothing is ever flipped)
-in linear light, with colour premultiplied by alpha when the image has an alpha
-channel, plus an :class:`ImageInfo` that remembers how the file stored them so
-that :func:`write_image` can store the result the same way.
+Everything the rest of the tool filters is an :class:`Image`: float32 pixels (or,
+when asked, a half file's own float16 values) of shape ``(H, W, C)`` (row 0 is
+the top row of the file, nothing is ever flipped) in linear light, with colour
+premultiplied by alpha when the image has an alpha channel, plus an
+:class:`ImageInfo` that remembers how the file stored them so that
+:func:`write_image` can store the result the same way.
 
 Rules
 -----
@@ -43,6 +44,7 @@ import os
 import stat
 from collections.abc import Iterable
 from dataclasses import dataclass, field
+from functools import cache
 from typing import Any
 
 import numpy as np
@@ -418,7 +420,8 @@ def output_pixel_type(fmt: str, pixel_type: str) -> str:
 
 
 def read_image(path: str | os.PathLike[str], *, colorspace: str = "auto",
-               alpha: str = "auto", nan: str = "keep", subimage: int = 0) -> Image:
+               alpha: str = "auto", nan: str = "keep", subimage: int = 0,
+               keep_half: bool = False) -> Image:
     """Read an image into linear, premultiplied float32 pixels.
 
     Parameters
@@ -436,11 +439,15 @@ def read_image(path: str | os.PathLike[str], *, colorspace: str = "auto",
     nan : {"keep", "zero", "fail"}
         What to do with NaN/Inf values: keep them, replace them with 0, or
         raise :class:`DataError`.
+    keep_half : bool
+        Return a half file's pixels as float16 (exactly what it stores, half
+        the memory of float32) when no colour or alpha conversion applies.
 
     Returns
     -------
     Image
-        float32 ``(H, W, C)`` pixels, row 0 the top row of the file.
+        float32 ``(H, W, C)`` pixels (float16 under ``keep_half``), row 0 the
+        top row of the file.
 
     Raises
     ------
@@ -472,7 +479,7 @@ def read_image(path: str | os.PathLike[str], *, colorspace: str = "auto",
     if st.st_size == 0:
         raise InputError(f"cannot read {p}: the file is empty")
 
-    data, spec, fmt = _read_pixels(p, subimage)
+    data, spec, fmt = _read_pixels(p, subimage, keep_half)
     names = [str(n) for n in spec.channelnames] or _default_names(spec.nchannels)
     pixel_type = _type_name(spec.format)
     alpha_channel = _find_alpha(spec, names)
@@ -501,17 +508,23 @@ def read_image(path: str | os.PathLike[str], *, colorspace: str = "auto",
     px = data
     colour = _colour_mask(px.shape[2], alpha_channel, names)
     has_alpha = alpha_channel >= 0 and alpha_mode != "none"
-    if encoding == "srgb":
-        if has_alpha and alpha_mode == "premultiplied":
-            # The file premultiplied the encoded values: divide them back out
-            # before decoding, premultiply again in linear light below.
-            _unpremultiply(px, alpha_channel, colour)
-        px[..., colour] = srgb_to_linear(px[..., colour])
-        if has_alpha:
+    if px.dtype in (np.uint8, np.uint16):
+        px = _decode_integer(px, encoding == "srgb", colour, alpha_channel if has_alpha else -1,
+                             alpha_mode == "straight")
+    else:
+        if px.dtype == np.float16 and (encoding == "srgb" or has_alpha and alpha_mode == "straight"):
+            px = px.astype(np.float32)  # converted below: not in half precision
+        if encoding == "srgb":
+            if has_alpha and alpha_mode == "premultiplied":
+                # The file premultiplied the encoded values: divide them back out
+                # before decoding, premultiply again in linear light below.
+                _unpremultiply(px, alpha_channel, colour)
+            px[..., colour] = srgb_to_linear(px[..., colour])
+            if has_alpha:
+                _premultiply(px, alpha_channel, colour)
+        elif has_alpha and alpha_mode == "straight":
             _premultiply(px, alpha_channel, colour)
-    elif has_alpha and alpha_mode == "straight":
-        _premultiply(px, alpha_channel, colour)
-    pixels = px.astype(np.float32, copy=False)
+    pixels = px if px.dtype == np.float16 else px.astype(np.float32, copy=False)
 
     bad = count_nonfinite(pixels)
     if bad and nan == "fail":
@@ -546,6 +559,26 @@ def read_image(path: str | os.PathLike[str], *, colorspace: str = "auto",
     return Image(pixels=pixels, spec=info)
 
 
+def read_shape(path: str | os.PathLike[str]) -> tuple[int, int, int] | None:
+    """(height, width, channels) from the file's header, without its pixels; None if it cannot be read.
+
+    Cheap enough to plan ahead while the pixels decode; :func:`read_image` reports the errors.
+    """
+    p = os.fspath(path)
+    try:
+        inp = oiio.ImageInput.open(p)
+    except Exception:  # noqa: BLE001 - binding errors: read_image says what they are
+        return None
+    if inp is None:
+        oiio.geterror()  # clear it: read_image reports it
+        return None
+    try:
+        spec = inp.spec()
+        return (spec.height, spec.width, spec.nchannels) if spec.width > 0 and spec.height > 0 else None
+    finally:
+        inp.close()
+
+
 def count_parts(path: str | os.PathLike[str]) -> int:
     """How many subimages (EXR parts) a file holds; 1 for ordinary images."""
     p = os.fspath(path)
@@ -567,9 +600,9 @@ def read_parts(path: str | os.PathLike[str], **options) -> list[Image]:
     return [first] + [read_image(path, subimage=k, **options) for k in range(1, count_parts(path))]
 
 
-def _read_pixels(p: str, subimage: int = 0) -> tuple[np.ndarray, oiio.ImageSpec, str]:
-    """Open and fully read ``p`` (one subimage), normalised to the stored range: integer files as
-    float64 (exact sRGB decoding), float files as float32 (as stored, without a copy)."""
+def _read_pixels(p: str, subimage: int = 0, keep_half: bool = False) -> tuple[np.ndarray, oiio.ImageSpec, str]:
+    """Open and fully read ``p`` (one subimage): integer files as stored (uint8, uint16), float
+    files as float32 (as stored, without a copy), half files as float16 under ``keep_half``."""
     config = oiio.ImageSpec()
     # Ask for the stored values: without this hint OpenImageIO premultiplies
     # straight-alpha files itself, in the encoded (non-linear) space.
@@ -596,7 +629,8 @@ def _read_pixels(p: str, subimage: int = 0) -> tuple[np.ndarray, oiio.ImageSpec,
             raise InputError(f"cannot read {p}: volume images are not supported")
         native = _type_name(spec.format)
         uniform = len({str(t) for t in spec.channelformats}) <= 1
-        read_type = native if native in ("uint8", "uint16") and uniform else "float"
+        keep = ("uint8", "uint16", "half") if keep_half else ("uint8", "uint16")
+        read_type = native if native in keep and uniform else "float"
         try:
             data = inp.read_image(subimage, 0, 0, spec.nchannels, read_type)
         except Exception as exc:
@@ -611,15 +645,91 @@ def _read_pixels(p: str, subimage: int = 0) -> tuple[np.ndarray, oiio.ImageSpec,
     finally:
         inp.close()
     data = np.asarray(data).reshape(spec.height, spec.width, spec.nchannels)
-    if read_type == "uint8":
-        return data.astype(np.float64) / 255.0, spec, fmt
-    if read_type == "uint16":
-        return data.astype(np.float64) / 65535.0, spec, fmt
+    if read_type in ("uint8", "uint16"):
+        return data, spec, fmt  # decoded by _decode_integer
+    if read_type == "half":
+        return np.asarray(data, dtype=np.float16), spec, fmt
     return np.asarray(data, dtype=np.float32), spec, fmt  # float files stay float32: no 2× copy
 
 
 # ---------------------------------------------------------------------------
 # Writing
+
+
+@cache
+def _integer_levels(dtype: str, srgb: bool) -> np.ndarray:
+    """float64 value of every code of an 8/16-bit type: ``code / max``, sRGB-decoded if asked."""
+    levels = np.arange(256 if dtype == "uint8" else 65536) / (255.0 if dtype == "uint8" else 65535.0)
+    return srgb_to_linear(levels) if srgb else levels
+
+
+def _decode_integer(data: np.ndarray, srgb: bool, colour: np.ndarray, alpha: int, straight: bool) -> np.ndarray:
+    """Linear premultiplied float32 pixels of 8/16-bit codes, a channel at a time through per-code tables.
+
+    Every value is what decoding ``code / max`` in float64 with the exact sRGB EOTF, then
+    premultiplying in float64, gives (rounded once to float32), without float64 copies of
+    the whole image. ``alpha`` is the channel to premultiply by (-1: none).
+    """
+    linear = _integer_levels(data.dtype.name, False)
+    decoded = _integer_levels(data.dtype.name, True) if srgb else linear
+    if alpha >= 0 and srgb and not straight:
+        # Associated sRGB (rare): divide the encoded values out, decode, multiply back.
+        px = linear[data]
+        _unpremultiply(px, alpha, colour)
+        px[..., colour] = srgb_to_linear(px[..., colour])
+        _premultiply(px, alpha, colour)
+        return px.astype(np.float32)
+    out = np.empty(data.shape, dtype=np.float32)
+    a = linear[data[..., alpha]] if alpha >= 0 and straight else None
+    for c in range(data.shape[2]):
+        codes = data[..., c]
+        if colour[c]:
+            out[..., c] = decoded[codes] if a is None else decoded[codes] * a
+        else:
+            out[..., c] = linear[codes]
+    return out
+
+
+@cache
+def _srgb8_tables() -> tuple[np.ndarray, np.ndarray]:
+    """Exact 8-bit sRGB encoding of float32 values by table: (thresholds, codes by the top 20 bits).
+
+    ``thresholds[k - 1]`` is the smallest float32 that :func:`_encode_integer` turns into
+    code k (sRGB in float64, ×255, round half up). A float32's top 20 bits (sign, exponent,
+    11 mantissa bits) pick a bucket narrower than the gap between thresholds, so the code
+    is the bucket's code plus one comparison.
+    """
+    def code(bits: np.ndarray) -> np.ndarray:
+        x = bits.astype(np.uint32).view(np.float32).astype(np.float64)
+        return np.clip(np.floor(linear_to_srgb(x) * 255.0 + 0.5), 0, 255)
+
+    lo = np.zeros(255, dtype=np.int64)                 # bisection on the bit patterns of x ≥ 0
+    hi = np.full(255, 0x7F800000, dtype=np.int64)      # +inf encodes to 255
+    want = np.arange(1, 256)
+    while np.any(hi - lo > 1):
+        mid = (lo + hi) // 2
+        up = code(mid) >= want
+        hi, lo = np.where(up, mid, hi), np.where(up, lo, mid)
+    thresholds = hi.astype(np.uint32).view(np.float32)
+    firsts = (np.arange(1 << 19, dtype=np.uint32) << 12).view(np.float32)  # non-negative buckets
+    lasts = ((np.arange(1 << 19, dtype=np.uint32) << 12) | 0xFFF).view(np.float32)
+    with np.errstate(invalid="ignore"):
+        start = np.searchsorted(thresholds, firsts, side="right")
+        finite = np.isfinite(lasts)
+        assert np.all(np.searchsorted(thresholds, lasts[finite], side="right") - start[finite] <= 1)
+    codes = np.concatenate([start, np.zeros(1 << 19, dtype=start.dtype)]).astype(np.uint8)  # negatives: 0
+    return thresholds, codes
+
+
+def _srgb8(x: np.ndarray) -> np.ndarray:
+    """:func:`_encode_integer` of ``linear_to_srgb(x)`` for 8 bits without dither, from float32 ``x``."""
+    thresholds, codes = _srgb8_tables()
+    x = np.ascontiguousarray(x, dtype=np.float32)
+    k = codes[x.view(np.uint32) >> 12]
+    with np.errstate(invalid="ignore"):
+        k += (x >= thresholds[np.minimum(k, 254)]) & (k < 255)
+    k[np.isnan(x)] = 0
+    return k
 
 
 def _output_colorspace(info: ImageInfo, out_type: str) -> str:
@@ -851,7 +961,21 @@ def _encode(path, image: Image, *, pixel_type=None, colorspace=None, alpha=None,
     memory_premultiplied = alpha_channel >= 0 and info.alpha_mode != "none"
     mode = "none" if alpha_channel < 0 else (alpha or _output_alpha_mode(info, fmt, out_type))
 
-    px = pixels.astype(np.float64 if out_int else np.float32)  # a copy: encoded in place below
+    if (out_type == "uint8" and encoding == "srgb" and mode == "none" and not dither
+            and not (fmt in _NO_ALPHA_FORMATS and alpha_channel >= 0)):
+        # The common 8-bit sRGB file without alpha: encoded by table, a channel at a time.
+        colour = _colour_mask(nch, alpha_channel, names)
+        data = np.empty(pixels.shape, dtype=np.uint8)
+        for c in range(nch):
+            data[..., c] = _srgb8(pixels[..., c]) if colour[c] else \
+                _encode_integer(pixels[..., c:c + 1].astype(np.float64), out_type, False, colour[c:c + 1])[..., 0]
+        return _output_spec(info, fmt, out_type, names, alpha_channel, nch, width, height, encoding, mode,
+                            pixel_type, compression), data
+    if not out_int and not _converts(fmt, alpha_channel, memory_premultiplied, encoding, mode):
+        # Stored as they are: no copy (float16 stays float16 for a half file; OIIO converts float32).
+        px = pixels if pixels.dtype in (np.float16, np.float32) else pixels.astype(np.float32)
+    else:
+        px = pixels.astype(np.float64 if out_int else np.float32)  # a copy: encoded in place below
     if fmt in _NO_ALPHA_FORMATS and alpha_channel >= 0:
         # No alpha in the file: premultiplied linear colour alone is the image
         # composited over black.
@@ -877,9 +1001,16 @@ def _encode(path, image: Image, *, pixel_type=None, colorspace=None, alpha=None,
     if out_int:
         data = _encode_integer(px, out_type, dither, colour)
     else:
-        data = px.astype(np.float32, copy=False)
+        data = px if px.dtype == np.float16 and out_type == "half" else px.astype(np.float32, copy=False)
     data = np.ascontiguousarray(data)
+    return _output_spec(info, fmt, out_type, names, alpha_channel, nch, width, height, encoding, mode,
+                        pixel_type, compression), data
 
+
+def _output_spec(info: ImageInfo, fmt: str, out_type: str, names: list[str], alpha_channel: int, nch: int,
+                 width: int, height: int, encoding: str, mode: str, pixel_type: str | None,
+                 compression: str | None) -> oiio.ImageSpec:
+    """The file's spec: type, channels, windows, carried metadata, colour space, alpha and compression."""
     spec = oiio.ImageSpec(width, height, nch, out_type)
     spec.channelnames = tuple(names)
     spec.alpha_channel = alpha_channel
@@ -924,8 +1055,35 @@ def _encode(path, image: Image, *, pixel_type=None, colorspace=None, alpha=None,
             spec.attribute("png:compressionLevel", int(compression))  # zlib level 0-9
         else:
             spec.attribute("compression", compression)
+    return spec
 
-    return spec, data
+
+def _converts(fmt: str, alpha_channel: int, memory_premultiplied: bool, encoding: str, mode: str) -> bool:
+    """Does writing change the values (alpha dropped or re-associated, sRGB encoding)?"""
+    if fmt in _NO_ALPHA_FORMATS and alpha_channel >= 0 or encoding == "srgb":
+        return True
+    return mode != "none" and (mode == "straight" and memory_premultiplied
+                               or mode == "premultiplied" and not memory_premultiplied)
+
+
+def stores_half_unchanged(path: str | os.PathLike[str], info: ImageInfo, *, pixel_type: str | None = None,
+                          colorspace: str | None = None, alpha: str | None = None) -> bool:
+    """Will :func:`write_image` store linear values as half without converting them?
+
+    Then a float result may be rounded to half (nearest even) before writing, with the
+    same file as a result: the GL read-back does that and moves half the bytes.
+    """
+    fmt = _format_from_path(os.fspath(path))
+    if not fmt:
+        return False
+    out_type = output_pixel_type(fmt, pixel_type or info.pixel_type)
+    if out_type != "half":
+        return False
+    encoding = colorspace or _output_colorspace(info, out_type)
+    alpha_channel = info.alpha_channel
+    mode = "none" if alpha_channel < 0 else (alpha or _output_alpha_mode(info, fmt, out_type))
+    memory_premultiplied = alpha_channel >= 0 and info.alpha_mode != "none"
+    return not _converts(fmt, alpha_channel, memory_premultiplied, encoding, mode)
 
 
 def _atomic_write(out_path: str, folder: str, spec: oiio.ImageSpec, data: np.ndarray) -> None:

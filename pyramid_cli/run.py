@@ -38,42 +38,57 @@ class Runner:
                     raise
                 self._warn(f"{e.message}; running on the CPU")
 
-    def run_plan(self, plan: Plan, pixels: np.ndarray) -> np.ndarray:
-        """Execute a plan; float32 out."""
-        return self.run_outputs(plan, [pixels])[-1]
+    def run_plan(self, plan: Plan, pixels: np.ndarray, dtype=np.float32) -> np.ndarray:
+        """Execute a plan; ``dtype`` (float32 or float16) out."""
+        return self.run_outputs(plan, [pixels], dtype)[-1]
 
-    def run_outputs(self, plan: Plan, images) -> list[np.ndarray]:
-        """Execute a plan with one image per ``plan.inputs``; every image of ``plan.outputs``, float32."""
+    def run_outputs(self, plan: Plan, images, dtype=np.float32) -> list[np.ndarray]:
+        """Execute a plan with one image per ``plan.inputs``; every image of ``plan.outputs``.
+
+        Inputs may be float16 (half files); outputs are ``dtype``, float32 or float16, the
+        latter rounded to nearest even from the float result (as writing a half file would).
+        """
         images = images if isinstance(images, (list, tuple)) else [images]
         if self._gl is not None:
             try:
-                return self._gl.run_outputs(plan, [np.asarray(im, dtype=np.float32) for im in images])
+                return self._gl.run_outputs(plan, images, dtype)
             except DataError as e:  # larger than the GL texture limit
                 if self.requested == "gl":
                     raise
                 self._warn(f"{e.message}; running this image on the CPU")
         from . import emulate
 
-        return [o.astype(np.float32) for o in emulate.run_outputs(plan, images)]
+        # via float32, as the GL path and as earlier releases rounded: float64 → float32 → half
+        return [o.astype(np.float32).astype(dtype, copy=False) for o in emulate.run_outputs(plan, images)]
 
-    def run_expr(self, expr: Expr, pixels: np.ndarray, border: str = "clamp") -> np.ndarray:
+    def prepare(self, plan: Plan) -> None:
+        """Get ready to run ``plan`` (GL: programs compiled, textures allocated); best effort, never fails."""
+        if self._gl is not None:
+            try:
+                self._gl.prepare(plan)
+            except (BackendError, DataError):
+                pass  # the run itself reports it, or falls back
+
+    def run_expr(self, expr: Expr, pixels: np.ndarray, border: str = "clamp", dtype=np.float32) -> np.ndarray:
         """Execute an expression: planned on GL, the numpy reference on the CPU (and for non-clamp borders)."""
         if self._gl is not None and border == "clamp":
             from .plan import plan
 
-            return self.run_plan(plan(expr, pixels.shape[:2]), pixels)
+            return self.run_plan(plan(expr, pixels.shape[:2]), pixels, dtype)
         from . import reference
 
-        return reference.run(expr, pixels, Border.parse(border)).astype(np.float32)
+        return reference.run(expr, pixels, Border.parse(border)).astype(np.float32).astype(dtype, copy=False)
 
     def run_blur(self, pixels: np.ndarray, levels: int, analysis: str, synthesis: str,
-                 quasi: bool = False) -> np.ndarray:
+                 quasi: bool = False, dtype=np.float32) -> np.ndarray:
         """Pyramid blur: one planned GL job, or the reference composed level by level on the CPU."""
         from . import pyramids
 
         if self._gl is not None:
-            return self.run_plan(pyramids.blur_plan(pixels.shape[:2], levels, analysis, synthesis, quasi), pixels)
-        return pyramids.blur_reference(pixels, levels, analysis, synthesis, quasi).astype(np.float32)
+            plan = pyramids.blur_plan(pixels.shape[:2], levels, analysis, synthesis, quasi)
+            return self.run_plan(plan, pixels, dtype)
+        blurred = pyramids.blur_reference(pixels, levels, analysis, synthesis, quasi)
+        return blurred.astype(np.float32).astype(dtype, copy=False)
 
     @property
     def name(self) -> str:

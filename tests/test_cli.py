@@ -199,3 +199,23 @@ def test_compression_option_reaches_the_file(tmp_path):
     assert read(tmp_path / "o.exr")[1].get_string_attribute("compression") == "piz"
     r = invoke("apply", "--backend", "cpu", "bartlett", str(src), str(tmp_path / "same.exr"))
     assert read(tmp_path / "same.exr")[1].get_string_attribute("compression") == "zip"  # follows the input
+
+
+@pytest.mark.parametrize("channels", [3, 4])
+def test_half_exr_blur_stays_half_and_rounds_once(gl, tmp_path, channels):
+    """A half file is uploaded as is and read back rounded once: the float result rounded to half."""
+    from pyramid_cli.pyramids import blur_plan, blur_reference
+
+    g = np.random.default_rng(5).random((33, 47, channels)).astype(np.float16)
+    src, dst = tmp_path / "in.exr", tmp_path / "out.exr"
+    write_exr(src, g.astype(np.float32), "half")
+    r = invoke("blur", "--backend", "gl", "--levels", "2", "-q", str(src), str(dst))
+    assert r.exit_code == 0, r.output
+    inp = oiio.ImageInput.open(str(dst))
+    assert str(inp.spec().format) == "half"
+    got = np.asarray(inp.read_image("half"))
+    inp.close()
+    as_float = gl.run(blur_plan((33, 47), 2), g.astype(np.float32))
+    np.testing.assert_array_equal(got.view(np.uint16), as_float.astype(np.float16).view(np.uint16))
+    want = blur_reference(g.astype(np.float64), 2)
+    np.testing.assert_allclose(got, want, rtol=2 ** -11, atol=1e-7)

@@ -301,3 +301,57 @@ def test_affine_passes_skip_the_phase_arithmetic():
         assert not any("#define AFFINE" in src for src in sources(text)), text
     (ds,) = sources("doosabin")
     assert "#define SLOPE vec2(0.5, 0.5)" in ds and "acc += linear0(base + vec2(0.25, 0.25));" in ds
+
+
+@gl_mark
+@pytest.mark.parametrize("channels", [None, 1, 3, 4, 6])
+@pytest.mark.parametrize("text", ["doosabin *^ (box4 *v g)", "fourpoint", "quadratic"])
+def test_half_inputs_and_outputs_match_float_exactly(gl, text, channels):
+    """Half in: converted exactly on upload. Half out: glReadPixels rounds like numpy (nearest even)."""
+    size = (37, 23)
+    image = random_image(size, channels, seed=11).astype(np.float16)
+    expr, p = planned(text, size)
+    as_float = gl.run(p, image.astype(np.float32))
+    np.testing.assert_allclose(as_float, reference.run(expr, image.astype(np.float32)), rtol=0, atol=1e-5)
+    np.testing.assert_array_equal(gl.run(p, image), as_float)
+    (half,) = gl.run_outputs(p, [image], dtype=np.float16)
+    assert half.dtype == np.float16 and half.shape == as_float.shape
+    np.testing.assert_array_equal(half.view(np.uint16), as_float.astype(np.float16).view(np.uint16))
+
+
+@gl_mark
+def test_half_read_back_rounds_like_numpy(gl):
+    """Ties, subnormals, overflow and NaN: the read-back's float → half equals numpy's, bit for bit."""
+    rng = np.random.default_rng(3)
+    h = rng.integers(0, 0x7C00, size=4096, dtype=np.uint16).view(np.float16)
+    up = np.nextafter(h, np.float16(np.inf))
+    ties = (h.astype(np.float32) + up.astype(np.float32)) / 2  # exactly halfway: nearest even decides
+    special = np.array([65504, 65520, 65519.99, 1e6, -1e6, 6e-8, 2.9e-8, 3e-8, np.inf, -np.inf, np.nan, -0.0],
+                       dtype=np.float32)
+    values = np.concatenate([ties, -ties, rng.standard_normal(4096).astype(np.float32) * 100, special])
+    values = np.resize(values, 64 * 64 * 4).reshape(64, 64, 4).astype(np.float32)
+    _, p = planned("g", (64, 64))
+    (half,) = gl.run_outputs(p, [values], dtype=np.float16)
+    with np.errstate(over="ignore"):
+        want = values.astype(np.float16)
+    same = (half.view(np.uint16) == want.view(np.uint16)) | (np.isnan(half) & np.isnan(want))
+    assert same.all(), values[~same][:5]
+
+
+@gl_mark
+def test_prepare_compiles_and_allocates_ahead(gl):
+    from pyramid_cli.gl import GLExecutor
+    from pyramid_cli.pyramids import blur_plan
+
+    p = blur_plan((45, 70), 3)
+    with GLExecutor() as fresh:
+        fresh.prepare(p)
+        compiled, pooled = fresh.compiles, sum(len(v) for v in fresh._free.values())
+        assert compiled == len({generate.shape(ps) for ps in p.passes}) and pooled >= 2
+        made = []
+        original = fresh.ctx.texture
+        fresh.ctx.texture = lambda *a, **k: made.append(a) or original(*a, **k)
+        image = random_image((45, 70), 4, seed=2)
+        out = fresh.run(p, image)
+        assert not made and fresh.compiles == compiled  # everything came from prepare
+    np.testing.assert_allclose(out, emulate.run(p, image), rtol=0, atol=1e-5)

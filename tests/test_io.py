@@ -771,3 +771,104 @@ def test_srgb_helpers_match_formula():
     v = np.linspace(0, 1, 1001)
     np.testing.assert_allclose(pio.srgb_to_linear(v), srgb_eotf(v), rtol=1e-12)
     np.testing.assert_allclose(pio.linear_to_srgb(v), srgb_oetf(v), rtol=1e-12)
+
+
+def test_keep_half_reads_and_writes_half_unchanged(tmp_path):
+    src = RNG.uniform(-2.0, 8.0, (9, 13, 4)).astype(np.float16)
+    src[2, 3, 1] = np.inf
+    path = tmp_path / "in.exr"
+    write_raw(path, src, "half", names=["R", "G", "B", "A"], alpha=3, compression="piz")
+    img = pio.read_image(path, keep_half=True)
+    assert img.pixels.dtype == np.float16
+    np.testing.assert_array_equal(img.pixels.view(np.uint16), src.view(np.uint16))
+    assert pio.read_image(path).pixels.dtype == np.float32  # only when asked
+
+    out = tmp_path / "out.exr"
+    assert pio.stores_half_unchanged(out, img.spec)
+    pio.write_image(out, img)
+    back, spec = read_raw(out)
+    assert str(spec.format) == "half" and spec.get_string_attribute("compression") == "piz"
+    np.testing.assert_array_equal(np.asarray(back).view(np.uint16), src.view(np.uint16))
+
+    as_float = tmp_path / "out_float.exr"
+    assert not pio.stores_half_unchanged(as_float, img.spec, pixel_type="float")
+    pio.write_image(as_float, img, pixel_type="float")
+    back, spec = read_raw(as_float)
+    assert str(spec.format) == "float"
+    np.testing.assert_array_equal(back, src.astype(np.float32))
+
+
+def test_keep_half_converts_where_decoding_applies(tmp_path):
+    """sRGB-tagged half or straight alpha: decoded in float32, exactly as without keep_half."""
+    src = RNG.uniform(0.0, 1.0, (5, 7, 4)).astype(np.float16)
+    srgb = tmp_path / "srgb.exr"
+    write_raw(srgb, src, "half", names=["R", "G", "B", "A"], alpha=3, oiio__ColorSpace="sRGB")
+    kept, plain = pio.read_image(srgb, keep_half=True), pio.read_image(srgb)
+    assert kept.pixels.dtype == np.float32
+    np.testing.assert_array_equal(kept.pixels, plain.pixels)
+    assert not pio.stores_half_unchanged(tmp_path / "o.exr", kept.spec)
+    straight = pio.read_image(srgb, keep_half=True, alpha="straight", colorspace="linear")
+    assert straight.pixels.dtype == np.float32
+    np.testing.assert_array_equal(straight.pixels[..., :3], (src[..., :3].astype(np.float32) * src[..., 3:]))
+
+
+def test_stores_half_unchanged_rules(tmp_path):
+    half = pio.ImageInfo(path="in.exr", format="openexr", pixel_type="half", channel_names=["R", "G", "B", "A"],
+                         alpha_channel=3, colorspace="linear", alpha_mode="premultiplied")
+    assert pio.stores_half_unchanged("o.exr", half)
+    assert not pio.stores_half_unchanged("o.png", half)            # integers
+    assert not pio.stores_half_unchanged("o.exr", half, pixel_type="float")
+    assert not pio.stores_half_unchanged("o.exr", half, colorspace="srgb")
+    assert not pio.stores_half_unchanged("o.exr", half, alpha="straight")
+    assert not pio.stores_half_unchanged("o.hdr", half)            # float-only format without half
+    assert not pio.stores_half_unchanged("o.unknown", half)
+
+
+def test_read_shape_reads_the_header_only(tmp_path):
+    path = tmp_path / "in.exr"
+    write_raw(path, np.zeros((9, 13, 5), np.float16), "half")
+    assert pio.read_shape(path) == (9, 13, 5)
+    assert pio.read_shape(tmp_path / "missing.exr") is None
+    (tmp_path / "bad.png").write_bytes(b"not a png")
+    assert pio.read_shape(tmp_path / "bad.png") is None
+
+
+def _srgb8_by_formula(x: np.ndarray) -> np.ndarray:
+    """The float64 route the table replaces (linear_to_srgb, ×255, round half up, clamp; NaN → 0)."""
+    v = np.nan_to_num(pio.linear_to_srgb(x.astype(np.float64)), nan=0.0, posinf=1.0, neginf=0.0) * 255.0
+    return np.clip(np.floor(v + 0.5), 0, 255).astype(np.uint8)
+
+
+def test_srgb8_table_equals_the_float64_formula_everywhere_it_matters():
+    thresholds, _ = pio._srgb8_tables()
+    t = thresholds.view(np.uint32)
+    edges = np.concatenate([t - 2, t - 1, t, t + 1]).view(np.float32)  # around every code boundary
+    rng = np.random.default_rng(8)
+    x = np.concatenate([
+        edges, -edges, rng.random(200_000, dtype=np.float32), rng.random(50_000, dtype=np.float32) * 1e-2,
+        rng.standard_normal(50_000).astype(np.float32) * 3,
+        np.array([0.0, -0.0, 1.0, 1.0000001, 1e30, np.inf, -np.inf, np.nan, 1e-45, 0.0031308], np.float32),
+    ])
+    with np.errstate(over="ignore", invalid="ignore"):
+        np.testing.assert_array_equal(pio._srgb8(x), _srgb8_by_formula(x))
+    # every float32 pattern of [0, 1] in steps of 97 ulps, too
+    grid = np.arange(0, 0x3F800001, 97, dtype=np.uint32).view(np.float32)
+    np.testing.assert_array_equal(pio._srgb8(grid), _srgb8_by_formula(grid))
+
+
+@pytest.mark.parametrize("bits", [8, 16])
+@pytest.mark.parametrize("alpha", ["straight", "premultiplied", "none", "no alpha"])
+def test_integer_decoding_by_table_equals_float64_decoding(bits, alpha):
+    dtype = np.uint8 if bits == 8 else np.uint16
+    codes = np.random.default_rng(bits).integers(0, np.iinfo(dtype).max + 1, (17, 19, 4), dtype=dtype)
+    colour = np.array([True, True, True, alpha == "no alpha"])
+    a = -1 if alpha in ("none", "no alpha") else 3
+    got = pio._decode_integer(codes, True, colour, a, alpha == "straight")
+    v = codes.astype(np.float64) / np.iinfo(dtype).max  # the old route, whole image in float64
+    if alpha == "premultiplied":
+        pio._unpremultiply(v, 3, colour)
+    v[..., colour] = srgb_eotf(v[..., colour])
+    if a >= 0:
+        pio._premultiply(v, 3, colour)
+    assert got.dtype == np.float32
+    np.testing.assert_array_equal(got, v.astype(np.float32))
