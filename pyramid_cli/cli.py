@@ -120,8 +120,9 @@ def _size(ctx, param, value):
 @click.option("--size", required=True, callback=_size, metavar="WxH", help="Input image size, e.g. 1920x1080.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of the report.")
 @click.option("--strategy", type=click.Choice(["cost", "paper"]), default="cost", show_default=True,
-              help="cost: per filter, the paper's decomposition or one fused pass, whichever the cost model "
-                   "(fetches per output pixel + a per-pass cost) finds cheaper; paper: always the paper's.")
+              help="cost: per filter, the paper's decomposition or one fused pass, whichever is faster by the "
+                   "cost model calibrated by bench/calibrate.py (pyramid_cli/cost_model.json); paper: always "
+                   "the paper's.")
 def plan_command(expression, size, as_json: bool, strategy: str) -> None:
     """Show the render passes and bilinear taps that compute EXPRESSION.
 

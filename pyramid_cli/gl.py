@@ -292,7 +292,10 @@ class GLExecutor:
     def clear_pool(self) -> None:
         """Release pooled textures and staging buffers (programs stay compiled)."""
         if self._ctx is not None:
-            with self.current():
+            with self.current() as ctx:
+                # moderngl re-binds the last bound framebuffer after making a new one: a deleted
+                # one would be GL_INVALID_OPERATION, so bind the default (0) before deleting.
+                ctx.detect_framebuffer(0).use()
                 for free in self._free.values():
                     for t in free:
                         t.fbo.release()

@@ -355,3 +355,19 @@ def test_prepare_compiles_and_allocates_ahead(gl):
         out = fresh.run(p, image)
         assert not made and fresh.compiles == compiled  # everything came from prepare
     np.testing.assert_allclose(out, emulate.run(p, image), rtol=0, atol=1e-5)
+
+
+@gl_mark
+def test_runs_after_clear_pool(gl):
+    """clear_pool deletes the framebuffer last bound; the next run must still make its own."""
+    from pyramid_cli.gl import GLExecutor
+
+    expr, p = planned("box4 *v g", (16, 16))
+    image = random_image((16, 16), 4, seed=9)
+    with GLExecutor() as fresh:
+        first = fresh.run(p, image)
+        fresh.clear_pool()
+        assert not fresh._free
+        np.testing.assert_array_equal(fresh.run(p, image), first)
+        assert fresh.error == "GL_NO_ERROR"
+    np.testing.assert_allclose(first, reference.run(expr, image), rtol=0, atol=1e-5)
