@@ -407,7 +407,7 @@ class GLExecutor:
             src = img[y0:y0 + len(b)]
             b[: len(src), :cols, :n] = src
             b[len(src):, :cols, :n] = img[rows - 1]  # the spare edge row repeats the last one
-            b[:, :cols, n:] = 0.0
+            # Channels n: keep whatever they hold: channels never mix, and they are not read back.
             if wc > cols:
                 b[:, cols] = b[:, cols - 1]
             t.texture.write(b, viewport=(0, y0, wc, len(b)))
