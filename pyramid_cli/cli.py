@@ -150,7 +150,8 @@ def io_options(f):
                      help="gl: OpenGL through headless EGL; cpu: numpy (for apply and blur the reference of "
                           "the paper's formulas, slow and exact); auto: gl, else cpu with a warning."),
         click.option("--precision", type=click.Choice(["float", "half"]), default="float", show_default=True,
-                     help="GL intermediate textures: RGBA32F, or RGBA16F (faster, ~1e-3 relative, max 65504)."),
+                     help="GL intermediate textures: RGBA32F, or RGBA16F (faster, ~1e-3 relative, max 65504). "
+                          "Half files travel as half either way (upload, read-back), losing nothing."),
         click.option("--type", "pixel_type", type=click.Choice(["uint8", "uint16", "half", "float"]),
                      help="Output pixel type (default: the input's, as the output format allows)."),
         click.option("--colorspace", type=click.Choice(["auto", "linear", "srgb"]), default="auto",
