@@ -2,11 +2,14 @@
 """Benchmark suite of ``pyramid``: ratios against peers measured in the same run.
 
     python bench/run.py [--quick] [--json OUT.json] [--only SCENARIO[,SCENARIO]] [--reps N] [--no-profile]
+                        [--torch-device DEVICE]
 
 Scenarios (see bench/README.md): ``filter`` (warm filtering, in process), ``e2e``
 (``pyramid blur`` in a fresh process vs bare OpenImageIO and an OpenCV script),
 ``batch`` (many small images: one process vs one call each), ``startup``
-(``pyramid --help``, ``pyramid explain``).
+(``pyramid --help``, ``pyramid explain``), ``gpu`` (the blur on a GPU through EGL vs a
+PyTorch conv2d peer and a device-to-device copy; in the default list only when torch sees
+a CUDA device).
 
 Every comparison is interleaved: repetition k runs A, B, C…, rotated by k, and
 each contender's median is reported, so the ratios survive a noisy machine.
@@ -37,7 +40,8 @@ if str(ROOT) not in sys.path:  # run from a checkout even without the editable i
 
 import numpy as np  # noqa: E402
 
-SCENARIOS = ["filter", "e2e", "batch", "startup"]
+SCENARIOS = ["filter", "e2e", "batch", "startup", "gpu"]
+CPU_SCENARIOS = ["filter", "e2e", "batch", "startup"]  # the default list, plus "gpu" where CUDA is present
 SIGMA7 = math.sqrt(6) / 2  # binomial 7-tap [1 6 15 20 15 6 1]/64 has variance 6/4
 perf = time.perf_counter
 
@@ -224,10 +228,15 @@ class GLSplit:
     The executor exposes no timing hooks, so this wraps its private ``_upload`` and each cached
     program's ``vao`` for the duration of one run. ``available`` is False (and ``why`` says so)
     when those internals are not there; the suite then reports only upload+run+read-back.
+
+    With ``per_pass=False`` the passes run back to back as the executor issues them: one
+    ``ctx.finish()`` before the first and one after the last, and ``device`` is that span (on a
+    GPU a finish after every pass costs about as much as a pass at 4K). ``passes`` is then empty.
     """
 
-    def __init__(self, executor):
+    def __init__(self, executor, per_pass: bool = True):
         self.ex = executor
+        self.per_pass = per_pass
         self.available = all(hasattr(executor, a) for a in ("_upload", "_programs", "program", "current"))
         self.why = "" if self.available else "GLExecutor internals (_upload/_programs) changed; no split"
 
@@ -235,6 +244,7 @@ class GLSplit:
         ex = self.ex
         passes: list[float] = []
         upload = [0.0]
+        groups = -(-(img.shape[2] if img.ndim == 3 else 1) // 4)
         with ex.current() as ctx:
             progs = {id(p): p for p in (ex.program(ps) for ps in plan.passes)}.values()
             real_upload = ex._upload
@@ -248,8 +258,9 @@ class GLSplit:
 
             saved = [(p, p.vao) for p in progs]
             ex._upload = timed_upload
+            span = _Span(ctx, len(plan.passes))
             for p, vao in saved:
-                p.vao = _TimedVAO(vao, ctx, passes)
+                p.vao = _TimedVAO(vao, ctx, passes) if self.per_pass else _SpanVAO(vao, span)
             try:
                 ctx.finish()
                 t0 = perf()
@@ -259,9 +270,41 @@ class GLSplit:
                 del ex._upload  # back to the class's method
                 for p, vao in saved:
                     p.vao = vao
-        device = sum(passes)
+        device = sum(passes) if self.per_pass else sum(span.spans)
+        if not self.per_pass and len(span.spans) != groups:
+            raise RuntimeError(f"GLSplit: {len(span.spans)} pass spans for {groups} channel group(s)")
         return {"upload": upload[0], "device": device, "readback_host": total - upload[0] - device,
                 "passes": passes}
+
+
+class _Span:
+    """Times runs of ``n`` consecutive passes: finish before the first, finish after the last."""
+
+    def __init__(self, ctx, n: int):
+        self.ctx, self.n, self.count, self.t0, self.spans = ctx, n, 0, 0.0, []
+
+    def render(self, vao, *a, **k):
+        if self.count % self.n == 0:
+            self.ctx.finish()
+            self.t0 = perf()
+        vao.render(*a, **k)
+        self.count += 1
+        if self.count % self.n == 0:
+            self.ctx.finish()
+            self.spans.append(perf() - self.t0)
+
+
+class _SpanVAO:
+    """Stands in for a program's vertex array in a back-to-back timing (:class:`_Span`)."""
+
+    def __init__(self, vao, span: _Span):
+        self._vao, self._span = vao, span
+
+    def render(self, *a, **k):
+        self._span.render(self._vao, *a, **k)
+
+    def __getattr__(self, name):
+        return getattr(self._vao, name)
 
 
 def _filter_contenders(runner, split, plan, img, peer_fns, copy_in, copy_plan) -> dict:
@@ -732,6 +775,151 @@ def scenario_startup(args, libs: dict, report: dict) -> None:
                                       "notes": ["wall time of a fresh process, median of interleaved runs"]}
 
 
+# ====================================================================== scenario 5: GPU
+TORCH_HINT = "pip install -e '.[bench,bench-gpu]'"
+EGL_NVIDIA = "__EGL_VENDOR_LIBRARY_FILENAMES=/usr/share/glvnd/egl_vendor.d/10_nvidia.json"
+
+
+def cuda_present() -> bool:
+    """Whether torch is installed and sees a CUDA device (imports torch only when it is installed)."""
+    import importlib.util
+
+    if importlib.util.find_spec("torch") is None:
+        return False
+    try:
+        import torch
+
+        return bool(torch.cuda.is_available())
+    except Exception:  # noqa: BLE001 - a broken torch install is "no CUDA" here; the scenario says why
+        return False
+
+
+def default_scenarios() -> list[str]:
+    return CPU_SCENARIOS + (["gpu"] if cuda_present() else [])
+
+
+def _software_gl(renderer: str | None) -> bool:
+    return renderer is None or any(k in renderer.lower() for k in ("llvmpipe", "softpipe", "swrast", "lavapipe"))
+
+
+def scenario_gpu(args, libs: dict, report: dict) -> None:
+    """The 5-level blur, 4K RGBA16F and RGBA32F: GL (device-only and total) vs the torch conv2d peer and a copy."""
+    try:
+        import torch
+    except ImportError as e:
+        line = f"torch is not installed ({e}; {TORCH_HINT}): skipped"
+        report["scenarios"]["gpu"] = {"skipped": line}
+        report["skipped"].append(f"gpu: {line}")
+        log(f"gpu: {line}")
+        return
+    device = torch.device(args.torch_device)
+    if device.type == "cuda" and not torch.cuda.is_available():
+        line = "no CUDA device: skipped"
+        report["scenarios"]["gpu"] = {"skipped": line, "torch": torch.__version__}
+        report["skipped"].append(f"gpu: {line}")
+        log(f"gpu: {line}")
+        return
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import torch_peer as tp
+
+    from pyramid_cli.gl import GLExecutor
+    from pyramid_cli.pyramids import blur_plan
+
+    cuda = device.type == "cuda"
+    rows, cols = (270, 480) if args.quick else (2160, 3840)
+    reps = args.reps or (2 if args.quick else 9)
+    if cuda:
+        torch.backends.cudnn.benchmark = True  # the peer's best conv algorithm per shape (picked in the warm-up)
+        name = torch.cuda.get_device_name(device)
+        sync = torch.cuda.synchronize
+    else:
+        name = f"CPU ({report['machine'].get('cpu')}, {torch.get_num_threads()} torch threads)"
+
+        def sync():
+            return None
+
+    sc = report["scenarios"]["gpu"] = {
+        "size": [rows, cols], "reps": reps, "levels": 5, "cases": [], "notes": [],
+        "torch": {"version": torch.__version__, "device": str(device), "device_name": name, "cuda": torch.version.cuda,
+                  "cudnn": torch.backends.cudnn.version() if cuda else None}}
+    notes = sc["notes"]
+    if not cuda:
+        notes.append("torch on the CPU: a smoke check of the scenario, not the GPU measurement the targets are for")
+    plan = blur_plan((rows, cols), 5, "box4", "doosabin")
+    notes.append("the same job everywhere: 5 × box4 ⊗↓ then 5 × Doo-Sabin ⊗↑ back to the input size; the torch peer "
+                 "(bench/torch_peer.py) takes its weights from the project's masks and equals the numpy reference "
+                 "(tests/test_torch_peer.py); each torch contender ends with a device synchronize")
+    notes.append("GL device = the passes back to back (ctx.finish() before the first and after the last); "
+                 "'finish after each pass' is the filter scenario's per-pass split, sync cost included")
+    img32 = gradient_noise(rows, cols, 4)
+    for label, precision, np_dtype, t_dtype in [("RGBA16F", "half", np.float16, torch.float16),
+                                                ("RGBA32F", "float", np.float32, torch.float32)]:
+        img = img32.astype(np_dtype)
+        case = {"case": f"blur 5 levels box4/doosabin, {label}", "format": label, "gl_precision": precision,
+                "image_bytes": img.nbytes, "passes": len(plan.passes), "notes": []}
+        fns: dict = {}
+        ex = GLExecutor(precision=precision)
+        try:
+            ex.open()
+            renderer = ex.info().get("renderer")
+        except Exception as e:  # noqa: BLE001 - no GL: time the peer alone, say why
+            renderer = None
+            case["notes"].append(f"GL unavailable ({' '.join(str(e).split())[:300]}); GL contenders skipped")
+            ex = None
+        case["gl_renderer"] = renderer
+        if cuda and _software_gl(renderer):
+            case["notes"].append(f"GL renders on {renderer or 'nothing'}, not the GPU: EGL did not find the NVIDIA "
+                                 f"driver (run with {EGL_NVIDIA})")
+        if ex is not None:
+            per_pass, span = GLSplit(ex), GLSplit(ex, per_pass=False)
+            fns["GL upload+run+readback"] = lambda ex=ex, img=img: ex.run_outputs(plan, [img], dtype=img.dtype)
+            if span.available:
+                fns["GL device (passes back to back)"] = lambda span=span, img=img: span(plan, img)
+                fns["GL split (finish after each pass)"] = lambda per_pass=per_pass, img=img: per_pass(plan, img)
+            else:
+                case["notes"].append(span.why)
+        x = tp.to_nchw(img, device, t_dtype)
+        dst = torch.empty_like(x)
+
+        def synced(fn):
+            def run():
+                fn()
+                sync()
+            return run
+
+        fns["torch conv2d blur"] = synced(lambda x=x: tp.blur(x, 5))
+        fns["torch host→device + blur + device→host"] = synced(
+            lambda img=img, t_dtype=t_dtype: tp.from_nchw(tp.blur(tp.to_nchw(img, device, t_dtype), 5)))
+        fns["torch copy_ (device to device)"] = synced(lambda x=x, dst=dst: tp.copy_floor(x, dst))
+        log(f"gpu: {case['case']}, {cols}×{rows}, torch on {device} ({name}) …")
+        try:
+            res = interleaved(fns, reps)
+        finally:
+            if ex is not None:
+                ex.close()
+        case["results"] = res
+        med = {k: v["median_s"] for k, v in res.items()}
+        dev_gl = res.get("GL device (passes back to back)", {}).get("parts_median_s", {}).get("device")
+        per = res.get("GL split (finish after each pass)", {}).get("parts_median_s", {})
+        case["pass_labels"] = [ps.label for ps in plan.passes]
+        case |= {"gl_s": med.get("GL upload+run+readback"), "gl_device_s": dev_gl,
+                 "gl_device_per_pass_sum_s": per.get("device"), "gl_pass_s": per.get("passes"),
+                 "torch_blur_s": med["torch conv2d blur"],
+                 "torch_round_trip_s": med["torch host→device + blur + device→host"],
+                 "copy_s": med["torch copy_ (device to device)"]}
+        r = case["ratios"] = {}
+        if dev_gl:
+            r["GL device / torch copy"] = dev_gl / case["copy_s"]
+            r["torch blur / GL device"] = case["torch_blur_s"] / dev_gl
+        if case["gl_s"]:
+            r["GL upload+run+readback / torch host→device+blur+device→host"] = case["gl_s"] / case["torch_round_trip_s"]
+        r["torch blur / torch copy"] = case["torch_blur_s"] / case["copy_s"]
+        sc["cases"].append(case)
+        del x, dst
+        if cuda:
+            torch.cuda.empty_cache()
+
+
 def importtime_top(argv: list[str], n: int = 12) -> list[str]:
     """``python -X importtime`` of a command: the n slowest imports by cumulative time."""
     p = subprocess.run([sys.executable, "-X", "importtime", *argv], capture_output=True, text=True)
@@ -811,6 +999,26 @@ def targets(report: dict, args, tmp: Path) -> None:
                     prof["batch"]["cprofile_cli_batch"] = cprofile_top(
                         ["-m", "pyramid_cli.cli", "blur", "--levels", "5", "--backend", "gl", "-q", "--force",
                          *[str(p) for p in ins], "-o", str(folder / "out" / "q{stem}.png")], lines=28)
+    g = scs.get("gpu")
+    half = next((c for c in (g or {}).get("cases", []) if c["format"] == "RGBA16F"), None)
+    if half:
+        cuda = g["torch"]["device"].startswith("cuda")
+        size = "4K" if g["size"] == [2160, 3840] else f"{g['size'][1]}×{g['size'][0]}"
+        where = f"torch on {g['torch']['device_name']}, GL on {half['gl_renderer']}"
+        m1 = add(f"gpu blur 5 levels, {size} RGBA16F: GL device within 2× a device-to-device copy ({where})",
+                 half["ratios"].get("GL device / torch copy"), 2.0, "<=", "×", "gpu")
+        m2 = add(f"gpu blur 5 levels, {size} RGBA16F: GL device ≥ 3× faster than the PyTorch conv2d peer ({where})",
+                 half["ratios"].get("torch blur / GL device"), 3.0, ">=", "×", "gpu")
+        if not cuda:  # the targets are the GPU's: a CPU smoke run measures them but does not judge them
+            for t in out[-2:]:
+                t["met"] = None
+                t["note"] = "torch on the CPU (--torch-device cpu): smoke check, not judged"
+        elif (m1 is False or m2 is False) and not args.no_profile:
+            prof["gpu"] = {"gl_device_s": half["gl_device_s"],
+                           "gl_device_per_pass_sum_s": half["gl_device_per_pass_sum_s"],
+                           "per_pass_s": half["gl_pass_s"], "pass_labels": half["pass_labels"],
+                           "torch_blur_s": half["torch_blur_s"], "copy_s": half["copy_s"],
+                           "gl_renderer": half["gl_renderer"], "notes": half["notes"]}
     s = scs.get("startup")
     if s:
         m = add("pyramid --help < 0.2 s", s["results"]["pyramid --help"]["median_s"], 0.2, "<=", "s", "startup")
@@ -870,11 +1078,30 @@ def print_table(report: dict) -> None:
         p(f"\n== start-up, {s['reps']} reps")
         for k, v in s["results"].items():
             p(f"   {k:34s} {fmt_s(v['median_s'])}")
+    g = scs.get("gpu")
+    if g and "cases" in g:
+        tg = g["torch"]
+        p(f"\n== gpu (warm, in process), {g['size'][1]}×{g['size'][0]} RGBA, {g['reps']} reps; torch {tg['version']} "
+          f"on {tg['device']} ({tg['device_name']})")
+        for n in g["notes"]:
+            p(f"   note: {n}")
+        for c in g["cases"]:
+            p(f"-- {c['case']}: {c['passes']} passes, GL {c['gl_precision']} on {c['gl_renderer'] or 'unavailable'}")
+            for n in c["notes"]:
+                p(f"   note: {n}")
+            for k, v in c["results"].items():
+                shown = v["median_s"]
+                if k.startswith("GL device") or k.startswith("GL split"):
+                    shown = v.get("parts_median_s", {}).get("device", shown)
+                    k += " [device]"
+                p(f"   {k:50s} {fmt_s(shown)}")
+            p("   " + "; ".join(f"{k} {fmt_x(v)}" for k, v in c["ratios"].items()))
     p("\n== targets")
     for t in report["targets"]:
         mark = {True: "MET   ", False: "MISSED", None: "n/a   "}[t["met"]]
         val = "—" if t["value"] is None else f"{t['value']:.3g}{t['unit']}"
-        p(f"   {mark} {t['target']}: {val} (target {t['op']} {t['limit']}{t['unit']})")
+        p(f"   {mark} {t['target']}: {val} (target {t['op']} {t['limit']}{t['unit']})"
+          + (f" [{t['note']}]" if t.get("note") else ""))
     for s in report["skipped"]:
         p(f"   skipped: {s}")
     if report["profiles"]:
@@ -887,6 +1114,13 @@ def print_table(report: dict) -> None:
                 p("   blur per pass (ms): " + " ".join(f"{x * 1e3:.0f}" for x in fb["per_pass_s"]))
         for name, pr in report["profiles"].get("e2e", {}).items():
             p(f"   e2e {name}: " + ", ".join(f"{k} {v * 1e3:.0f} ms" for k, v in pr["split_s"].items()))
+        gp = report["profiles"].get("gpu")
+        if gp:
+            p(f"   gpu RGBA16F blur: GL device {fmt_s(gp['gl_device_s']).strip()} (per-pass sum "
+              f"{fmt_s(gp['gl_device_per_pass_sum_s']).strip()}), torch {fmt_s(gp['torch_blur_s']).strip()}, "
+              f"copy {fmt_s(gp['copy_s']).strip()}")
+            if gp["per_pass_s"]:
+                p("   gpu per pass (ms): " + " ".join(f"{x * 1e3:.2f}" for x in gp["per_pass_s"]))
         if "startup" in report["profiles"]:
             p("   --help slowest imports (cumulative):")
             for ln in report["profiles"]["startup"]["importtime_help"][:6]:
@@ -898,13 +1132,17 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true", help="small sizes and few repetitions (seconds, for CI)")
     ap.add_argument("--json", default=str(ROOT / "bench" / "results" / "latest.json"), help="where to write JSON")
-    ap.add_argument("--only", default=",".join(SCENARIOS),
-                    help=f"comma-separated scenarios among {', '.join(SCENARIOS)} (default: all)")
+    ap.add_argument("--only", default=None,
+                    help=f"comma-separated scenarios among {', '.join(SCENARIOS)} "
+                         "(default: all but gpu, which joins when torch sees a CUDA device)")
     ap.add_argument("--case", action="append", help="filter scenario: only cases whose name contains this")
     ap.add_argument("--reps", type=int, help="repetitions per contender (default: by mode)")
     ap.add_argument("--no-profile", action="store_true", help="do not profile missed targets")
+    ap.add_argument("--torch-device", default="cuda",
+                    help="gpu scenario: torch device of the peer and the copy (default cuda; 'cpu' for a smoke check "
+                         "where there is no GPU: the targets are then measured, not judged)")
     args = ap.parse_args(argv)
-    only = [s.strip() for s in args.only.split(",") if s.strip()]
+    only = [s.strip() for s in (args.only or ",".join(default_scenarios())).split(",") if s.strip()]
     bad = [s for s in only if s not in SCENARIOS]
     if bad:
         ap.error(f"unknown scenario(s) {bad}; choose from {SCENARIOS}")
@@ -928,6 +1166,8 @@ def main(argv=None) -> int:
                     scenario_batch(args, libs, report, tmp)
                 elif name == "startup":
                     scenario_startup(args, libs, report)
+                elif name == "gpu":
+                    scenario_gpu(args, libs, report)
             except Exception as e:  # noqa: BLE001 - one broken scenario must not lose the others
                 report["skipped"].append(f"{name}: failed: {type(e).__name__}: {' '.join(str(e).split())[:500]}")
                 log(f"bench: {name} failed: {e}")

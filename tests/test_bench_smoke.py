@@ -7,6 +7,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parent.parent
 BENCH = ROOT / "bench" / "run.py"
 
@@ -37,3 +39,44 @@ def test_bench_rejects_unknown_scenario(tmp_path):
     assert p.returncode == 2
     assert "unknown scenario" in p.stderr
     assert not (tmp_path / "x.json").exists()
+
+
+def _run_gpu(tmp_path, *extra):
+    out = tmp_path / "gpu.json"
+    p = subprocess.run([sys.executable, str(BENCH), "--quick", "--only", "gpu", "--reps", "1", "--no-profile",
+                        "--json", str(out), *extra], capture_output=True, text=True, timeout=300, cwd=ROOT)
+    assert p.returncode == 0, p.stderr[-2000:]
+    return json.loads(out.read_text()), p
+
+
+def test_bench_gpu_without_cuda_skips_in_one_line(tmp_path):
+    """No torch, or torch without CUDA: one 'skipped' line, exit 0, no targets (CI has no torch)."""
+    try:
+        import torch
+    except ImportError:
+        torch = None
+    if torch is not None and torch.cuda.is_available():
+        pytest.skip("CUDA is present: the gpu scenario runs instead of skipping")
+    report, p = _run_gpu(tmp_path)
+    lines = [s for s in report["skipped"] if s.startswith("gpu:")]
+    assert len(lines) == 1 and lines[0].endswith("skipped"), report["skipped"]
+    assert "cases" not in report["scenarios"]["gpu"]
+    assert report["targets"] == []
+    assert lines[0] in p.stdout
+
+
+def test_bench_gpu_scenario_on_cpu_torch(tmp_path):
+    """--torch-device cpu runs the whole scenario small: GL, the torch peer, the copy floor, ratios, targets (n/a)."""
+    pytest.importorskip("torch")
+    report, p = _run_gpu(tmp_path, "--torch-device", "cpu")
+    gpu = report["scenarios"]["gpu"]
+    assert gpu["torch"]["device"] == "cpu" and gpu["size"] == [270, 480]
+    assert [c["format"] for c in gpu["cases"]] == ["RGBA16F", "RGBA32F"]
+    for case in gpu["cases"]:
+        assert {"torch conv2d blur", "torch copy_ (device to device)"} <= set(case["results"])
+        assert case["torch_blur_s"] > 0 and case["copy_s"] > 0
+        if case["gl_renderer"]:
+            assert case["gl_device_s"] > 0 and "torch blur / GL device" in case["ratios"]
+    targets = [t for t in report["targets"] if t["target"].startswith("gpu")]
+    assert len(targets) == 2 and all(t["met"] is None for t in targets)
+    assert "== gpu" in p.stdout
