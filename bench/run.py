@@ -804,21 +804,18 @@ def _software_gl(renderer: str | None) -> bool:
 
 def scenario_gpu(args, libs: dict, report: dict) -> None:
     """The 5-level blur, 4K RGBA16F and RGBA32F: GL (device-only and total) vs the torch conv2d peer and a copy."""
+    def skip(line: str, **extra) -> None:
+        report["scenarios"]["gpu"] = {"skipped": line, **extra}
+        report["skipped"].append(f"gpu: {line}")
+        log(f"gpu: {line}")
+
     try:
         import torch
     except ImportError as e:
-        line = f"torch is not installed ({e}; {TORCH_HINT}): skipped"
-        report["scenarios"]["gpu"] = {"skipped": line}
-        report["skipped"].append(f"gpu: {line}")
-        log(f"gpu: {line}")
-        return
+        return skip(f"torch is not installed ({e}; {TORCH_HINT}): skipped")
     device = torch.device(args.torch_device)
     if device.type == "cuda" and not torch.cuda.is_available():
-        line = "no CUDA device: skipped"
-        report["scenarios"]["gpu"] = {"skipped": line, "torch": torch.__version__}
-        report["skipped"].append(f"gpu: {line}")
-        log(f"gpu: {line}")
-        return
+        return skip("no CUDA device: skipped", torch=torch.__version__)
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     import torch_peer as tp
 

@@ -245,16 +245,14 @@ def _process(paths: tuple[str, ...], work, opts: dict, mip_tile: int | None = No
             click.echo(f"wrote {job.output} ({w}×{h}{levels}, {runner.name})")
 
     show_bar = len(jobs) > 1 and not quiet and sys.stderr.isatty()
+    run_options = {"keep_going": opts["keep_going"], "skip_existing": opts["skip_existing"], "workers": opts["jobs"],
+                   "prepare": prepare if plan_for is not None and runner.on_gl else None}
     try:
         if show_bar:
             with click.progressbar(length=len(jobs), label="pyramid", file=sys.stderr) as bar:
-                report = batch.run(jobs, read, compute, write, keep_going=opts["keep_going"],
-                                   skip_existing=opts["skip_existing"], workers=opts["jobs"],
-                                   progress=lambda job: bar.update(1), prepare=plan_for and prepare)
+                report = batch.run(jobs, read, compute, write, progress=lambda job: bar.update(1), **run_options)
         else:
-            report = batch.run(jobs, read, compute, write, keep_going=opts["keep_going"],
-                               skip_existing=opts["skip_existing"], workers=opts["jobs"],
-                               prepare=plan_for and prepare)
+            report = batch.run(jobs, read, compute, write, **run_options)
     finally:
         runner.close()
     if len(jobs) == 1 and report.failed:

@@ -35,8 +35,8 @@ rounding of numpy and OpenEXR (``test_half_read_back_rounds_like_numpy``). Rende
 into RGBA16F does not round that way on llvmpipe, which is why targets stay RGBA32F.
 
 Memory is the cost of a cold run (page faults: about 1 s per GB on the 2-core machines
-of DESIGN.md §6), so uploads and read-backs go through reused bands instead of
-full-size staging copies, and :meth:`GLExecutor.prepare` can compile the programs and
+of DESIGN.md §6), so uploads go through a reused band and read-backs straight into the
+output array instead of full-size staging copies, and :meth:`GLExecutor.prepare` can compile the programs and
 allocate the textures of a plan while the image is still being decoded.
 """
 
@@ -56,7 +56,7 @@ from .shaders import generate
 INSTALL_HINT = ("install the drivers: sudo apt-get install -y libegl1 libgl1 libgl1-mesa-dri libegl-mesa0, "
                 "or use --backend cpu")
 
-PRECISIONS = {"float": ("f4", np.float32), "half": ("f2", np.float16)}
+PRECISIONS = {"float": "f4", "half": "f2"}  # intermediate and target texture formats
 READ_DTYPES = {np.dtype(np.float32): "f4", np.dtype(np.float16): "f2"}
 BAND_BYTES = 8 << 20  # upload staging: rows of RGBA32F per texture write
 
@@ -444,7 +444,7 @@ class GLExecutor:
         shader compiles and the page faults of fresh textures off the critical path.
         """
         self.check(plan)
-        dtype = PRECISIONS[self.precision][0]
+        dtype = PRECISIONS[self.precision]
         with self.current():
             self.programs(plan)
             held = {k: self._acquire(texture_size(plan.images[k].stored), "f4") for k in plan.inputs}
@@ -459,7 +459,7 @@ class GLExecutor:
                    outs: list[np.ndarray]) -> None:
         """All passes for one group of ≤ 4 channels; writes the read-back images into ``outs``."""
         ctx = self.ctx
-        dtype = PRECISIONS[self.precision][0]
+        dtype = PRECISIONS[self.precision]
         held: dict[int, _Target] = {k: self._upload(a) for k, a in zip(plan.inputs, inputs, strict=True)}
         for ps, prog, done in zip(plan.passes, programs, self._releases(plan), strict=True):
             target_image = plan.images[ps.target]

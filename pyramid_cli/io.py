@@ -954,12 +954,9 @@ def _encode(path, image: Image, *, pixel_type=None, colorspace=None, alpha=None,
         names = _default_names(nch)
         alpha_channel = names.index("A") if "A" in names else -1
 
-    want_type = pixel_type or info.pixel_type
-    out_type = output_pixel_type(fmt, want_type)
+    out_type, encoding, memory_premultiplied, mode = _write_rules(fmt, info, alpha_channel, pixel_type,
+                                                                  colorspace, alpha)
     out_int = out_type in ("uint8", "uint16")
-    encoding = colorspace or _output_colorspace(info, out_type)
-    memory_premultiplied = alpha_channel >= 0 and info.alpha_mode != "none"
-    mode = "none" if alpha_channel < 0 else (alpha or _output_alpha_mode(info, fmt, out_type))
 
     if (out_type == "uint8" and encoding == "srgb" and mode == "none" and not dither
             and not (fmt in _NO_ALPHA_FORMATS and alpha_channel >= 0)):
@@ -1058,6 +1055,16 @@ def _output_spec(info: ImageInfo, fmt: str, out_type: str, names: list[str], alp
     return spec
 
 
+def _write_rules(fmt: str, info: ImageInfo, alpha_channel: int, pixel_type: str | None, colorspace: str | None,
+                 alpha: str | None) -> tuple[str, str, bool, str]:
+    """How a write stores the image: (pixel type, encoding, whether memory is premultiplied, alpha mode)."""
+    out_type = output_pixel_type(fmt, pixel_type or info.pixel_type)
+    encoding = colorspace or _output_colorspace(info, out_type)
+    memory_premultiplied = alpha_channel >= 0 and info.alpha_mode != "none"
+    mode = "none" if alpha_channel < 0 else (alpha or _output_alpha_mode(info, fmt, out_type))
+    return out_type, encoding, memory_premultiplied, mode
+
+
 def _converts(fmt: str, alpha_channel: int, memory_premultiplied: bool, encoding: str, mode: str) -> bool:
     """Does writing change the values (alpha dropped or re-associated, sRGB encoding)?"""
     if fmt in _NO_ALPHA_FORMATS and alpha_channel >= 0 or encoding == "srgb":
@@ -1076,14 +1083,9 @@ def stores_half_unchanged(path: str | os.PathLike[str], info: ImageInfo, *, pixe
     fmt = _format_from_path(os.fspath(path))
     if not fmt:
         return False
-    out_type = output_pixel_type(fmt, pixel_type or info.pixel_type)
-    if out_type != "half":
-        return False
-    encoding = colorspace or _output_colorspace(info, out_type)
-    alpha_channel = info.alpha_channel
-    mode = "none" if alpha_channel < 0 else (alpha or _output_alpha_mode(info, fmt, out_type))
-    memory_premultiplied = alpha_channel >= 0 and info.alpha_mode != "none"
-    return not _converts(fmt, alpha_channel, memory_premultiplied, encoding, mode)
+    out_type, encoding, memory_premultiplied, mode = _write_rules(fmt, info, info.alpha_channel, pixel_type,
+                                                                  colorspace, alpha)
+    return out_type == "half" and not _converts(fmt, info.alpha_channel, memory_premultiplied, encoding, mode)
 
 
 def _atomic_write(out_path: str, folder: str, spec: oiio.ImageSpec, data: np.ndarray) -> None:

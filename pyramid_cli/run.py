@@ -58,8 +58,7 @@ class Runner:
                 self._warn(f"{e.message}; running this image on the CPU")
         from . import emulate
 
-        # via float32, as the GL path and as earlier releases rounded: float64 → float32 → half
-        return [o.astype(np.float32).astype(dtype, copy=False) for o in emulate.run_outputs(plan, images)]
+        return [_rounded(o, dtype) for o in emulate.run_outputs(plan, images)]
 
     def prepare(self, plan: Plan) -> None:
         """Get ready to run ``plan`` (GL: programs compiled, textures allocated); best effort, never fails."""
@@ -77,7 +76,7 @@ class Runner:
             return self.run_plan(plan(expr, pixels.shape[:2]), pixels, dtype)
         from . import reference
 
-        return reference.run(expr, pixels, Border.parse(border)).astype(np.float32).astype(dtype, copy=False)
+        return _rounded(reference.run(expr, pixels, Border.parse(border)), dtype)
 
     def run_blur(self, pixels: np.ndarray, levels: int, analysis: str, synthesis: str,
                  quasi: bool = False, dtype=np.float32) -> np.ndarray:
@@ -87,8 +86,12 @@ class Runner:
         if self._gl is not None:
             plan = pyramids.blur_plan(pixels.shape[:2], levels, analysis, synthesis, quasi)
             return self.run_plan(plan, pixels, dtype)
-        blurred = pyramids.blur_reference(pixels, levels, analysis, synthesis, quasi)
-        return blurred.astype(np.float32).astype(dtype, copy=False)
+        return _rounded(pyramids.blur_reference(pixels, levels, analysis, synthesis, quasi), dtype)
+
+    @property
+    def on_gl(self) -> bool:
+        """Whether plans run on the GL executor (else numpy on the CPU)."""
+        return self._gl is not None
 
     @property
     def name(self) -> str:
@@ -100,6 +103,11 @@ class Runner:
     def close(self) -> None:
         if self._gl is not None:
             self._gl.close()
+
+
+def _rounded(values: np.ndarray, dtype) -> np.ndarray:
+    """A CPU result (float64) as ``dtype``, through float32 as the GL path rounds: float64 → float32 → half."""
+    return values.astype(np.float32).astype(dtype, copy=False)
 
 
 def execute(expr: Expr, pixels: np.ndarray, backend: str = "auto", border: str = "clamp") -> tuple[np.ndarray, str]:
