@@ -219,3 +219,17 @@ def test_half_exr_blur_stays_half_and_rounds_once(gl, tmp_path, channels):
     np.testing.assert_array_equal(got.view(np.uint16), as_float.astype(np.float16).view(np.uint16))
     want = blur_reference(g.astype(np.float64), 2)
     np.testing.assert_allclose(got, want, rtol=2 ** -11, atol=1e-7)
+
+
+def test_cpu_backend_does_not_prepare_gl_work(tmp_path, monkeypatch):
+    """Reading the header and planning ahead only pays off on GL: the CPU backend skips both."""
+    from pyramid_cli import io
+
+    def refuse(path):
+        raise AssertionError("read_shape called on the CPU backend")
+
+    monkeypatch.setattr(io, "read_shape", refuse)
+    src = tmp_path / "in.exr"
+    write_exr(src, np.random.default_rng(6).random((9, 7, 3)))
+    r = invoke("blur", "--backend", "cpu", "--levels", "2", "-q", str(src), str(tmp_path / "o.exr"))
+    assert r.exit_code == 0, r.output
