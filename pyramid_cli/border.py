@@ -9,8 +9,6 @@ from __future__ import annotations
 
 from enum import Enum
 
-import numpy as np
-
 
 class Border(Enum):
     CLAMP = "clamp"     # GL CLAMP_TO_EDGE, Halide repeat_edge
@@ -26,8 +24,22 @@ class Border(Enum):
 BORDER_NAMES = [b.value for b in Border]
 
 
-def fold(index: np.ndarray, n: int, border: Border) -> np.ndarray:
-    """Map 1-based indices into ``1..n``; 0 marks "outside, reads zero"."""
+def fold_index(i: int, n: int, border: Border) -> int:
+    """One 1-based index folded into ``1..n``; 0 means "outside, reads zero"."""
+    if border is Border.CLAMP:
+        return min(max(i, 1), n)
+    if border is Border.WRAP:
+        return (i - 1) % n + 1
+    if border is Border.MIRROR:
+        k = (i - 1) % (2 * n)
+        return (k if k < n else 2 * n - 1 - k) + 1
+    return i if 1 <= i <= n else 0
+
+
+def fold(index, n: int, border: Border):
+    """:func:`fold_index` for a numpy array of 1-based indices."""
+    import numpy as np
+
     index = np.asarray(index, dtype=np.int64)
     if border is Border.CLAMP:
         return np.clip(index, 1, n)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .border import Border, fold
 from .plan import Plan, Tap
 
 
@@ -17,10 +18,17 @@ def _axis(r: np.ndarray, period: int, stride: int) -> np.ndarray:
     return stride * -(-r // period)
 
 
-def sample(src: np.ndarray, guard_lo: tuple[int, int], rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
-    """Bilinear read of ``src`` (stored array) at logical 1-based fractional indices, clamped to the texture."""
+def sample(src: np.ndarray, guard_lo: tuple[int, int], rows: np.ndarray, cols: np.ndarray,
+           border: str = "clamp") -> np.ndarray:
+    """Bilinear read of ``src`` (stored array) at logical 1-based fractional indices.
+
+    Reads outside the stored extent resolve by ``border``: clamped to the texture, or
+    (mirror, wrap, zero) each of the two neighbours per axis folded by the mode.
+    """
     q = rows.astype(np.float64) - 1 + guard_lo[0]
     p = cols.astype(np.float64) - 1 + guard_lo[1]
+    if border != "clamp":
+        return _folded_sample(src, q, p, Border.parse(border))
     q = np.clip(q, 0, src.shape[0] - 1)
     p = np.clip(p, 0, src.shape[1] - 1)
     i0, j0 = np.floor(q).astype(int), np.floor(p).astype(int)
@@ -30,6 +38,20 @@ def sample(src: np.ndarray, guard_lo: tuple[int, int], rows: np.ndarray, cols: n
     a, b = a[:, None][extra], b[None, :][extra]
     return ((1 - a) * (1 - b) * src[np.ix_(i0, j0)] + (1 - a) * b * src[np.ix_(i0, j1)]
             + a * (1 - b) * src[np.ix_(i1, j0)] + a * b * src[np.ix_(i1, j1)])
+
+
+def _folded_sample(src: np.ndarray, q: np.ndarray, p: np.ndarray, border: Border) -> np.ndarray:
+    """Bilinear read at stored 0-based positions, each integer neighbour folded by ``border``."""
+    i0, j0 = np.floor(q).astype(np.int64), np.floor(p).astype(np.int64)
+    a, b = q - i0, p - j0
+    rows = [fold(i0 + 1, src.shape[0], border), fold(i0 + 2, src.shape[0], border)]
+    cols = [fold(j0 + 1, src.shape[1], border), fold(j0 + 2, src.shape[1], border)]
+    padded = np.zeros((src.shape[0] + 1, src.shape[1] + 1) + src.shape[2:])
+    padded[1:, 1:] = src  # folded index 0 reads zero
+    extra = (slice(None),) * 2 + (None,) * (src.ndim - 2)
+    a, b = a[:, None][extra], b[None, :][extra]
+    return ((1 - a) * (1 - b) * padded[np.ix_(rows[0], cols[0])] + (1 - a) * b * padded[np.ix_(rows[0], cols[1])]
+            + a * (1 - b) * padded[np.ix_(rows[1], cols[0])] + a * b * padded[np.ix_(rows[1], cols[1])])
 
 
 def run(plan: Plan, image: np.ndarray) -> np.ndarray:
@@ -84,4 +106,4 @@ def _read(plan: Plan, stored, t: Tap, base_r: np.ndarray, base_c: np.ndarray) ->
     src = plan.images[t.source]
     rows = base_r - float(t.offset[0])
     cols = base_c - float(t.offset[1])
-    return sample(stored[t.source], (src.guard[0], src.guard[1]), rows, cols)
+    return sample(stored[t.source], (src.guard[0], src.guard[1]), rows, cols, src.border)

@@ -15,6 +15,16 @@ a fraction ``α`` of ``t`` mixes ``(1 − α)·src[R − ⌊t⌋] + α·src[R �
 extent (logical grid plus guard), which is the paper's clamp at the borders of
 the input and of every written operator, while guard bands keep a named
 filter atomic (DESIGN.md §1). Every fractional offset is a multiple of ¼.
+
+Border modes (DESIGN.md §1: clamp, mirror, wrap, zero) belong to the plan:
+each :class:`Image` says how reads outside its stored extent resolve. A read
+at the fractional index ``x = i + α`` (``i = ⌊x⌋``) is
+``(1 − α)·read(i) + α·read(i + 1)`` per axis, where ``read`` folds an integer
+index through the image's border mode (:func:`pyramid_cli.border.fold`) over
+its stored extent. For ``clamp`` this is the hardware's clamped bilinear read;
+the other modes only ever apply to images without guard bands: the plan's
+inputs and the results of written operators (the boundaries), since the
+intermediates of a named filter store every pixel later passes read.
 """
 
 from __future__ import annotations
@@ -46,6 +56,7 @@ class Tap:
 class Image:
     size: tuple[int, int]                       # logical (rows, columns)
     guard: list[int] = field(default_factory=lambda: [0, 0, 0, 0])  # top, left, bottom, right
+    border: str = "clamp"                       # how reads outside the stored extent resolve
 
     @property
     def stored(self) -> tuple[int, int]:
@@ -80,6 +91,7 @@ class Plan:
     paper_fetches: float | None = None
     outputs: list[int] = field(default_factory=list)  # images read back, in order; default: the last
     inputs: list[int] = field(default_factory=lambda: [0])  # images uploaded, in order
+    border: str = "clamp"                             # the border mode of every written operator
 
     def __post_init__(self):
         if not self.outputs:
@@ -390,21 +402,25 @@ def _ceil(x) -> int:
 
 # ------------------------------------------------------------------ planning
 @lru_cache(maxsize=64)  # batches re-use a plan per image size
-def plan(expr: Expr, size: tuple[int, int], strategy: str = "cost") -> Plan:
+def plan(expr: Expr, size: tuple[int, int], strategy: str = "cost", border: str = "clamp") -> Plan:
     """Plan ``expr`` for an input of ``size`` = (rows, columns).
 
     ``strategy`` "paper" keeps the paper's decompositions (its fetch counts);
     "cost" lets the cost model fuse a filter into one pass where that is cheaper.
+    ``border`` is how every written operator reads past its input's edges (DESIGN.md §1).
     """
     return plan_steps(steps(expr), tuple(size), text=_text(expr), paper=algebra.paper_fetches(expr),
-                      strategy=strategy)
+                      strategy=strategy, border=border)
 
 
 class Builder:
     """Assembles one job from written steps and combinations; any image can be read back."""
 
-    def __init__(self, size: tuple[int, int], strategy: str = "cost"):
-        self.images = [Image(tuple(size))]
+    def __init__(self, size: tuple[int, int], strategy: str = "cost", border: str = "clamp"):
+        from .border import Border
+
+        self.border = Border.parse(border).value
+        self.images = [Image(tuple(size), border=self.border)]
         self.passes: list[Pass] = []
         self.inputs = [0]
         self.strategy = strategy  # "cost": cheapest of paper/fused per filter; "paper": always the paper's
@@ -412,7 +428,7 @@ class Builder:
     def add_input(self, size: tuple[int, int]) -> int:
         """Another uploaded image (before any pass); returns its index."""
         assert not self.passes
-        self.images.append(Image(tuple(size)))
+        self.images.append(Image(tuple(size), border=self.border))
         self.inputs.append(len(self.images) - 1)
         return self.inputs[-1]
 
@@ -444,13 +460,14 @@ class Builder:
             name = label + (f" [{i + 1}/{len(stages)}]" if len(stages) > 1 else "")
             self.passes.append(Pass(name, first + i, st.period, st.stride, phases, why if i == 0 else ""))
         _infer_guards(self.images, self.passes[-len(stages):], first)
+        self.images[-1].border = self.border  # the result of a written operator is a boundary
         return len(self.images) - 1
 
     def combine(self, terms: list[tuple[int, Fraction]], label: str) -> int:
         """Σ weight · image, pixel by pixel, over images of one size (Laplacian bands, collapse)."""
         size = self.images[terms[0][0]].size
         assert all(self.images[i].size == size for i, _ in terms)
-        self.images.append(Image(size))
+        self.images.append(Image(size, border=self.border))
         taps = [Tap(i, (Fraction(0), Fraction(0)), Fraction(w), False) for i, w in terms]
         self.passes.append(Pass(label, len(self.images) - 1, (1, 1), (1, 1), {(0, 0): taps}))
         return len(self.images) - 1
@@ -458,15 +475,16 @@ class Builder:
     def build(self, text: str, outputs: list[int] | None = None, paper: float | None = None) -> Plan:
         if not self.passes:  # the identity "g": one copy pass
             self.combine([(0, Fraction(1))], "g (copy)")
-        return Plan(self.images, self.passes, text, paper, outputs or [len(self.images) - 1], self.inputs)
+        return Plan(self.images, self.passes, text, paper, outputs or [len(self.images) - 1], self.inputs,
+                    self.border)
 
 
 def plan_steps(step_list, size: tuple[int, int], crops: dict[int, tuple[int, int]] | None = None,
-               text: str = "", paper: float | None = None, strategy: str = "cost") -> Plan:
+               text: str = "", paper: float | None = None, strategy: str = "cost", border: str = "clamp") -> Plan:
     """Plan written steps ``(op, filter, stride)`` (innermost first) as one job;
     ``crops`` maps a step's index to the size its result is cut to."""
     crops = crops or {}
-    b = Builder(size, strategy)
+    b = Builder(size, strategy, border)
     current = 0
     for index, (op, f, stride) in enumerate(step_list):
         current = b.step(current, op, f, stride, crops.get(index))
@@ -503,6 +521,8 @@ def _text(expr: Expr) -> str:
 
 def check(p: Plan) -> None:
     """Invariants every executor relies on; raises AssertionError on a planner bug."""
+    for k, im in enumerate(p.images):
+        assert im.border == "clamp" or not any(im.guard), f"image {k}: border {im.border} with a guard band"
     for ps in p.passes:
         for taps in ps.phases.values():
             for t in taps:
