@@ -234,9 +234,10 @@ class GLExecutor:
         self.close()
 
     # ------------------------------------------------------------ programs
-    def program(self, ps) -> _Program:
-        """The compiled program of a pass's shape (cached for the executor's lifetime)."""
-        key = generate.shape(ps)
+    def program(self, ps, images=None) -> _Program:
+        """The compiled program of a pass's shape (cached for the executor's lifetime);
+        ``images`` (the plan's) give the sources' border modes."""
+        key = generate.shape(ps, images)
         prog = self._programs.get(key)
         if prog is None:
             with self.current():
@@ -248,7 +249,7 @@ class GLExecutor:
         hit = self._plan_programs.get(id(plan))
         if hit is not None and hit[0] is plan:
             return hit[1]
-        programs = [self.program(ps) for ps in plan.passes]
+        programs = [self.program(ps, plan.images) for ps in plan.passes]
         if len(self._plan_programs) >= 64:
             self._plan_programs.pop(next(iter(self._plan_programs)))
         self._plan_programs[id(plan)] = (plan, programs)  # holds the plan: its id stays unique

@@ -27,7 +27,7 @@ from importlib.resources import files
 import numpy as np
 
 from ..errors import BackendError
-from ..plan import Pass
+from ..plan import Image, Pass
 
 VERTEX = "fullscreen.vert.glsl"
 FRAGMENT = "pass.frag.glsl"
@@ -63,6 +63,10 @@ class PassShape:
     stride: tuple[int, int]
     n_sources: int
     phases: tuple[tuple[tuple[int, int], tuple[ShapeTap, ...]], ...]  # sorted by phase
+    borders: tuple[str, ...] = ()  # per slot: how reads past the source's extent fold (empty: all clamp)
+
+    def border(self, slot: int) -> str:
+        return self.borders[slot] if self.borders else "clamp"
 
 
 def sources(ps: Pass) -> list[int]:
@@ -70,14 +74,21 @@ def sources(ps: Pass) -> list[int]:
     return sorted(ps.sources())
 
 
-def shape(ps: Pass) -> PassShape:
-    """Canonical shape of ``ps``: its taps with image indices replaced by slots."""
+def shape(ps: Pass, images: list[Image] | None = None) -> PassShape:
+    """Canonical shape of ``ps``: its taps with image indices replaced by slots.
+
+    With the plan's ``images``, the shape also records each source's border mode
+    (a non-clamp border folds reads in the shader); without, every source clamps.
+    """
     slot = {src: k for k, src in enumerate(sources(ps))}
     phases = tuple(sorted(
         (tuple(ph), tuple(ShapeTap(slot[t.source], (Fraction(t.offset[0]), Fraction(t.offset[1])),
                                    Fraction(t.weight)) for t in taps))
         for ph, taps in ps.phases.items()))
-    return PassShape(tuple(ps.period), tuple(ps.stride), len(slot), phases)
+    borders = tuple(images[src].border for src in sources(ps)) if images is not None else ()
+    if all(b == "clamp" for b in borders):
+        borders = ()
+    return PassShape(tuple(ps.period), tuple(ps.stride), len(slot), phases, borders)
 
 
 # ------------------------------------------------------------------ GLSL text
@@ -104,14 +115,34 @@ def _tap_line(t: ShapeTap) -> str:
     return f"acc += {_float(t.weight)} * {read};"
 
 
-def _source_lines(k: int) -> list[str]:
-    return [
+def _source_lines(k: int, border: str = "clamp") -> list[str]:
+    head = [
         f"uniform sampler2D u_src{k};",
         f"uniform ivec2 u_guard{k};   // (left, top) guard band of source {k}",
         f"uniform ivec2 u_extent{k};  // stored (columns, rows) of source {k}",
-        f"uniform vec2 u_inv{k};      // 1 / texture size (a power of two: exact)",
-        f"vec4 linear{k}(vec2 pos) {{ return bilinear(u_src{k}, pos, u_guard{k}, u_extent{k}, u_inv{k}); }}",
-        f"vec4 nearest{k}(ivec2 pos) {{ return nearest(u_src{k}, pos, u_guard{k}, u_extent{k}); }}",
+    ]
+    if border == "clamp":
+        return head + [
+            f"uniform vec2 u_inv{k};      // 1 / texture size (a power of two: exact)",
+            f"vec4 linear{k}(vec2 pos) {{ return bilinear(u_src{k}, pos, u_guard{k}, u_extent{k}, u_inv{k}); }}",
+            f"vec4 nearest{k}(ivec2 pos) {{ return nearest(u_src{k}, pos, u_guard{k}, u_extent{k}); }}",
+        ]
+    # Mirror, wrap and zero fold each integer neighbour of a read (plan.py's border contract),
+    # so bilinear reads are four folded texelFetches mixed by the fraction.
+    fetch = {"mirror": f"texelFetch(u_src{k}, fold_mirror(q, u_extent{k}), 0)",
+             "wrap": f"texelFetch(u_src{k}, fold_wrap(q, u_extent{k}), 0)",
+             "zero": f"read_zero(u_src{k}, q, u_extent{k})"}[border]
+    return head + [
+        f"vec4 fetch{k}(ivec2 q) {{ return {fetch}; }}",
+        f"vec4 nearest{k}(ivec2 pos) {{ return fetch{k}(pos - 1 + u_guard{k}); }}",
+        f"vec4 linear{k}(vec2 pos) {{",
+        f"    vec2 q = pos - 1.0 + vec2(u_guard{k});",
+        "    vec2 i = floor(q);",
+        "    vec2 f = q - i;",
+        "    ivec2 j = ivec2(i);",
+        f"    return mix(mix(fetch{k}(j), fetch{k}(j + ivec2(1, 0)), f.x),",
+        f"               mix(fetch{k}(j + ivec2(0, 1)), fetch{k}(j + ivec2(1, 1)), f.x), f.y);",
+        "}",
     ]
 
 
@@ -231,7 +262,7 @@ def fragment_source(s: PassShape) -> str:
     if affine is not None:
         defines += ["#define AFFINE", f"#define SLOPE {_vec2(Fraction(sc, pc), Fraction(sr, pr))}"]
     text = _inject(load(FRAGMENT), "DEFINES", defines)
-    text = _inject(text, "SOURCES", [ln for k in range(s.n_sources) for ln in _source_lines(k)])
+    text = _inject(text, "SOURCES", [ln for k in range(s.n_sources) for ln in _source_lines(k, s.border(k))])
     if affine is not None:
         return _inject(_inject(text, "AFFINE_TAPS", _affine_lines(affine)), "TAPS", [])
     return _inject(_inject(text, "TAPS", _tap_lines(s)), "AFFINE_TAPS", [])

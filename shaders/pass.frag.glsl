@@ -35,6 +35,15 @@ vec4 nearest(sampler2D s, ivec2 pos, ivec2 guard, ivec2 extent) {
 int floor_div(int a, int p) { return a >= 0 ? a / p : -((p - 1 - a) / p); }
 int ceil_div(int a, int p) { return -floor_div(-a, p); }
 
+// Border folds of a stored 0-based index q into [0, n) (plan.py: mirror 1 2 3 | 3 2 1, wrap periodic).
+int imod(int a, int n) { return a - n * floor_div(a, n); }
+int mirror1(int q, int n) { int k = imod(q, 2 * n); return k < n ? k : 2 * n - 1 - k; }
+ivec2 fold_mirror(ivec2 q, ivec2 n) { return ivec2(mirror1(q.x, n.x), mirror1(q.y, n.y)); }
+ivec2 fold_wrap(ivec2 q, ivec2 n) { return ivec2(imod(q.x, n.x), imod(q.y, n.y)); }
+vec4 read_zero(sampler2D s, ivec2 q, ivec2 n) {
+    return any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, n)) ? vec4(0.0) : texelFetch(s, q, 0);
+}
+
 // {{SOURCES}}
 
 #ifdef AFFINE

@@ -67,3 +67,15 @@ def test_emulated_plan_equals_reference_for_every_border(text, border, strategy)
         assert p.border == border and p.images[0].border == border
         np.testing.assert_allclose(emulate.run(p, image), reference.run(expr, image, Border(border)),
                                    rtol=0, atol=1e-9)
+
+
+@pytest.mark.gl
+@pytest.mark.parametrize("border", ["mirror", "wrap", "zero"])
+@pytest.mark.parametrize("text", NAMED + CHAIN_CASES)
+def test_gl_runs_every_border_and_equals_reference(gl, text, border):
+    rng = np.random.default_rng(len(text) + len(border))
+    expr = parse(text)
+    for size in SIZES:
+        image = rng.standard_normal(size + (3,)).astype(np.float32)
+        p = plan(expr, size, "cost", border)
+        np.testing.assert_allclose(gl.run(p, image), reference.run(expr, image, Border(border)), rtol=0, atol=1e-5)
