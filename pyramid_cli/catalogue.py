@@ -167,5 +167,36 @@ def synthesis_keys() -> list[str]:
     return sorted(_SYNTH)
 
 
+# ------------------------------------------------------------------ names, roles, defaults
+# canonical key -> names a user may write (lower case; '-' and '_' are ignored when matching)
+ALIASES: dict[str, list[str]] = {
+    "box": ["box", "box2", "box2x2", "boxse", "mean", "average"],
+    "box_nw": ["boxnw"],
+    "bartlett": ["bartlett", "bartlett3", "tent", "triangle"],
+    "quasi": ["quasi", "quasiinterpolation"],
+    "box4": ["box4", "box4x4"],
+    "quadratic": ["quadratic", "quadratic4"],
+    "cubic": ["cubic", "cubic5"],
+    "nearest": ["nearest", "nn"],
+    "midpoint": ["midpoint", "bilinear"],
+    "doosabin": ["doosabin", "chaikin"],
+    "fourpoint": ["fourpoint", "4point", "dubuc"],
+    "gauss": ["gauss", "gaussian", "binomial"],
+}
+# Size superscripts a name may carry (h_box^{4×4} is box4), by canonical key.
+SIZE_VARIANTS: dict[str, dict[str, str]] = {
+    "box": {"2x2": "box", "4x4": "box4"}, "box4": {"4x4": "box4"}, "bartlett": {"3x3": "bartlett"},
+    "quadratic": {"4x4": "quadratic"}, "cubic": {"5x5": "cubic"},
+}
+# Keys usable only as one mask (⊗, ⊗↓) or only with four phase masks (⊗↑); gaussN is a mask too.
+MASK_ONLY = frozenset({"box", "box_nw", "bartlett", "quasi", "box4", "quadratic"})
+SYNTHESIS_ONLY = frozenset({"nearest", "midpoint", "doosabin", "fourpoint"})
+# A lone filter name runs with its own operator: analysis filters reduce, synthesis filters expand.
+NATURAL_DOWN = frozenset({"box4", "quadratic"})
+
+# The filters offered for each pyramid role (blur, levels, mipmap), and the paper's Figure 3b pair.
+ANALYSIS_FILTERS = ("box", "box4", "quadratic", "cubic")
+SYNTHESIS_FILTERS = ("nearest", "midpoint", "doosabin", "cubic", "fourpoint")
 ANALYSIS_DEFAULT = "box4"
 SYNTHESIS_DEFAULT = "doosabin"
+MIP_ANALYSIS_DEFAULT = "quadratic"

@@ -8,11 +8,11 @@ commands so that ``pyramid --help`` stays fast.
 from __future__ import annotations
 
 import json
-import os
 import sys
 
 import click
 
+from . import catalogue
 from .errors import EXIT_CODES, ExpressionError, PyramidError, UsageError
 
 EXIT_CODE_HELP = "\b\nExit codes:\n" + "\n".join(f"  {code}  {text}" for code, text in EXIT_CODES.values())
@@ -143,28 +143,34 @@ def plan_command(expression, size, as_json: bool, strategy: str) -> None:
     click.echo(json.dumps(to_json(p), ensure_ascii=False) if as_json else render(p))
 
 
+def _choice(values) -> click.Choice:
+    return click.Choice(list(values))
+
+
 def io_options(f):
     """Options every command that reads and writes images shares."""
+    from .options import ALPHA_MODES, BACKEND_HELP, BACKENDS, COLORSPACES, NAN_POLICIES, PIXEL_TYPES, PRECISIONS
+
     options = [
-        click.option("--backend", type=click.Choice(["auto", "gl", "cpu"]), default="auto", show_default=True,
-                     help="gl: OpenGL through headless EGL; cpu: numpy (for apply and blur the reference of "
-                          "the paper's formulas, slow and exact); auto: gl, else cpu with a warning."),
-        click.option("--precision", type=click.Choice(["float", "half"]), default="float", show_default=True,
+        click.option("--backend", type=_choice(BACKENDS), default="auto", show_default=True,
+                     help="; ".join(f"{name}: {BACKEND_HELP[name]}" for name in BACKENDS) + " (-v says which ran)."),
+        click.option("--precision", type=_choice(PRECISIONS), default="float", show_default=True,
                      help="GL intermediate textures: RGBA32F, or RGBA16F (faster, ~1e-3 relative, max 65504). "
                           "Half files travel as half either way (upload, read-back), losing nothing."),
-        click.option("--type", "pixel_type", type=click.Choice(["uint8", "uint16", "half", "float"]),
+        click.option("--type", "pixel_type", type=_choice(PIXEL_TYPES),
                      help="Output pixel type (default: the input's, as the output format allows)."),
-        click.option("--colorspace", type=click.Choice(["auto", "linear", "srgb"]), default="auto",
+        click.option("--colorspace", type=_choice(COLORSPACES), default="auto",
                      show_default=True, help="Encoding of integer inputs; filtering is always in linear light."),
-        click.option("--alpha", type=click.Choice(["auto", "straight", "premultiplied", "none"]), default="auto",
+        click.option("--alpha", type=_choice(ALPHA_MODES), default="auto",
                      show_default=True, help="How the input stores alpha (RGBA is filtered premultiplied)."),
-        click.option("--nan", "nan_policy", type=click.Choice(["keep", "zero", "fail"]), default="keep",
+        click.option("--nan", "nan_policy", type=_choice(NAN_POLICIES), default="keep",
                      show_default=True, help="What to do with NaN/Inf pixels in float input."),
         click.option("--dither", is_flag=True, help="Dither 8-bit output."),
         click.option("--compression", metavar="C", help="Output compression: EXR none|zip|zips|piz|dwaa|... "
                      "(default: the input's), PNG zlib level 0-9 (default 6)."),
         click.option("--force", is_flag=True, help="Allow OUTPUT to overwrite INPUT."),
-        click.option("-v", "--verbose", is_flag=True, help="Say which backend, colour and alpha rules are in force."),
+        click.option("-v", "--verbose", is_flag=True, help="Say which executor runs and why, and the colour and "
+                     "alpha rules in force for each image."),
         click.option("-q", "--quiet", is_flag=True, help="Print nothing but errors."),
     ]
     for option in reversed(options):
@@ -172,96 +178,74 @@ def io_options(f):
     return f
 
 
+def border_option(f):
+    from .options import BORDERS
+
+    return click.option("--border", type=_choice(BORDERS), default="clamp", show_default=True,
+                        help="How every written operator reads past its input's edges: clamp (repeat the edge), "
+                             "mirror (… 2 1 | 1 2 …), wrap (periodic), zero. Runs on every backend.")(f)
+
+
 def batch_options(f):
     """Many inputs in one process: an output template, failure and freshness policies, I/O overlap."""
     options = [
         click.option("-o", "--output", "template", metavar="TEMPLATE",
-                     help="Output path template for several inputs: {stem} {name} {ext} {dir}."),
+                     help="Output path template for several inputs: {stem} {name} {ext} (with its dot, e.g. "
+                          "'.exr') {dir}. Output folders are created."),
         click.option("--keep-going", is_flag=True, help="Go on past a bad file; report failures at the end."),
         click.option("--skip-existing", is_flag=True, help="Skip inputs whose output is newer (like make)."),
         click.option("-j", "--jobs", type=click.IntRange(1, 64), default=2, show_default=True,
-                     help="Threads decoding/encoding images while the GPU works on another."),
+                     help="Threads decoding/encoding images while the executor works on another."),
     ]
     for option in reversed(options):
         f = option(f)
     return f
 
 
-def _process(paths: tuple[str, ...], work, opts: dict, mip_tile: int | None = None, plan_for=None) -> None:
-    """Read each input, ``work(runner, pixels, dtype)``, write atomically; one runner for the whole batch.
+class _Bar:
+    """click's progress bar as the pipeline's progress (shown at a terminal only)."""
 
-    ``dtype`` is float16 where the output stores the result as half unchanged (the input
-    was half too), else float32. With ``mip_tile``, ``work`` returns every MIP level and
-    they go into one tiled file. ``plan_for(shape)``, when given, names the plan ``work``
-    will run, so that the GL executor prepares it while the first image decodes.
-    """
-    import numpy as np
+    def __init__(self, total: int):
+        self.bar = click.progressbar(length=total, label="pyramid", file=sys.stderr)
 
-    from . import batch, io
-    from .run import Runner
+    def __enter__(self):
+        return self.bar.__enter__()
 
-    jobs = batch.plan_jobs(list(paths), opts["template"])
-    quiet = opts["quiet"]
-    runner = Runner(opts["backend"], opts["precision"])
+    def __exit__(self, *exc):
+        return self.bar.__exit__(*exc)
 
-    def prepare(job):
-        shape = io.read_shape(job.input)
-        p = plan_for(shape) if shape is not None else None
-        if p is not None:
-            runner.prepare(p)
 
-    def read(job):
-        image = io.read_image(job.input, colorspace=opts["colorspace"], alpha=opts["alpha"], nan=opts["nan_policy"],
-                              keep_half=not mip_tile)
-        bad = io.count_nonfinite(image.pixels) if opts["nan_policy"] == "keep" else 0
-        if bad and not quiet:
-            click.echo(f"pyramid: warning: {job.input}: {bad} NaN/Inf value(s) kept; they spread through the "
-                       "filter (--nan zero or --nan fail to change that)", err=True)
-        if opts["verbose"]:
-            click.echo(f"pyramid: {io.describe_rules(image.spec)}; backend {runner.name}", err=True)
-        return job, image
+def _reporter(opts: dict):
+    from .pipeline import Reporter
 
-    def compute(job_image):
-        job, image = job_image
-        if mip_tile:
-            return [io.Image(px, image.spec) for px in work(runner, image.pixels, np.float32)]
-        half = image.pixels.dtype == np.float16 and io.stores_half_unchanged(
-            job.output, image.spec, pixel_type=opts["pixel_type"])
-        return [io.Image(work(runner, image.pixels, np.float16 if half else np.float32), image.spec)]
+    return Reporter(quiet=opts["quiet"], verbose=opts["verbose"], out=click.echo,
+                    err=lambda msg: click.echo(msg, err=True), progress=_Bar if sys.stderr.isatty() else None)
 
-    def write(job, images):
-        out_dir = os.path.dirname(job.output)
-        if out_dir and len(jobs) > 1:
-            os.makedirs(out_dir, exist_ok=True)
-        options = {"pixel_type": opts["pixel_type"], "dither": opts["dither"], "compression": opts["compression"],
-                   "force": opts["force"], "inputs": (job.input,)}
-        if mip_tile:
-            io.write_levels(job.output, images, mode="mipmap", tile=mip_tile, **options)
-        else:
-            io.write_image(job.output, images[0], **options)
-        if not quiet and not show_bar:
-            h, w = images[0].pixels.shape[:2]
-            levels = f", {len(images)} MIP levels" if mip_tile else ""
-            click.echo(f"wrote {job.output} ({w}×{h}{levels}, {runner.name})")
 
-    show_bar = len(jobs) > 1 and not quiet and sys.stderr.isatty()
-    run_options = {"keep_going": opts["keep_going"], "skip_existing": opts["skip_existing"], "workers": opts["jobs"],
-                   "prepare": prepare if plan_for is not None and runner.on_gl else None}
-    try:
-        if show_bar:
-            with click.progressbar(length=len(jobs), label="pyramid", file=sys.stderr) as bar:
-                report = batch.run(jobs, read, compute, write, progress=lambda job: bar.update(1), **run_options)
-        else:
-            report = batch.run(jobs, read, compute, write, **run_options)
-    finally:
-        runner.close()
-    if len(jobs) == 1 and report.failed:
-        raise report.failed[0][1]
-    if not quiet and len(jobs) > 1:
-        click.echo(f"pyramid: {len(report.done)} written, {len(report.skipped)} up to date, "
-                   f"{len(report.failed)} failed", err=True)
-    for _job, err in report.failed:
-        click.echo(f"pyramid: error: {err}", err=True)
+def _session(opts: dict, reporter):
+    from .session import Session
+
+    session = Session(opts["backend"], opts["precision"], warn=reporter.warn)
+    reporter.detail(f"executor {session.name} ({session.why})")
+    return session
+
+
+def _read_write(opts: dict):
+    from .pipeline import ReadOptions, WriteOptions
+
+    return (ReadOptions(opts["colorspace"], opts["alpha"], opts["nan_policy"]),
+            WriteOptions(opts["pixel_type"], opts["dither"], opts["compression"], opts["force"]))
+
+
+def _process(paths, work, opts: dict, mip_tile: int | None = None) -> None:
+    from .pipeline import process
+
+    reporter = _reporter(opts)
+    ro, wo = _read_write(opts)
+    with _session(opts, reporter) as session:
+        report = process(list(paths), opts["template"], work, session, read=ro, write=wo, reporter=reporter,
+                         keep_going=opts["keep_going"], skip_existing=opts["skip_existing"], jobs=opts["jobs"],
+                         mip_tile=mip_tile)
     if report.failed:
         sys.exit(report.exit_code)
 
@@ -269,8 +253,7 @@ def _process(paths: tuple[str, ...], work, opts: dict, mip_tile: int | None = No
 @main.command()
 @click.argument("expression", type=EXPR)
 @click.argument("paths", metavar="INPUT OUTPUT | INPUT... -o TEMPLATE", nargs=-1, required=True)
-@click.option("--border", type=click.Choice(["clamp", "mirror", "wrap", "zero"]), default="clamp",
-              show_default=True, help="How pixels outside the image are read (non-clamp borders run on the CPU).")
+@border_option
 @io_options
 @batch_options
 def apply(expression, paths, border: str, **opts) -> None:
@@ -279,31 +262,31 @@ def apply(expression, paths, border: str, **opts) -> None:
     \b
     Example:
       pyramid apply 'box4 *v g' render.exr render_half.exr
-      pyramid apply --backend cpu 'h_Doo-Sabin ⊗↑ g' small.png big.png
+      pyramid apply --border mirror 'h_Doo-Sabin ⊗↑ g' small.png big.png
       pyramid apply 'quadratic *v g' 'frames/*.exr' -o 'half/{stem}.exr'
     """
-    from .plan import plan
+    from .work import Filter
 
-    _process(paths, lambda runner, px, dtype: runner.run_expr(expression, px, border, dtype), opts,
-             plan_for=(lambda shape: plan(expression, shape[:2])) if border == "clamp" else None)
+    _process(paths, Filter(expr=expression, border=border), opts)
 
 
 @main.command()
 @click.argument("paths", metavar="INPUT OUTPUT | INPUT... -o TEMPLATE", nargs=-1, required=True)
 @click.option("--levels", "-m", type=click.IntRange(1, 16), default=4, show_default=True,
               help="Analysis steps down (and synthesis steps back up).")
-@click.option("--analysis", default="box4", show_default=True,
-              help="box, box4, quadratic, cubic, or a ⊗↓ expression.")
-@click.option("--synthesis", default="doosabin", show_default=True,
-              help="nearest, midpoint, doosabin, cubic, fourpoint, or a ⊗↑ expression.")
+@click.option("--analysis", default=catalogue.ANALYSIS_DEFAULT, show_default=True,
+              help=f"{', '.join(catalogue.ANALYSIS_FILTERS)}, or a ⊗↓ expression.")
+@click.option("--synthesis", default=catalogue.SYNTHESIS_DEFAULT, show_default=True,
+              help=f"{', '.join(catalogue.SYNTHESIS_FILTERS)}, or a ⊗↑ expression.")
 @click.option("--quasi", is_flag=True, help="Apply the §5.5 quasi-interpolation prefilter at the coarsest level.")
 @click.option("--sigma", type=float, help="Blur strength as a Gaussian sigma in input pixels: picks the levels "
               "and blends two neighbouring level counts, so the strength changes continuously.")
 @click.option("--allow-mixed-lattice", is_flag=True, help="Do not warn when analysis and synthesis lattices differ.")
+@border_option
 @io_options
 @batch_options
 def blur(paths, levels: int, analysis: str, synthesis: str, quasi: bool, sigma: float | None,
-         allow_mixed_lattice: bool, **opts) -> None:
+         allow_mixed_lattice: bool, border: str, **opts) -> None:
     """Pyramidal blur: LEVELS analysis steps, then synthesis back to the input size.
 
     Defaults are the paper's Figure 3b: 4×4 box analysis, Doo-Sabin synthesis.
@@ -315,13 +298,15 @@ def blur(paths, levels: int, analysis: str, synthesis: str, quasi: bool, sigma: 
       pyramid blur --levels 4 'in/*.exr' -o 'out/{stem}_blur.exr' --keep-going
     """
     from .pyramids import lattice_mismatch
+    from .work import Blur, SigmaBlur
 
     warning = None if allow_mixed_lattice else lattice_mismatch(analysis, synthesis)
     if warning and not opts["quiet"]:
         click.echo(f"pyramid: warning: {warning}", err=True)
-
-    if sigma is not None:
-        from .pyramids import blur_plan_sigma, sigma_blend
+    if sigma is None:
+        work = Blur(levels=levels, analysis=analysis, synthesis=synthesis, quasi=quasi, border=border)
+    else:
+        from .pyramids import sigma_blend
 
         if quasi:
             raise UsageError("--quasi and --sigma cannot be combined")
@@ -329,50 +314,28 @@ def blur(paths, levels: int, analysis: str, synthesis: str, quasi: bool, sigma: 
         if not opts["quiet"]:
             click.echo(f"pyramid: sigma {sigma:g}: {1 - t:.3f} × {m} level(s) + {t:.3f} × {m + 1} "
                        f"(the blend's equivalent kernel has standard deviation {sigma:g} px)", err=True)
-
-        def plan_for(shape):
-            return blur_plan_sigma(shape[:2], sigma, analysis, synthesis)[0]
-
-        def work(runner, px, dtype):
-            return runner.run_plan(plan_for(px.shape), px, dtype)
-    else:
-        from .pyramids import blur_plan
-
-        def plan_for(shape):
-            return blur_plan(shape[:2], levels, analysis, synthesis, quasi)
-
-        def work(runner, px, dtype):
-            return runner.run_blur(px, levels, analysis, synthesis, quasi, dtype)
-
-    _process(paths, work, opts, plan_for=plan_for)
-
-
-def _level_path(pattern: str, level: int) -> str:
-    if "{level}" not in pattern:
-        raise UsageError(f"output pattern {pattern!r} needs {{level}}, e.g. out_{{level}}.exr "
-                         "(or use --multipart)")
-    return pattern.replace("{level}", str(level))
-
-
-def _read_one(path: str, opts: dict):
-    from . import io
-
-    return io.read_image(path, colorspace=opts["colorspace"], alpha=opts["alpha"], nan=opts["nan_policy"])
+        work = SigmaBlur(sigma=sigma, analysis=analysis, synthesis=synthesis, border=border)
+    _process(paths, work, opts)
 
 
 @main.command()
 @click.argument("input_path", metavar="INPUT")
 @click.argument("pattern", metavar="OUTPUT_PATTERN")
 @click.option("--levels", "-m", type=click.IntRange(1, 16), default=4, show_default=True)
-@click.option("--analysis", default="box4", show_default=True, help="box, box4, quadratic, cubic or a ⊗↓ expression.")
+@click.option("--analysis", default=catalogue.ANALYSIS_DEFAULT, show_default=True,
+              help=f"{', '.join(catalogue.ANALYSIS_FILTERS)} or a ⊗↓ expression.")
 @click.option("--laplacian", is_flag=True, help="Write band-pass levels L_k = G_k − expand(G_k+1) and the coarsest "
               "G_m, which `pyramid collapse` sums back to the input.")
-@click.option("--synthesis", default="doosabin", show_default=True, help="Expansion used by --laplacian.")
+@click.option("--synthesis", default=catalogue.SYNTHESIS_DEFAULT, show_default=True,
+              help="Expansion used by --laplacian.")
 @click.option("--multipart", is_flag=True, help="Write one multi-part EXR (OUTPUT_PATTERN is its path).")
 @click.option("--sheet", type=click.Path(dir_okay=False), help="Also draw all levels side by side (Figure 1a).")
+@border_option
 @io_options
-def levels(input_path, pattern, levels, analysis, laplacian, synthesis, multipart, sheet, **opts) -> None:
+def levels(input_path, pattern, levels, analysis, laplacian, synthesis, multipart, sheet, border, **opts) -> None:
     """Write every level of the analysis pyramid (level 0 is the input).
+
+    Output folders are created.
 
     \b
     Example:
@@ -380,101 +343,54 @@ def levels(input_path, pattern, levels, analysis, laplacian, synthesis, multipar
       pyramid levels --laplacian --multipart render.exr bands.exr
       pyramid collapse bands.exr rebuilt.exr
     """
-    from . import io
-    from .pyramids import levels_plan
-    from .run import Runner
+    from .pipeline import write_levels_files
+    from .work import Laplacian, Levels
 
-    image = _read_one(input_path, opts)
-    runner = Runner(opts["backend"], opts["precision"])
-    try:
-        outs = runner.run_outputs(levels_plan(image.pixels.shape[:2], levels, analysis, laplacian, synthesis),
-                                  image.pixels)
-    finally:
-        runner.close()
-    stack = outs if laplacian else [image.pixels] + outs
-    images = [io.Image(px, image.spec) for px in stack]
-    write = {"pixel_type": opts["pixel_type"] or ("float" if laplacian else None), "dither": opts["dither"],
-             "compression": opts["compression"], "force": opts["force"], "inputs": (input_path,)}
-    if laplacian:
-        for im in images:
-            im.spec.attributes["pyramid:synthesis"] = synthesis
-    if multipart:
-        io.write_levels(pattern, images, mode="multipart", **write)
-        written = [pattern]
-    else:
-        written = [_level_path(pattern, k) for k in range(len(images))]
-        for path, im in zip(written, images, strict=True):
-            io.write_image(path, im, **write)
-    if sheet:
-        from .demo import sheet as draw
-
-        panel = draw([im.pixels if not laplacian or k == len(images) - 1 else im.pixels + 0.5
-                      for k, im in enumerate(images)])
-        info = io.ImageInfo(path=sheet, format="png", pixel_type="uint8", channel_names=["R", "G", "B"],
-                            alpha_channel=-1, colorspace="srgb", alpha_mode="none")
-        io.write_image(sheet, io.Image(panel, info), pixel_type="uint8")
-        written.append(sheet)
-    if not opts["quiet"]:
-        for path in written:
-            click.echo(f"wrote {path}")
+    work = (Laplacian(levels=levels, analysis=analysis, synthesis=synthesis, border=border) if laplacian
+            else Levels(levels=levels, analysis=analysis, border=border))
+    reporter = _reporter(opts)
+    ro, wo = _read_write(opts)
+    with _session(opts, reporter) as session:
+        write_levels_files(input_path, pattern, work, session, read=ro, write=wo, reporter=reporter,
+                           multipart=multipart, sheet=sheet)
 
 
 @main.command()
 @click.argument("inputs", nargs=-1, required=True, metavar="BANDS... | BANDS.exr")
 @click.argument("output_path", metavar="OUTPUT")
 @click.option("--synthesis", default=None, help="Expansion the bands were made with (default: as recorded, "
-              "else doosabin).")
+              f"else {catalogue.SYNTHESIS_DEFAULT}).")
+@border_option
 @io_options
-def collapse(inputs, output_path, synthesis, **opts) -> None:
+def collapse(inputs, output_path, synthesis, border, **opts) -> None:
     """Sum Laplacian bands back to the image: G_k = L_k + expand(G_k+1).
 
     INPUT is the multi-part EXR of `pyramid levels --laplacian --multipart`, or the
-    level files L_0 … L_m-1, G_m in order.
+    level files L_0 … L_m-1, G_m in order. Use the --border the bands were made with.
 
     \b
     Example:
       pyramid collapse bands.exr rebuilt.exr
       pyramid collapse 'pyr/band_*.exr' rebuilt.exr
     """
-    from . import batch, io
-    from .pyramids import collapse_plan
-    from .run import Runner
+    from .pipeline import collapse_files
 
-    paths = batch.expand(list(inputs))
-    if len(paths) == 1:
-        bands = io.read_parts(paths[0], colorspace=opts["colorspace"], alpha=opts["alpha"], nan=opts["nan_policy"])
-    else:
-        bands = [_read_one(p, opts) for p in sorted(paths, key=_level_key)]
-    if len(bands) < 2:
-        raise UsageError(f"collapse needs at least two levels, {paths[0]} holds {len(bands)}")
-    synthesis = synthesis or bands[0].spec.attributes.get("pyramid:synthesis", "doosabin")
-    sizes = [b.pixels.shape[:2] for b in bands]
-    runner = Runner(opts["backend"], opts["precision"])
-    try:
-        (out,) = runner.run_outputs(collapse_plan(tuple(sizes), synthesis), [b.pixels for b in bands])
-    finally:
-        runner.close()
-    io.write_image(output_path, io.Image(out, bands[0].spec), pixel_type=opts["pixel_type"], dither=opts["dither"],
-                   compression=opts["compression"], force=opts["force"], inputs=paths)
-    if not opts["quiet"]:
-        click.echo(f"wrote {output_path} ({sizes[0][1]}×{sizes[0][0]}, {runner.name})")
-
-
-def _level_key(path: str):
-    import re
-
-    digits = re.findall(r"\d+", os.path.basename(path))
-    return (int(digits[-1]) if digits else 0, path)
+    reporter = _reporter(opts)
+    ro, wo = _read_write(opts)
+    with _session(opts, reporter) as session:
+        collapse_files(list(inputs), output_path, session, synthesis=synthesis, border=border, read=ro, write=wo,
+                       reporter=reporter)
 
 
 @main.command()
 @click.argument("paths", metavar="INPUT OUTPUT | INPUT... -o TEMPLATE", nargs=-1, required=True)
-@click.option("--analysis", default="quadratic", show_default=True,
-              help="box, box4, quadratic, cubic or a ⊗↓ expression.")
+@click.option("--analysis", default=catalogue.MIP_ANALYSIS_DEFAULT, show_default=True,
+              help=f"{', '.join(catalogue.ANALYSIS_FILTERS)} or a ⊗↓ expression.")
 @click.option("--tile", type=click.IntRange(8, 4096), default=64, show_default=True, help="Tile size.")
+@border_option
 @io_options
 @batch_options
-def mipmap(paths, analysis, tile, **opts) -> None:
+def mipmap(paths, analysis, tile, border, **opts) -> None:
     """Write a tiled MIP-mapped OpenEXR down to 1×1 (what maketx makes, with better filters).
 
     Level sizes are ⌈n/2⌉ (OpenEXR's round-up mode), as ⊗↓ gives. OpenImageIO 3.2
@@ -483,19 +399,11 @@ def mipmap(paths, analysis, tile, **opts) -> None:
     \b
     Example:
       pyramid mipmap albedo.exr albedo.tx.exr
-      pyramid mipmap --analysis cubic 'tex/*.png' -o 'tx/{stem}.tx.exr'
+      pyramid mipmap --border wrap --analysis cubic 'tex/*.png' -o 'tx/{stem}.tx.exr'
     """
-    from .pyramids import levels_plan, mip_levels
+    from .work import Levels
 
-    def plan_for(shape):
-        m = mip_levels(shape[:2])
-        return levels_plan(shape[:2], m, analysis) if m else None
-
-    def work(runner, px, dtype):
-        p = plan_for(px.shape)
-        return [px] + (runner.run_outputs(p, px, dtype) if p else [])
-
-    _process(paths, work, opts, mip_tile=tile, plan_for=plan_for)
+    _process(paths, Levels(levels=None, analysis=analysis, border=border), opts, mip_tile=tile)
 
 
 def _register() -> None:

@@ -14,9 +14,9 @@ import numpy as np
 
 from . import io
 from .parse import parse
-from .plan import plan
-from .pyramids import blur_plan
-from .run import Runner
+from .session import Session
+from .sheet import contact_sheet
+from .work import Blur, Filter
 
 HERE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SAMPLES = os.path.join(HERE, "samples")
@@ -35,50 +35,35 @@ def _exposure(pixels: np.ndarray) -> np.ndarray:
     return pixels / hi if hi > 1 else pixels
 
 
-def sheet(panels: list[np.ndarray], gap: int = 8) -> np.ndarray:
-    """Panels side by side on a mid-grey background, top-aligned."""
-    h = max(p.shape[0] for p in panels)
-    w = sum(p.shape[1] for p in panels) + gap * (len(panels) - 1)
-    out = np.full((h, w, 3), 0.2, dtype=np.float32)
-    x = 0
-    for p in panels:
-        out[:p.shape[0], x:x + p.shape[1]] = p[..., :3]
-        x += p.shape[1] + gap
-    return out
-
-
 def main(outdir: str) -> None:
     os.makedirs(outdir, exist_ok=True)
     start = time.perf_counter()
-    runner = Runner("auto")
+    session = Session("auto")
     written = []
-    try:
+    with session:
         for name in ("highlights.exr", "zoneplate.png"):
             image = io.read_image(os.path.join(SAMPLES, name))
             stem = os.path.splitext(name)[0]
             px = image.pixels
             panels = [px]
             for analysis in ("box", "box4"):  # Figure 3 (a) and (b)
-                out = runner.run_plan(blur_plan(px.shape[:2], 4, analysis, "doosabin"), px)
+                (out,) = session.run(Blur(levels=4, analysis=analysis, synthesis="doosabin"), px)
                 path = os.path.join(outdir, f"{stem}_blur4_{analysis}.png")
                 _png(path, _exposure(out), image.spec)
                 written.append(path)
                 panels.append(out)
             path = os.path.join(outdir, f"{stem}_figure3.png")
-            _png(path, _exposure(sheet(panels)), image.spec)
+            _png(path, _exposure(contact_sheet(panels)), image.spec)
             written.append(path)
         zp = io.read_image(os.path.join(SAMPLES, "zoneplate.png"))
         panels = []
         for analysis in ("box", "box4", "quadratic", "cubic"):
-            expr = parse(f"({analysis})^2 *v g")
-            reduced = runner.run_plan(plan(expr, zp.pixels.shape[:2]), zp.pixels)
+            (reduced,) = session.run(Filter(expr=parse(f"({analysis})^2 *v g")), zp.pixels)
             panels.append(np.repeat(np.repeat(reduced, 2, axis=0), 2, axis=1))  # nearest ×2 to look at
         path = os.path.join(outdir, "zoneplate_analysis.png")
-        _png(path, sheet(panels), zp.spec)
+        _png(path, contact_sheet(panels), zp.spec)
         written.append(path)
-    finally:
-        runner.close()
-    print(f"demo: {len(written)} images in {outdir}/ ({runner.name}, {time.perf_counter() - start:.1f} s):")
+    print(f"demo: {len(written)} images in {outdir}/ ({session.name}, {time.perf_counter() - start:.1f} s):")
     for p in written:
         print(f"  {p}")
     print(f"what to look for: {os.path.join(SAMPLES, 'README.md')}")

@@ -212,6 +212,13 @@ class GLExecutor:
         return dict(self._info)
 
     @property
+    def renderer(self) -> str:
+        """GL_RENDERER of the context (remembered after :meth:`close`)."""
+        if not self._info:
+            self.open()
+        return self._info.get("renderer", "OpenGL")
+
+    @property
     def error(self) -> str:
         """``ctx.error`` of this executor's context (reading it clears the GL error flag)."""
         with self.current() as ctx:

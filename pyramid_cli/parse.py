@@ -22,6 +22,7 @@ import re
 from dataclasses import dataclass
 from fractions import Fraction
 
+from . import catalogue
 from .errors import ExpressionError
 from .expr import Apply, Expr, Filter, Input, Literal, Named, Op
 
@@ -31,26 +32,12 @@ _SUPDIGITS = "⁰¹²³⁴⁵⁶⁷⁸⁹"
 _ARROW_SE = {"↘", "\\", "se", "dr"}
 _ARROW_NW = {"↖", "↙", "nw", "ul"}  # the paper prints box↖ as ↙ (DESIGN.md §2)
 
-# canonical key -> names a user may write (lower case, '-' and '_' ignored)
-_ALIASES = {
-    "box": ["box", "box2", "box2x2", "boxse", "mean", "average"],
-    "box_nw": ["boxnw"],
-    "bartlett": ["bartlett", "bartlett3", "tent", "triangle"],
-    "quasi": ["quasi", "quasiinterpolation"],
-    "box4": ["box4", "box4x4"],
-    "quadratic": ["quadratic", "quadratic4"],
-    "cubic": ["cubic", "cubic5"],
-    "nearest": ["nearest", "nn"],
-    "midpoint": ["midpoint", "bilinear"],
-    "doosabin": ["doosabin", "chaikin"],
-    "fourpoint": ["fourpoint", "4point", "dubuc"],
-    "gauss": ["gauss", "gaussian", "binomial"],
-}
+_ALIASES = catalogue.ALIASES
 _NAME_OF = {alias: key for key, names in _ALIASES.items() for alias in names}
 _KNOWN = sorted({n for names in _ALIASES.values() for n in names} | {"gauss5", "gauss7", "doo-sabin",
                                                                       "four-point"})
-_MASK_ONLY = {"box", "box_nw", "bartlett", "quasi", "box4", "quadratic"}
-_SYNTH_ONLY = {"nearest", "midpoint", "doosabin", "fourpoint"}
+_MASK_ONLY = catalogue.MASK_ONLY
+_SYNTH_ONLY = catalogue.SYNTHESIS_ONLY
 
 
 @dataclass
@@ -216,7 +203,7 @@ class _Parser:
                                   "'cubic ⊗↑ g' (synthesis)", self.text, f.span[0], f.span[1] - f.span[0])
         if f.key in _SYNTH_ONLY:
             return Op.UP
-        if f.key in ("box4", "quadratic"):
+        if f.key in catalogue.NATURAL_DOWN:
             return Op.DOWN
         return Op.CONV
 
@@ -338,8 +325,7 @@ class _Parser:
             if key not in ("box", "box_nw"):
                 self.fail(f"only h_box takes an arrow (↘ or ↖), not '{key}'", v)
             return "box" if low in _ARROW_SE else "box_nw"
-        sizes = {"box": {"2x2": "box", "4x4": "box4"}, "box4": {"4x4": "box4"}, "bartlett": {"3x3": "bartlett"},
-                 "quadratic": {"4x4": "quadratic"}, "cubic": {"5x5": "cubic"}}
+        sizes = catalogue.SIZE_VARIANTS
         m = re.fullmatch(r"(\d+)x(\d+)", low)
         if m and key == "gauss" and m.group(1) == m.group(2):
             return f"gauss{m.group(1)}"

@@ -9,13 +9,14 @@ from __future__ import annotations
 from fractions import Fraction
 from functools import lru_cache
 
-from . import algebra
+from . import algebra, catalogue
 from .errors import UsageError
 from .expr import Apply, Expr, Input, Named, Op, steps
 from .plan import Builder, Plan, plan_steps
 
-ANALYSIS = ["box", "box4", "quadratic", "cubic"]
-SYNTHESIS = ["nearest", "midpoint", "doosabin", "cubic", "fourpoint"]
+ANALYSIS = list(catalogue.ANALYSIS_FILTERS)
+SYNTHESIS = list(catalogue.SYNTHESIS_FILTERS)
+A0, S0 = catalogue.ANALYSIS_DEFAULT, catalogue.SYNTHESIS_DEFAULT
 
 
 def level_sizes(size: tuple[int, int], levels: int) -> list[tuple[int, int]]:
@@ -38,7 +39,7 @@ def _one_step(text: str, op: Op) -> Expr:
     return expr
 
 
-def blur_steps(size: tuple[int, int], levels: int, analysis: str = "box4", synthesis: str = "doosabin",
+def blur_steps(size: tuple[int, int], levels: int, analysis: str = A0, synthesis: str = S0,
                quasi: bool = False):
     """Written steps and crops of an m-level pyramid blur back to ``size``."""
     if levels < 1:
@@ -57,7 +58,7 @@ def blur_steps(size: tuple[int, int], levels: int, analysis: str = "box4", synth
     return step_list, crops
 
 
-def sigma_blend(sigma: float, analysis: str = "box4", synthesis: str = "doosabin") -> tuple[int, float]:
+def sigma_blend(sigma: float, analysis: str = A0, synthesis: str = S0) -> tuple[int, float]:
     """(m, t): blending (1 − t) × the m-level blur with t × the (m+1)-level one has variance sigma²."""
     if not sigma > 0:
         raise UsageError("--sigma must be positive")
@@ -71,14 +72,15 @@ def sigma_blend(sigma: float, analysis: str = "box4", synthesis: str = "doosabin
 
 
 @lru_cache(maxsize=32)  # batches re-use a plan per image size
-def blur_plan_sigma(size: tuple[int, int], sigma: float, analysis: str = "box4", synthesis: str = "doosabin"):
+def blur_plan_sigma(size: tuple[int, int], sigma: float, analysis: str = A0, synthesis: str = S0,
+                    border: str = "clamp"):
     """A blur of Gaussian-equivalent ``sigma`` (input pixels): the blend of the m- and (m+1)-level blurs
     whose variance is sigma², so the strength changes continuously with sigma. Returns (plan, levels, t)."""
     m, t = sigma_blend(sigma, analysis, synthesis)
     down = steps(_one_step(analysis, Op.DOWN))
     up = steps(_one_step(synthesis, Op.UP))
     sizes = level_sizes(size, m + 1)
-    b = Builder(size)
+    b = Builder(size, border=border)
     g = [0]
     for _ in range(m + 1):
         g.append(_run_steps(b, g[-1], down))
@@ -101,15 +103,15 @@ def _run_steps(b: Builder, source: int, step_list, crop=None) -> int:
 
 
 @lru_cache(maxsize=32)  # batches re-use a plan per image size
-def levels_plan(size: tuple[int, int], levels: int, analysis: str = "box4", laplacian: bool = False,
-                synthesis: str = "doosabin") -> Plan:
+def levels_plan(size: tuple[int, int], levels: int, analysis: str = A0, laplacian: bool = False,
+                synthesis: str = S0, border: str = "clamp") -> Plan:
     """Levels 1..m of the analysis pyramid, or with ``laplacian`` the bands L_0..L_{m−1} and G_m
     (L_k = G_k − expand(G_{k+1}), cropped to level k), as one job."""
     if levels < 1:
         raise UsageError("--levels must be at least 1")
     down = steps(_one_step(analysis, Op.DOWN))
     sizes = level_sizes(size, levels)
-    b = Builder(size)
+    b = Builder(size, border=border)
     g = [0]
     for _ in range(levels):
         g.append(_run_steps(b, g[-1], down))
@@ -124,10 +126,10 @@ def levels_plan(size: tuple[int, int], levels: int, analysis: str = "box4", lapl
 
 
 @lru_cache(maxsize=32)  # batches re-use a plan per image size
-def collapse_plan(sizes: tuple[tuple[int, int], ...], synthesis: str = "doosabin") -> Plan:
+def collapse_plan(sizes: tuple[tuple[int, int], ...], synthesis: str = S0, border: str = "clamp") -> Plan:
     """Rebuild G_0 from L_0..L_{m−1}, G_m (inputs 0..m): G_k = L_k + expand(G_{k+1})."""
     up = steps(_one_step(synthesis, Op.UP))
-    b = Builder(sizes[0])
+    b = Builder(sizes[0], border=border)
     for sz in sizes[1:]:
         b.add_input(sz)
     x = len(sizes) - 1
@@ -147,27 +149,70 @@ def mip_levels(size: tuple[int, int]) -> int:
 
 
 @lru_cache(maxsize=32)  # batches re-use a plan per image size
-def blur_plan(size: tuple[int, int], levels: int, analysis: str = "box4", synthesis: str = "doosabin",
-              quasi: bool = False, strategy: str = "cost") -> Plan:
+def blur_plan(size: tuple[int, int], levels: int, analysis: str = A0, synthesis: str = S0,
+              quasi: bool = False, strategy: str = "cost", border: str = "clamp") -> Plan:
     step_list, crops = blur_steps(size, levels, analysis, synthesis, quasi)
     text = f"blur: {levels} level(s), {analysis} ⊗↓ / {synthesis} ⊗↑" + (" + quasi" if quasi else "")
-    return plan_steps(step_list, size, crops, text=text, strategy=strategy)
+    return plan_steps(step_list, size, crops, text=text, strategy=strategy, border=border)
 
 
-def blur_reference(pixels, levels: int, analysis: str = "box4", synthesis: str = "doosabin",
-                   quasi: bool = False):
-    """The blur by the numpy reference, level by level, cropping each synthesis to its level's size."""
+# ------------------------------------------------------------------ the same workflows by the reference
+def _ref(expr: Expr, x, border: str):
     from . import reference
+    from .border import Border
 
+    return reference.run(expr, x, Border.parse(border))
+
+
+def _expand_to(x, synthesis: str, size: tuple[int, int], border: str):
+    return _ref(_one_step(synthesis, Op.UP), x, border)[:size[0], :size[1]]
+
+
+def blur_reference(pixels, levels: int, analysis: str = A0, synthesis: str = S0,
+                   quasi: bool = False, border: str = "clamp"):
+    """The blur by the numpy reference, level by level, cropping each synthesis to its level's size."""
     sizes = level_sizes(pixels.shape[:2], levels)
-    down, up = _one_step(analysis, Op.DOWN), _one_step(synthesis, Op.UP)
-    x = pixels
-    for _ in range(levels):
-        x = reference.run(down, x)
+    x = levels_reference(pixels, levels, analysis, border)[-1]
     if quasi:
-        x = reference.run(Apply(Op.CONV, Named("quasi"), Input()), x)
+        x = _ref(Apply(Op.CONV, Named("quasi"), Input()), x, border)
     for k in range(levels, 0, -1):
-        x = reference.run(up, x)[:sizes[k - 1][0], :sizes[k - 1][1]]
+        x = _expand_to(x, synthesis, sizes[k - 1], border)
+    return x
+
+
+def blur_sigma_reference(pixels, sigma: float, analysis: str = A0, synthesis: str = S0,
+                         border: str = "clamp"):
+    """:func:`blur_plan_sigma` by the reference: (1 − t) × the m-level blur + t × the (m+1)-level one."""
+    m, t = sigma_blend(sigma, analysis, synthesis)
+    low = blur_reference(pixels, m, analysis, synthesis, border=border) if m else pixels
+    return (1 - t) * low + t * blur_reference(pixels, m + 1, analysis, synthesis, border=border)
+
+
+def levels_reference(pixels, levels: int, analysis: str = A0, border: str = "clamp") -> list:
+    """Levels 0..m of the analysis pyramid by the reference (level 0 is the input, as float64)."""
+    import numpy as np
+
+    out = [np.asarray(pixels, dtype=np.float64)]
+    down = _one_step(analysis, Op.DOWN)
+    for _ in range(levels):
+        out.append(_ref(down, out[-1], border))
+    return out
+
+
+def laplacian_reference(pixels, levels: int, analysis: str = A0, synthesis: str = S0,
+                        border: str = "clamp") -> list:
+    """L_0..L_{m−1}, G_m by the reference (:func:`levels_plan` with ``laplacian``)."""
+    g = levels_reference(pixels, levels, analysis, border)
+    return [g[k] - _expand_to(g[k + 1], synthesis, g[k].shape[:2], border) for k in range(levels)] + [g[-1]]
+
+
+def collapse_reference(bands: list, synthesis: str = S0, border: str = "clamp"):
+    """G_0 from L_0..L_{m−1}, G_m by the reference (:func:`collapse_plan`)."""
+    import numpy as np
+
+    x = np.asarray(bands[-1], dtype=np.float64)
+    for band in reversed(bands[:-1]):
+        x = np.asarray(band, dtype=np.float64) + _expand_to(x, synthesis, band.shape[:2], border)
     return x
 
 

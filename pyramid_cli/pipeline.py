@@ -1,0 +1,243 @@
+"""Files in, files out: read → plan → run → write, for one image or a batch.
+
+The CLI and the Python API's file helpers call these functions; they hold the
+policies that used to live in command bodies: which inputs become which outputs,
+whether a half file travels as half, NaN warnings, output folders (always created,
+in every command), and what is said on the way (a :class:`Reporter`). Writes are
+atomic (:mod:`pyramid_cli.io`); a batch goes through :mod:`pyramid_cli.batch`.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import batch, catalogue, io
+from .errors import UsageError
+from .session import Session
+from .work import Collapse, Laplacian, Levels, Work
+
+
+@dataclass
+class ReadOptions:
+    """How inputs are decoded (see :func:`pyramid_cli.io.read_image`)."""
+
+    colorspace: str = "auto"
+    alpha: str = "auto"
+    nan: str = "keep"
+
+
+@dataclass
+class WriteOptions:
+    """How outputs are encoded (see :func:`pyramid_cli.io.write_image`)."""
+
+    pixel_type: str | None = None
+    dither: bool = False
+    compression: str | None = None
+    force: bool = False
+
+    def for_inputs(self, inputs) -> dict:
+        return {"pixel_type": self.pixel_type, "dither": self.dither, "compression": self.compression,
+                "force": self.force, "inputs": tuple(inputs)}
+
+
+@dataclass
+class Reporter:
+    """What a run says: results on standard output, warnings and -v lines on standard error.
+
+    ``progress(total)`` (optional) returns a context manager with ``update(n)``, shown
+    instead of per-file lines for batches (the CLI passes a progress bar at a terminal).
+    """
+
+    quiet: bool = False
+    verbose: bool = False
+    out: Callable[[str], None] = field(default=lambda msg: print(msg))
+    err: Callable[[str], None] = field(default=lambda msg: print(msg, file=sys.stderr))
+    progress: Callable | None = None
+
+    def result(self, msg: str) -> None:
+        if not self.quiet:
+            self.out(msg)
+
+    def warn(self, msg: str) -> None:
+        if not self.quiet:
+            self.err(f"pyramid: warning: {msg}")
+
+    def detail(self, msg: str) -> None:
+        if self.verbose:
+            self.err(f"pyramid: {msg}")
+
+    def error(self, msg: str) -> None:
+        self.err(f"pyramid: error: {msg}")
+
+
+def ensure_folder(path: str) -> None:
+    """Create the folder an output goes into (the one rule for every command)."""
+    folder = os.path.dirname(os.fspath(path))
+    if folder:
+        try:
+            os.makedirs(folder, exist_ok=True)
+        except OSError as e:
+            from .errors import OutputError
+
+            raise OutputError(f"cannot create the folder of {path}: {e.strerror or e}") from None
+
+
+def _read(path: str, ro: ReadOptions, reporter: Reporter, keep_half: bool = False) -> io.Image:
+    image = io.read_image(path, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan, keep_half=keep_half)
+    bad = io.count_nonfinite(image.pixels) if ro.nan == "keep" else 0
+    if bad:
+        reporter.warn(f"{path}: {bad} NaN/Inf value(s) kept; they spread through the filter "
+                      "(--nan zero or --nan fail to change that)")
+    return image
+
+
+def process(paths: list[str], template: str | None, work: Work, session: Session, *,
+            read: ReadOptions | None = None, write: WriteOptions | None = None, reporter: Reporter | None = None,
+            keep_going: bool = False, skip_existing: bool = False, jobs: int = 2,
+            mip_tile: int | None = None) -> batch.Report:
+    """Run ``work`` on every input of ``paths`` (``IN OUT``, or inputs with ``template``).
+
+    One session for the whole batch; decoding and encoding overlap the work in ``jobs``
+    threads. Half inputs whose output stores half unchanged travel as half. With
+    ``mip_tile`` every output of ``work`` goes into one tiled MIP-mapped file. A single
+    job's failure is raised; a batch's failures are reported and collected in the
+    returned report (its ``exit_code`` is the first failure's).
+    """
+    ro, wo, reporter = read or ReadOptions(), write or WriteOptions(), reporter or Reporter()
+    job_list = batch.plan_jobs(list(paths), template)
+    many = len(job_list) > 1
+
+    def prepare(job):
+        shape = io.read_shape(job.input)
+        if shape is not None:
+            session.prepare(work, [shape[:2]])
+
+    def read_job(job):
+        return job, _read(job.input, ro, reporter, keep_half=not mip_tile)
+
+    def compute(job_image):
+        job, image = job_image
+        half = (not mip_tile and image.pixels.dtype == np.float16
+                and io.stores_half_unchanged(job.output, image.spec, pixel_type=wo.pixel_type))
+        outs = session.run(work, [image.pixels], np.float16 if half else np.float32)
+        reporter.detail(f"{job.input}: {io.describe_rules(image.spec)}; executor {session.ran}")
+        return [io.Image(px, image.spec) for px in (outs if mip_tile else outs[-1:])]
+
+    def write_job(job, images):
+        ensure_folder(job.output)
+        options = wo.for_inputs([job.input])
+        if mip_tile:
+            io.write_levels(job.output, images, mode="mipmap", tile=mip_tile, **options)
+        else:
+            io.write_image(job.output, images[0], **options)
+        if not show_bar:
+            h, w = images[0].pixels.shape[:2]
+            levels = f", {len(images)} MIP levels" if mip_tile else ""
+            reporter.result(f"wrote {job.output} ({w}×{h}{levels}, {session.ran})")
+
+    show_bar = many and not reporter.quiet and reporter.progress is not None
+    run_options = {"keep_going": keep_going, "skip_existing": skip_existing, "workers": jobs,
+                   "prepare": prepare if session.on_gl else None}
+    if show_bar:
+        with reporter.progress(len(job_list)) as bar:
+            report = batch.run(job_list, read_job, compute, write_job, progress=lambda job: bar.update(1),
+                               **run_options)
+    else:
+        report = batch.run(job_list, read_job, compute, write_job, **run_options)
+    if not many and report.failed:
+        raise report.failed[0][1]
+    if many:
+        if not reporter.quiet:
+            reporter.err(f"pyramid: {len(report.done)} written, {len(report.skipped)} up to date, "
+                         f"{len(report.failed)} failed")
+        for _job, err in report.failed:
+            reporter.error(str(err))
+    return report
+
+
+def level_path(pattern: str, level: int) -> str:
+    """``pattern`` with ``{level}`` filled in (levels and bands written one file each)."""
+    if "{level}" not in pattern:
+        raise UsageError(f"output pattern {pattern!r} needs {{level}}, e.g. out_{{level}}.exr (or use --multipart)")
+    return pattern.replace("{level}", str(level))
+
+
+def write_levels_files(input_path: str, pattern: str, work: Levels | Laplacian, session: Session, *,
+                       read: ReadOptions | None = None, write: WriteOptions | None = None,
+                       reporter: Reporter | None = None, multipart: bool = False,
+                       sheet: str | None = None) -> list[str]:
+    """Every level of a pyramid (or the Laplacian bands) of one image, one file each or one multipart EXR.
+
+    Returns the paths written. Laplacian bands are stored as float and record the
+    synthesis filter (``pyramid:synthesis``) so that :func:`collapse_files` can undo them.
+    """
+    ro, wo, reporter = read or ReadOptions(), write or WriteOptions(), reporter or Reporter()
+    laplacian = isinstance(work, Laplacian)
+    image = _read(input_path, ro, reporter)
+    stack = session.run(work, [image.pixels])
+    reporter.detail(f"{input_path}: {io.describe_rules(image.spec)}; executor {session.ran}")
+    images = [io.Image(px, image.spec) for px in stack]
+    options = wo.for_inputs([input_path])
+    if laplacian:
+        options["pixel_type"] = wo.pixel_type or "float"
+        for im in images:
+            im.spec.attributes["pyramid:synthesis"] = work.synthesis
+    if multipart:
+        ensure_folder(pattern)
+        io.write_levels(pattern, images, mode="multipart", **options)
+        written = [pattern]
+    else:
+        written = [level_path(pattern, k) for k in range(len(images))]
+        for path, im in zip(written, images, strict=True):
+            ensure_folder(path)
+            io.write_image(path, im, **options)
+    if sheet:
+        from .sheet import contact_sheet
+
+        panel = contact_sheet([im.pixels if not laplacian or k == len(images) - 1 else im.pixels + 0.5
+                               for k, im in enumerate(images)])
+        info = io.ImageInfo(path=sheet, format="png", pixel_type="uint8", channel_names=["R", "G", "B"],
+                            alpha_channel=-1, colorspace="srgb", alpha_mode="none")
+        ensure_folder(sheet)
+        io.write_image(sheet, io.Image(panel, info), pixel_type="uint8")
+        written.append(sheet)
+    for path in written:
+        reporter.result(f"wrote {path}")
+    return written
+
+
+def _level_key(path: str):
+    digits = re.findall(r"\d+", os.path.basename(path))
+    return (int(digits[-1]) if digits else 0, path)
+
+
+def collapse_files(inputs: list[str], output_path: str, session: Session, *, synthesis: str | None = None,
+                   border: str = "clamp", read: ReadOptions | None = None, write: WriteOptions | None = None,
+                   reporter: Reporter | None = None) -> str:
+    """Sum Laplacian bands back to the image: a multipart EXR, or band files L_0 … L_m−1, G_m in order."""
+    ro, wo, reporter = read or ReadOptions(), write or WriteOptions(), reporter or Reporter()
+    paths = batch.expand(list(inputs))
+    if len(paths) == 1:
+        bands = io.read_parts(paths[0], colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan)
+    else:
+        bands = [_read(p, ro, reporter) for p in sorted(paths, key=_level_key)]
+    if len(bands) < 2:
+        raise UsageError(f"collapse needs at least two levels, {paths[0]} holds {len(bands)}")
+    synthesis = synthesis or bands[0].spec.attributes.get("pyramid:synthesis", catalogue.SYNTHESIS_DEFAULT)
+    work = Collapse(bands=len(bands), synthesis=synthesis, border=border)
+    (out,) = session.run(work, [b.pixels for b in bands])
+    ensure_folder(output_path)
+    io.write_image(output_path, io.Image(out, bands[0].spec), **wo.for_inputs(paths))
+    h, w = out.shape[:2]
+    reporter.result(f"wrote {output_path} ({w}×{h}, {session.ran})")
+    return output_path
+
+
+__all__ = ["ReadOptions", "WriteOptions", "Reporter", "process", "write_levels_files", "collapse_files",
+           "level_path", "ensure_folder"]

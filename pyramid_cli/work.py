@@ -1,0 +1,162 @@
+"""What to compute, apart from where: one value per job the tool runs.
+
+A :class:`Work` knows how to plan itself for the plan executors (GL, the CPU
+executor, the emulator: one :class:`~pyramid_cli.plan.Plan` per input size) and
+how the float64 oracle computes it (``--backend reference``: the paper's index
+formulas, :mod:`pyramid_cli.reference`, composed level by level). The CLI and the
+Python API describe their jobs with these values and hand them to a
+:class:`~pyramid_cli.session.Session`; nothing else decides how a job runs.
+
+Every job's first output comes first; pyramids that return level 0 return the
+input itself there (``keeps_input``), as scikit-image's ``pyramid_gaussian`` does.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from . import catalogue, pyramids
+from .border import Border
+from .expr import Expr
+from .plan import Plan, plan
+
+Size = tuple[int, int]
+
+
+def _border(name: str) -> str:
+    return Border.parse(name).value
+
+
+@dataclass(frozen=True, kw_only=True)
+class Work:
+    """A job: its plan for given input sizes, and its reference evaluation."""
+
+    border: str = "clamp"
+
+    n_inputs = 1            # images the job takes (collapse: one per band)
+    keeps_input = False     # output 0 is input 0 unchanged (pyramid level 0)
+    label = "work"
+
+    def plan(self, sizes: tuple[Size, ...], strategy: str = "cost") -> Plan | None:
+        """The plan for inputs of ``sizes`` (rows, columns); None when there is nothing to compute."""
+        raise NotImplementedError
+
+    def reference(self, images: list) -> list:
+        """Every output by the float64 oracle (excluding the kept input)."""
+        raise NotImplementedError
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "border", _border(self.border))
+
+
+@dataclass(frozen=True, kw_only=True)
+class Filter(Work):
+    """Any expression applied to one image (``pyramid apply``; paper §3–§5)."""
+
+    expr: Expr | None = None
+    label = "apply"
+
+    def plan(self, sizes, strategy="cost"):
+        return plan(self.expr, tuple(sizes[0]), strategy, self.border)
+
+    def reference(self, images):
+        from . import reference
+
+        return [reference.run(self.expr, images[0], Border.parse(self.border))]
+
+
+@dataclass(frozen=True, kw_only=True)
+class Blur(Work):
+    """The pyramidal blur (paper §2, Figure 3): ``levels`` analysis steps, synthesis back up."""
+
+    levels: int = 4
+    analysis: str = catalogue.ANALYSIS_DEFAULT
+    synthesis: str = catalogue.SYNTHESIS_DEFAULT
+    quasi: bool = False
+    label = "blur"
+
+    def plan(self, sizes, strategy="cost"):
+        return pyramids.blur_plan(tuple(sizes[0]), self.levels, self.analysis, self.synthesis, self.quasi, strategy,
+                                  self.border)
+
+    def reference(self, images):
+        return [pyramids.blur_reference(images[0], self.levels, self.analysis, self.synthesis, self.quasi,
+                                        self.border)]
+
+
+@dataclass(frozen=True, kw_only=True)
+class SigmaBlur(Work):
+    """A blur of Gaussian-equivalent ``sigma``: two neighbouring level counts blended."""
+
+    sigma: float = 1.0
+    analysis: str = catalogue.ANALYSIS_DEFAULT
+    synthesis: str = catalogue.SYNTHESIS_DEFAULT
+    label = "blur"
+
+    def plan(self, sizes, strategy="cost"):
+        return pyramids.blur_plan_sigma(tuple(sizes[0]), self.sigma, self.analysis, self.synthesis, self.border)[0]
+
+    def reference(self, images):
+        return [pyramids.blur_sigma_reference(images[0], self.sigma, self.analysis, self.synthesis, self.border)]
+
+
+@dataclass(frozen=True, kw_only=True)
+class Levels(Work):
+    """Levels 0..m of the analysis pyramid (paper §4), level 0 being the input.
+
+    ``levels`` None means down to 1×1 (scikit-image's convention and a MIP chain's).
+    """
+
+    levels: int | None = None
+    analysis: str = catalogue.ANALYSIS_DEFAULT
+    keeps_input = True
+    label = "levels"
+
+    def count(self, size: Size) -> int:
+        return pyramids.mip_levels(size) if self.levels is None else self.levels
+
+    def plan(self, sizes, strategy="cost"):
+        m = self.count(tuple(sizes[0]))
+        return pyramids.levels_plan(tuple(sizes[0]), m, self.analysis, border=self.border) if m else None
+
+    def reference(self, images):
+        return pyramids.levels_reference(images[0], self.count(images[0].shape[:2]), self.analysis,
+                                         self.border)[1:]
+
+
+@dataclass(frozen=True, kw_only=True)
+class Laplacian(Work):
+    """Band-pass levels L_0..L_{m−1} and the coarsest G_m; :class:`Collapse` sums them back."""
+
+    levels: int = 4
+    analysis: str = catalogue.ANALYSIS_DEFAULT
+    synthesis: str = catalogue.SYNTHESIS_DEFAULT
+    label = "laplacian"
+
+    def plan(self, sizes, strategy="cost"):
+        return pyramids.levels_plan(tuple(sizes[0]), self.levels, self.analysis, True, self.synthesis, self.border)
+
+    def reference(self, images):
+        return pyramids.laplacian_reference(images[0], self.levels, self.analysis, self.synthesis, self.border)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Collapse(Work):
+    """G_0 = L_0 + expand(L_1 + expand(… G_m)): one input per band."""
+
+    bands: int = 2
+    synthesis: str = catalogue.SYNTHESIS_DEFAULT
+    label = "collapse"
+
+    @property
+    def n_inputs(self) -> int:  # type: ignore[override]
+        return self.bands
+
+    def plan(self, sizes, strategy="cost"):
+        return pyramids.collapse_plan(tuple(tuple(s) for s in sizes), self.synthesis, self.border)
+
+    def reference(self, images):
+        return [pyramids.collapse_reference(list(images), self.synthesis, self.border)]
+
+
+__all__ = ["Work", "Filter", "Blur", "SigmaBlur", "Levels", "Laplacian", "Collapse"]
