@@ -22,6 +22,7 @@ from math import floor, lcm
 from . import catalogue
 from .catalogue import Matrix
 from .expr import Apply, Expr, Filter, Input, Literal, Op, resolve_mask, resolve_phases, steps
+from .geometry import base_index, reduced
 
 Offset = tuple[int, int]
 Weights = dict[Offset, Fraction]
@@ -86,7 +87,7 @@ class Kernel:
 
     def base(self, r: int, axis: int) -> int:
         p, s = self.period[axis], self.stride[axis]
-        return s * -(-r // p)
+        return base_index(r, p, s)
 
     @property
     def rate(self) -> tuple[Fraction, Fraction]:
@@ -194,7 +195,7 @@ def axis_kernels(stps: list[Step]):
         def phases_1d(period: int, stride: int, truth=truth):
             found: dict[int, dict[int, Fraction]] = {}
             for r, comb in truth.items():
-                base = stride * -(-r // period)
+                base = base_index(r, period, stride)
                 w = {base - k: v for k, v in comb.items()}
                 if found.setdefault(r % period, w) != w:
                     return None
@@ -210,7 +211,7 @@ def _phases(truth, period, stride) -> dict | None:
     """Phase masks for (period, stride), or None if the chain is not of that form."""
     out: dict[tuple[int, int], Weights] = {}
     for (r, c), comb in truth.items():
-        br, bc = stride[0] * -(-r // period[0]), stride[1] * -(-c // period[1])
+        br, bc = base_index(r, period[0], stride[0]), base_index(c, period[1], stride[1])
         w = {(br - ir, bc - ic): v for (ir, ic), v in comb.items()}
         key = (r % period[0], c % period[1])
         if out.setdefault(key, w) != w:
@@ -229,7 +230,7 @@ def output_size(expr: Expr, size: tuple[int, int]) -> tuple[int, int]:
     h, w = size
     for op, _, m in steps(expr):
         if op is Op.DOWN:
-            h, w = -(-h // 2 ** m), -(-w // 2 ** m)
+            h, w = reduced(h, m), reduced(w, m)
         elif op is Op.UP:
             h, w = 2 * h, 2 * w
     return h, w

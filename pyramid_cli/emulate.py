@@ -10,12 +10,8 @@ from __future__ import annotations
 import numpy as np
 
 from .border import Border, fold
+from .geometry import base_index
 from .plan import Plan, Tap
-
-
-def _axis(r: np.ndarray, period: int, stride: int) -> np.ndarray:
-    """Source base index R = S·⌈r/P⌉ for (possibly non-positive) logical indices r."""
-    return stride * -(-r // period)
 
 
 def sample(src: np.ndarray, guard_lo: tuple[int, int], rows: np.ndarray, cols: np.ndarray,
@@ -80,8 +76,8 @@ def _execute(plan: Plan, image) -> list[np.ndarray]:
             ci = np.nonzero(c_all % pc == phc)[0]
             if not len(ri) or not len(ci):
                 continue
-            base_r = _axis(r_all[ri], pr, sr)
-            base_c = _axis(c_all[ci], pc, sc)
+            base_r = base_index(r_all[ri], pr, sr)
+            base_c = base_index(c_all[ci], pc, sc)
             acc = np.zeros((len(ri), len(ci)) + out.shape[2:])
             for t in taps:
                 acc += float(t.weight) * _read(plan, stored, t, base_r, base_c)

@@ -38,7 +38,9 @@ class PyramidError(Exception):
         return exit_code(self.kind)
 
 
-class UsageError(PyramidError):
+class UsageError(PyramidError, ValueError):
+    """A bad argument: an unknown name, a bad expression or size (a ValueError for Python callers)."""
+
     kind = "usage"
 
 

@@ -49,7 +49,7 @@ from typing import Any
 import numpy as np
 
 from .errors import BackendError, DataError
-from .io import check_size
+from .geometry import check_size
 from .plan import Plan
 from .shaders import generate
 

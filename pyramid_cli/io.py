@@ -52,6 +52,7 @@ import OpenImageIO as oiio
 
 from .atomic import atomic_path
 from .errors import DataError, InputError, OutputError, UsageError
+from .geometry import check_size  # noqa: F401  (part of io's API: image size limits)
 
 __all__ = [
     "Image",
@@ -269,31 +270,6 @@ def count_nonfinite(pixels: np.ndarray) -> int:
     return int(np.size(pixels) - np.count_nonzero(np.isfinite(pixels)))
 
 
-def check_size(width: int, height: int, limit: int, *, where: str = "") -> None:
-    """Refuse an image larger than ``limit`` pixels on a side.
-
-    Parameters
-    ----------
-    width, height : int
-        Image size in pixels.
-    limit : int
-        Largest allowed width and height (e.g. the GL maximum texture size).
-    where : str, optional
-        Path or name to put in the message.
-
-    Raises
-    ------
-    DataError
-        If ``width`` or ``height`` exceeds ``limit``.
-    """
-    if width > limit or height > limit:
-        prefix = f"{where}: " if where else ""
-        raise DataError(
-            f"{prefix}image size {width}x{height} exceeds the limit of "
-            f"{limit}x{limit} pixels"
-        )
-
-
 def _colour_mask(nchannels: int, alpha_channel: int, names: list[str]) -> np.ndarray:
     """Channels that carry colour: everything but alpha and depth."""
     mask = np.ones(nchannels, dtype=bool)
@@ -362,6 +338,18 @@ def _default_colorspace(pixel_type: str) -> str:
 def _default_names(nchannels: int) -> list[str]:
     return {1: ["Y"], 2: ["Y", "A"], 3: ["R", "G", "B"], 4: ["R", "G", "B", "A"]}.get(
         nchannels, [f"channel{i}" for i in range(nchannels)])
+
+
+def info_for_array(path: str | os.PathLike[str], nchannels: int, channel_names: list[str] | None = None) -> ImageInfo:
+    """How to store linear float pixels that came from no file: named by channel count (Y, YA, RGB,
+    RGBA), alpha (a channel named A) taken as premultiplied, as :func:`read_image` returns it."""
+    names = list(channel_names) if channel_names else _default_names(nchannels)
+    if len(names) != nchannels:
+        raise UsageError(f"{len(names)} channel names for {nchannels} channels")
+    alpha = next((i for i, n in enumerate(names) if n in ("A", "a", "alpha", "Alpha", "ALPHA")), -1)
+    p = os.fspath(path)
+    return ImageInfo(path=p, format=_format_from_path(p), pixel_type="float", channel_names=names,
+                     alpha_channel=alpha, colorspace="linear", alpha_mode="premultiplied" if alpha >= 0 else "none")
 
 
 def _find_alpha(spec: oiio.ImageSpec, names: list[str]) -> int:

@@ -36,6 +36,7 @@ from functools import cache, lru_cache
 from . import algebra, catalogue, cost
 from .algebra import Weights, mask_weights
 from .expr import Expr, Named, Op, steps
+from .geometry import base_index, step_size
 
 Half = Fraction(1, 2)
 
@@ -218,7 +219,7 @@ def _stage_sizes(stages: list[Stage], size: tuple[int, int]) -> list[tuple[int, 
     for st in stages:  # a stage reading stage k takes its size
         srcs = {src for _, parts in st.phases for src, _ in parts}
         base = size if max(srcs) == -1 else sizes[max(srcs)]
-        sizes.append((-(-base[0] * st.period[0] // st.stride[0]), -(-base[1] * st.period[1] // st.stride[1])))
+        sizes.append((step_size(base[0], st.period[0], st.stride[0]), step_size(base[1], st.period[1], st.stride[1])))
     return sizes
 
 
@@ -283,7 +284,7 @@ def checked_recipe(op: Op, f, stride: int = 1) -> list[Stage]:
 def _stage_reads(stage: Stage, r: int, c: int):
     pr, pc = stage.period
     sr, sc = stage.stride
-    base = (sr * -(-r // pr), sc * -(-c // pc))
+    base = (base_index(r, pr, sr), base_index(c, pc, sc))
     for ph, parts in stage.phases:
         if ph == (r % pr, c % pc):
             for src, items in parts:
@@ -379,10 +380,10 @@ def _needed(stage_pass: Pass, rows: tuple[int, int], cols: tuple[int, int], src:
             if t.source != src:
                 continue
             for r in rs:
-                base = sr * -(-r // pr) - t.offset[0]
+                base = base_index(r, pr, sr) - t.offset[0]
                 lo_r, hi_r = min(lo_r, _floor(base)), max(hi_r, _ceil(base))
             for c in cs:
-                base = sc * -(-c // pc) - t.offset[1]
+                base = base_index(c, pc, sc) - t.offset[1]
                 lo_c, hi_c = min(lo_c, _floor(base)), max(hi_c, _ceil(base))
     return (lo_r, hi_r), (lo_c, hi_c)
 

@@ -12,20 +12,12 @@ from functools import lru_cache
 from . import algebra, catalogue
 from .errors import UsageError
 from .expr import Apply, Expr, Input, Named, Op, steps
+from .geometry import level_sizes
 from .plan import Builder, Plan, plan_steps
 
 ANALYSIS = list(catalogue.ANALYSIS_FILTERS)
 SYNTHESIS = list(catalogue.SYNTHESIS_FILTERS)
 A0, S0 = catalogue.ANALYSIS_DEFAULT, catalogue.SYNTHESIS_DEFAULT
-
-
-def level_sizes(size: tuple[int, int], levels: int) -> list[tuple[int, int]]:
-    """Sizes of levels 0..m: each ⌈n/2⌉ of the one before (DESIGN.md §1)."""
-    out = [tuple(size)]
-    for _ in range(levels):
-        h, w = out[-1]
-        out.append((-(-h // 2), -(-w // 2)))
-    return out
 
 
 def _one_step(text: str, op: Op) -> Expr:
@@ -137,15 +129,6 @@ def collapse_plan(sizes: tuple[tuple[int, int], ...], synthesis: str = S0, borde
         expanded = _run_steps(b, x, up, crop=sizes[k])
         x = b.combine([(k, Fraction(1)), (expanded, Fraction(1))], f"G{k} = L{k} + expand(G{k + 1})")
     return b.build(f"collapse: {len(sizes) - 1} level(s), {synthesis} ⊗↑", outputs=[x])
-
-
-def mip_levels(size: tuple[int, int]) -> int:
-    """Reductions until 1×1."""
-    n = 0
-    while max(size) > 1:
-        size = (-(-size[0] // 2), -(-size[1] // 2))
-        n += 1
-    return n
 
 
 @lru_cache(maxsize=32)  # batches re-use a plan per image size

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from . import catalogue, pyramids
+from . import catalogue, geometry, options, pyramids
 from .border import Border
 from .expr import Expr
 from .plan import Plan, plan
@@ -24,7 +24,7 @@ Size = tuple[int, int]
 
 
 def _border(name: str) -> str:
-    return Border.parse(name).value
+    return options.check("border", name, options.BORDERS)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -113,7 +113,7 @@ class Levels(Work):
     label = "levels"
 
     def count(self, size: Size) -> int:
-        return pyramids.mip_levels(size) if self.levels is None else self.levels
+        return geometry.mip_levels(size) if self.levels is None else self.levels
 
     def plan(self, sizes, strategy="cost"):
         m = self.count(tuple(sizes[0]))

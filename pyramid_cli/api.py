@@ -1,0 +1,314 @@
+"""The Python API: ``import pyramid_cli as pyr``.
+
+Functions on numpy arrays (``apply``, ``blur``, ``pyramid``, ``laplacian``,
+``collapse``, ``mipmap``), image files (``read_image``, ``write_image``,
+``process_files``), and :class:`~pyramid_cli.session.Session`, which owns one
+executor for many calls. They describe jobs as :mod:`pyramid_cli.work` values and
+run them through the same session and pipeline as the ``pyramid`` command.
+
+Arrays: 2-D is one channel, 3-D is H×W×C with any C. float16/32/64 are taken as
+they are; integer arrays as normalised codes (unsigned: code / max, signed:
+code / max clipped at −1, as scikit-image's ``img_as_float``), booleans as 0/1.
+Results are float32 (H×W×C, or H×W for 2-D input). Pixels are linear light:
+filtering sRGB codes directly is the caller's choice (``read_image`` decodes files).
+
+Without ``session=``, a module-level session per backend is made on first use
+and closed at exit.
+
+References
+----------
+Kraus & Strengert, "Pyramid Filters Based on Bilinear Interpolation", GRAPP 2007:
+§3 convolution, §4 analysis (⊗↓), §5 synthesis (⊗↑), §2 and Figure 3 the blur.
+"""
+
+from __future__ import annotations
+
+import atexit
+import os
+from collections.abc import Iterator, Sequence
+
+import numpy as np
+
+from . import catalogue, io, options
+from .expr import Expr
+from .geometry import reduced
+from .session import Session
+from .work import Blur, Collapse, Filter, Laplacian, Levels, SigmaBlur, Work
+
+_sessions: dict[str, Session] = {}
+
+
+def _session(session: Session | None, backend: str) -> Session:
+    if session is not None:
+        return session
+    options.check("backend", backend, options.BACKENDS)
+    if backend not in _sessions:
+        _sessions[backend] = Session(backend)
+    return _sessions[backend]
+
+
+@atexit.register
+def _close_sessions() -> None:
+    for s in _sessions.values():
+        s.close()
+    _sessions.clear()
+
+
+def as_pixels(array, name: str = "array") -> np.ndarray:
+    """``array`` as pixels the executors take: 2-D or 3-D, float (integers normalised, see the module notes).
+
+    Raises
+    ------
+    ValueError
+        Not 2-D or 3-D, empty, or not a real number type.
+    """
+    a = np.asarray(array)
+    if a.ndim not in (2, 3):
+        raise ValueError(f"{name}: expected a 2-D (H, W) or 3-D (H, W, C) array, got shape {a.shape}")
+    if 0 in a.shape:
+        raise ValueError(f"{name}: an image needs at least one row, column and channel, got shape {a.shape}")
+    if a.dtype.kind == "f":
+        return a
+    if a.dtype.kind == "b":
+        return a.astype(np.float32)
+    if a.dtype.kind == "u":
+        return (a / np.float64(np.iinfo(a.dtype).max)).astype(np.float32)
+    if a.dtype.kind == "i":
+        return np.maximum(a / np.float64(np.iinfo(a.dtype).max), -1.0).astype(np.float32)
+    raise ValueError(f"{name}: pixels must be real numbers, not {a.dtype}")
+
+
+def _expr(expr: str | Expr) -> Expr:
+    if isinstance(expr, str):
+        from .parse import parse
+
+        return parse(expr)
+    return expr
+
+
+def _run(work: Work, arrays: list, session: Session | None, backend: str) -> list[np.ndarray]:
+    return _session(session, backend).run(work, arrays)
+
+
+# ------------------------------------------------------------------ arrays
+def apply(expr: str | Expr, array, *, border: str = "clamp", backend: str = "auto",
+          session: Session | None = None) -> np.ndarray:
+    """Apply a filter-chain expression to an image.
+
+    Parameters
+    ----------
+    expr : str or Expr
+        The paper's notation or its ASCII spelling, e.g. ``"h_quadratic ⊗↓ g"`` or
+        ``"quadratic *v g"`` (§3 ⊗, §4 ⊗↓, §5 ⊗↑); chains are right-associative.
+    array : array_like
+        H×W or H×W×C pixels.
+    border : {"clamp", "mirror", "wrap", "zero"}
+        How every written operator reads past its input's edges (DESIGN.md §1).
+    backend : {"auto", "gl", "cpu", "reference"}
+        Where it runs (ignored when ``session`` is given).
+    session : Session, optional
+        Reuse one executor across calls.
+
+    Returns
+    -------
+    numpy.ndarray
+        float32; ⊗ keeps the size, ⊗↓ gives ⌈n/2⌉, ⊗↑ gives 2n per axis.
+
+    Examples
+    --------
+    >>> import numpy as np, pyramid_cli as pyr
+    >>> pyr.apply("box4 *v g", np.ones((5, 3))).shape
+    (3, 2)
+    >>> pyr.apply("doosabin *^ g", np.ones((2, 2, 3)), border="mirror").shape
+    (4, 4, 3)
+    """
+    (out,) = _run(Filter(expr=_expr(expr), border=border), [as_pixels(array)], session, backend)
+    return out
+
+
+def blur(array, levels: int = 4, *, sigma: float | None = None, analysis: str = catalogue.ANALYSIS_DEFAULT,
+         synthesis: str = catalogue.SYNTHESIS_DEFAULT, quasi: bool = False, border: str = "clamp",
+         backend: str = "auto", session: Session | None = None) -> np.ndarray:
+    """Pyramidal blur: ``levels`` analysis steps down, then synthesis back to the input size (§2, Figure 3).
+
+    Parameters
+    ----------
+    array : array_like
+        H×W or H×W×C pixels.
+    levels : int
+        Analysis steps (1 to 16); ignored when ``sigma`` is given.
+    sigma : float, optional
+        Strength as a Gaussian sigma in input pixels: the blend of two neighbouring
+        level counts whose equivalent kernel has that standard deviation.
+    analysis, synthesis : str
+        A ⊗↓ filter (box, box4, quadratic, cubic, §4) and a ⊗↑ filter (nearest,
+        midpoint, doosabin, cubic, fourpoint, §5), or one-step expressions.
+        The defaults are the paper's Figure 3b.
+    quasi : bool
+        Apply the §5.5 quasi-interpolation prefilter at the coarsest level.
+    border, backend, session
+        As in :func:`apply`.
+
+    Returns
+    -------
+    numpy.ndarray
+        float32, the input's shape.
+
+    Examples
+    --------
+    >>> import numpy as np, pyramid_cli as pyr
+    >>> impulse = np.zeros((33, 33)); impulse[16, 16] = 1
+    >>> soft = pyr.blur(impulse, 3)
+    >>> soft.shape, round(float(soft.sum()), 4)
+    ((33, 33), 1.0)
+    """
+    if sigma is not None:
+        if quasi:
+            raise ValueError("quasi and sigma cannot be combined")
+        work: Work = SigmaBlur(sigma=sigma, analysis=analysis, synthesis=synthesis, border=border)
+    else:
+        if not 1 <= levels <= 16:
+            raise ValueError(f"levels must be 1 to 16, not {levels}")
+        work = Blur(levels=levels, analysis=analysis, synthesis=synthesis, quasi=quasi, border=border)
+    (out,) = _run(work, [as_pixels(array)], session, backend)
+    return out
+
+
+def pyramid(array, *, analysis: str = catalogue.ANALYSIS_DEFAULT, levels: int | None = None, border: str = "clamp",
+            backend: str = "auto", session: Session | None = None) -> Iterator[np.ndarray]:
+    """The analysis pyramid (§4), level 0 (the input itself) first.
+
+    Parameters
+    ----------
+    array : array_like
+        H×W or H×W×C pixels.
+    analysis : str
+        A ⊗↓ filter or one-step expression.
+    levels : int, optional
+        Reductions after level 0; None goes down to 1×1 (scikit-image's convention).
+    border, backend, session
+        As in :func:`apply`.
+
+    Yields
+    ------
+    numpy.ndarray
+        Level k has ⌈n/2ᵏ⌉ rows and columns; level 0 is ``array`` unchanged.
+
+    Examples
+    --------
+    >>> import numpy as np, pyramid_cli as pyr
+    >>> a = np.random.default_rng(0).random((5, 3))
+    >>> levels = list(pyr.pyramid(a))
+    >>> levels[0] is a, [lv.shape for lv in levels]
+    (True, [(5, 3), (3, 2), (2, 1), (1, 1)])
+    """
+    pixels = as_pixels(array)
+    outs = _run(Levels(levels=levels, analysis=analysis, border=border), [pixels], session, backend)
+    yield array if pixels is array else pixels
+    yield from outs[1:]
+
+
+def laplacian(array, levels: int = 4, *, analysis: str = catalogue.ANALYSIS_DEFAULT,
+              synthesis: str = catalogue.SYNTHESIS_DEFAULT, border: str = "clamp", backend: str = "auto",
+              session: Session | None = None) -> list[np.ndarray]:
+    """Laplacian bands L_k = G_k − expand(G_k+1) for k < ``levels``, then the coarsest G_m.
+
+    :func:`collapse` (with the same ``synthesis`` and ``border``) sums them back to the
+    input, exactly up to float rounding.
+
+    Examples
+    --------
+    >>> import numpy as np, pyramid_cli as pyr
+    >>> a = np.random.default_rng(1).random((17, 13, 3))
+    >>> bands = pyr.laplacian(a, 3)
+    >>> [b.shape[:2] for b in bands]
+    [(17, 13), (9, 7), (5, 4), (3, 2)]
+    >>> bool(np.abs(pyr.collapse(bands) - a).max() < 1e-5)
+    True
+    """
+    if not 1 <= levels <= 16:
+        raise ValueError(f"levels must be 1 to 16, not {levels}")
+    work = Laplacian(levels=levels, analysis=analysis, synthesis=synthesis, border=border)
+    return _run(work, [as_pixels(array)], session, backend)
+
+
+def collapse(bands: Sequence, *, synthesis: str = catalogue.SYNTHESIS_DEFAULT, border: str = "clamp",
+             backend: str = "auto", session: Session | None = None) -> np.ndarray:
+    """Sum Laplacian bands back to the image: G_k = L_k + expand(G_k+1) (inverse of :func:`laplacian`)."""
+    bands = [as_pixels(b, f"band {k}") for k, b in enumerate(bands)]
+    if len(bands) < 2:
+        raise ValueError(f"collapse needs at least two bands, got {len(bands)}")
+    for k in range(1, len(bands)):
+        want = tuple(reduced(n) for n in bands[k - 1].shape[:2])
+        if bands[k].shape[:2] != want or bands[k].shape[2:] != bands[0].shape[2:]:
+            raise ValueError(f"band {k} has shape {bands[k].shape}; after {bands[k - 1].shape} it must be "
+                             f"{want + bands[0].shape[2:]}")
+    (out,) = _run(Collapse(bands=len(bands), synthesis=synthesis, border=border), bands, session, backend)
+    return out
+
+
+def mipmap(array, *, analysis: str = catalogue.MIP_ANALYSIS_DEFAULT, border: str = "clamp", backend: str = "auto",
+           session: Session | None = None) -> list[np.ndarray]:
+    """MIP levels down to 1×1, level 0 first (sizes ⌈n/2⌉, as ``pyramid mipmap`` writes them).
+
+    Examples
+    --------
+    >>> import numpy as np, pyramid_cli as pyr
+    >>> [lv.shape for lv in pyr.mipmap(np.ones((4, 8, 4)))]
+    [(4, 8, 4), (2, 4, 4), (1, 2, 4), (1, 1, 4)]
+    """
+    return list(pyramid(array, analysis=analysis, levels=None, border=border, backend=backend, session=session))
+
+
+# ------------------------------------------------------------------ files
+def read_image(path: str | os.PathLike[str], *, colorspace: str = "auto", alpha: str = "auto",
+               nan: str = "keep") -> io.Image:
+    """Read an image file into linear-light float32 pixels (alpha premultiplied) and its metadata.
+
+    ``colorspace``, ``alpha`` and ``nan`` are the CLI's ``--colorspace``, ``--alpha`` and
+    ``--nan``; see :func:`pyramid_cli.io.read_image`. The result's ``pixels`` is H×W×C.
+    """
+    return io.read_image(path, colorspace=colorspace, alpha=alpha, nan=nan)
+
+
+def write_image(path: str | os.PathLike[str], image, *, pixel_type: str | None = None,
+                colorspace: str | None = None, alpha: str | None = None, dither: bool = False,
+                compression: str | None = None, force: bool = False,
+                channel_names: list[str] | None = None) -> None:
+    """Write an :class:`~pyramid_cli.io.Image` (like its source) or an array of linear pixels, atomically.
+
+    An array is stored as float where the format allows, channels named by count
+    (Y, YA, RGB, RGBA, or ``channel_names``); ``pixel_type`` etc. are the CLI's options.
+    """
+    if not isinstance(image, io.Image):
+        pixels = as_pixels(image)
+        pixels = pixels if pixels.ndim == 3 else pixels[:, :, None]
+        image = io.Image(np.ascontiguousarray(pixels, dtype=np.float32),
+                         io.info_for_array(path, pixels.shape[2], channel_names))
+    io.write_image(path, image, pixel_type=pixel_type, colorspace=colorspace, alpha=alpha, dither=dither,
+                   compression=compression, force=force)
+
+
+def process_files(work: Work, inputs: Sequence[str], output: str | None = None, *, template: str | None = None,
+                  backend: str = "auto", session: Session | None = None, keep_going: bool = False,
+                  skip_existing: bool = False, jobs: int = 2, quiet: bool = True, **io_options) -> int:
+    """Run a job on files through the CLI's pipeline: ``inputs[0]`` → ``output``, or every input → ``template``.
+
+    ``work`` is a :mod:`pyramid_cli.work` value (``Filter``, ``Blur``, …); ``io_options``
+    are :class:`~pyramid_cli.pipeline.ReadOptions` and ``WriteOptions`` fields. Returns the
+    batch's exit code (0 when every file was written); a single file's failure raises.
+    """
+    from .pipeline import ReadOptions, Reporter, WriteOptions, process
+
+    read_keys = {"colorspace", "alpha", "nan"}
+    ro = ReadOptions(**{k: v for k, v in io_options.items() if k in read_keys})
+    wo = WriteOptions(**{k: v for k, v in io_options.items() if k not in read_keys})
+    paths = [*inputs, output] if template is None else list(inputs)
+    report = process(paths, template, work, _session(session, backend), read=ro, write=wo,
+                     reporter=Reporter(quiet=quiet), keep_going=keep_going, skip_existing=skip_existing, jobs=jobs)
+    return report.exit_code
+
+
+__all__ = ["apply", "blur", "pyramid", "laplacian", "collapse", "mipmap", "read_image", "write_image",
+           "process_files", "as_pixels", "Session", "Work", "Filter", "Blur", "SigmaBlur", "Levels", "Laplacian",
+           "Collapse"]

@@ -1,0 +1,150 @@
+"""The Python API (``import pyramid_cli as pyr``) against the float64 reference, on every backend present."""
+
+from __future__ import annotations
+
+import doctest
+
+import numpy as np
+import pytest
+
+import pyramid_cli as pyr
+from pyramid_cli import api, pyramids, reference
+from pyramid_cli.border import Border
+from pyramid_cli.errors import PyramidError
+from pyramid_cli.parse import parse
+
+SIZES = [(1, 1), (1, 7), (5, 3), (17, 13), (129, 67)]
+CHANNELS = [1, 3, 4, 6]
+
+
+@pytest.fixture(scope="module")
+def sessions(gl_executor):
+    made = {name: pyr.Session(name) for name in ("gl", "cpu", "reference")}
+    yield made
+    for s in made.values():
+        s.close()
+
+
+def image(size, channels, seed=0):
+    a = np.random.default_rng(seed).random(size + (channels,))
+    return a[:, :, 0] if channels == 1 else a  # one channel as a 2-D array
+
+
+def cases(a):
+    """(name, call(session), reference outputs) for every API function on ``a``."""
+    f64 = a.astype(np.float64)
+    return [
+        ("apply", lambda s: [pyr.apply("quadratic *v g", a, session=s)], [reference.run(parse("quadratic *v g"), f64)]),
+        ("apply mirror", lambda s: [pyr.apply("gauss5", a, border="mirror", session=s)],
+         [reference.run(parse("gauss5"), f64, Border.MIRROR)]),
+        ("blur", lambda s: [pyr.blur(a, 3, session=s)], [pyramids.blur_reference(f64, 3)]),
+        ("blur sigma", lambda s: [pyr.blur(a, sigma=2.5, border="wrap", session=s)],
+         [pyramids.blur_sigma_reference(f64, 2.5, border="wrap")]),
+        ("pyramid", lambda s: list(pyr.pyramid(a, session=s)),
+         pyramids.levels_reference(f64, pyramids.mip_levels(a.shape[:2]))),
+        ("laplacian", lambda s: pyr.laplacian(a, 3, analysis="quadratic", synthesis="cubic", session=s),
+         pyramids.laplacian_reference(f64, 3, "quadratic", "cubic")),
+        ("collapse", lambda s: [pyr.collapse(pyramids.laplacian_reference(f64, 2), session=s)], [f64]),
+        ("mipmap", lambda s: pyr.mipmap(a, border="zero", session=s),
+         pyramids.levels_reference(f64, pyramids.mip_levels(a.shape[:2]), "quadratic", "zero")),
+    ]
+
+
+@pytest.mark.gl
+@pytest.mark.parametrize("channels", CHANNELS)
+@pytest.mark.parametrize("size", SIZES, ids=lambda s: f"{s[0]}x{s[1]}")
+def test_every_function_equals_the_reference_on_every_backend(sessions, size, channels):
+    a = image(size, channels, seed=size[0] * 7 + channels)
+    for name, call, want in cases(a):
+        for backend, s in sessions.items():
+            got = call(s)
+            assert len(got) == len(want), (name, backend)
+            for k, (g, w) in enumerate(zip(got, want, strict=True)):
+                assert g.shape == w.shape, (name, backend, k)
+                np.testing.assert_allclose(g, w, rtol=0, atol=1e-5, err_msg=f"{name} on {backend}, output {k}")
+
+
+def test_pyramid_level_zero_is_the_input_and_goes_down_to_one_pixel():
+    a = np.random.default_rng(3).random((17, 13, 3)).astype(np.float32)
+    levels = list(pyr.pyramid(a, backend="cpu"))
+    assert levels[0] is a
+    assert levels[-1].shape == (1, 1, 3) and [lv.shape[:2] for lv in levels][1] == (9, 7)
+    assert len(list(pyr.pyramid(a, levels=2, backend="cpu"))) == 3
+
+
+@pytest.mark.parametrize("backend", ["cpu", "reference"])
+def test_collapse_inverts_laplacian(backend):
+    a = np.random.default_rng(4).random((129, 67, 4))
+    np.testing.assert_allclose(pyr.collapse(pyr.laplacian(a, 5, backend=backend), backend=backend), a,
+                               rtol=0, atol=1e-5)
+
+
+@pytest.mark.gl
+def test_a_session_compiles_each_program_once_over_200_arrays(gl_executor):
+    rng = np.random.default_rng(5)
+    with pyr.Session("gl") as s:
+        for _ in range(200):
+            pyr.blur(rng.random((24, 20, 3)), 3, session=s)
+        programs = {ps for ps in s.executor._programs}
+        assert s.executor.compiles == len(programs) > 0
+
+
+def test_integer_arrays_are_normalised_codes_and_results_float32():
+    u8 = np.full((4, 4), 255, dtype=np.uint8)
+    i16 = np.full((4, 4), -32768, dtype=np.int16)
+    assert pyr.apply("box * g", u8, backend="cpu").dtype == np.float32
+    np.testing.assert_allclose(pyr.apply("box * g", u8, backend="cpu"), 1.0)
+    np.testing.assert_allclose(pyr.apply("box * g", i16, backend="cpu"), -1.0)
+    np.testing.assert_allclose(pyr.blur(np.ones((6, 6), dtype=bool), 1, backend="cpu"), 1.0)
+    assert pyr.blur(np.ones((6, 6), dtype=np.float16), 1, backend="cpu").dtype == np.float32
+
+
+@pytest.mark.parametrize(("call", "message"), [
+    (lambda: pyr.blur(np.ones(5)), "expected a 2-D (H, W) or 3-D (H, W, C) array, got shape (5,)"),
+    (lambda: pyr.blur(np.ones((2, 2, 2, 2))), "got shape (2, 2, 2, 2)"),
+    (lambda: pyr.blur(np.ones((0, 4))), "an image needs at least one row, column and channel"),
+    (lambda: pyr.blur(np.ones((4, 4), dtype=complex)), "pixels must be real numbers"),
+    (lambda: pyr.blur(np.ones((4, 4)), analysis="doosabin"),
+     "'doosabin' is a synthesis filter (four phase masks): use it with ⊗↑, not ⊗↓"),
+    (lambda: pyr.blur(np.ones((4, 4)), synthesis="box4"), "'box4' is a single mask for ⊗ and ⊗↓"),
+    (lambda: pyr.apply("bartlet * g", np.ones((4, 4))), "unknown filter 'bartlet' (did you mean 'bartlett'?)"),
+    (lambda: pyr.apply("box * g", np.ones((4, 4)), border="reflect"), "border must be one of clamp, mirror"),
+    (lambda: pyr.apply("box * g", np.ones((4, 4)), backend="cuda"), "backend must be one of auto, gl, cpu"),
+    (lambda: pyr.blur(np.ones((4, 4)), 0), "levels must be 1 to 16"),
+    (lambda: pyr.collapse([np.ones((4, 4)), np.ones((3, 3))]), "band 1 has shape (3, 3)"),
+])
+def test_bad_arguments_raise_value_errors_with_the_cli_message(call, message):
+    with pytest.raises(ValueError) as info:
+        call()
+    assert message in str(info.value)
+
+
+def test_project_errors_are_value_errors_for_usage_only():
+    with pytest.raises(PyramidError):
+        pyr.apply("doosabin * g", np.ones((3, 3)))
+
+
+def test_write_and_read_an_array_round_trip(tmp_path):
+    a = np.random.default_rng(6).random((5, 7, 3)).astype(np.float32)
+    pyr.write_image(tmp_path / "a.exr", a, pixel_type="float")
+    back = pyr.read_image(tmp_path / "a.exr")
+    np.testing.assert_array_equal(back.pixels, a)
+    assert back.spec.channel_names == ["R", "G", "B"]
+
+
+def test_process_files_runs_the_cli_pipeline(tmp_path):
+    a = np.random.default_rng(7).random((9, 11, 3)).astype(np.float32)
+    pyr.write_image(tmp_path / "in.exr", a, pixel_type="float")
+    code = pyr.process_files(pyr.Blur(levels=2), [str(tmp_path / "in.exr")], str(tmp_path / "sub" / "out.exr"),
+                             backend="cpu")
+    assert code == 0
+    np.testing.assert_allclose(pyr.read_image(tmp_path / "sub" / "out.exr").pixels,
+                               pyramids.blur_reference(a.astype(np.float64), 2), rtol=0, atol=1e-5)
+
+
+def test_docstring_examples_run():
+    result = doctest.testmod(api, optionflags=doctest.ELLIPSIS)
+    assert result.attempted >= 8 and result.failed == 0
+    from pyramid_cli import session
+
+    assert doctest.testmod(session).failed == 0
