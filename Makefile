@@ -27,11 +27,11 @@ demo: $(STAMP) check-gl
 	$(PY) -m pyramid_cli.demo $(OUT)
 
 test: $(STAMP) check-gl
-	$(PY) -m ruff check pyramid_cli tests shaders samples scripts bench
+	$(PY) -m ruff check pyramid_cli tests samples scripts bench
 	$(PY) -m pytest
 
 lint: $(STAMP)
-	$(PY) -m ruff check pyramid_cli tests shaders samples scripts bench
+	$(PY) -m ruff check pyramid_cli tests samples scripts bench
 
 bench: $(STAMP) check-gl
 	$(PY) -m pip install -q -e '.[test,bench]'

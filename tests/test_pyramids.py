@@ -95,7 +95,8 @@ def test_blur_command_cpu(tmp_path):
 
 # ---------------------------------------------------------------- levels, Laplacian, collapse, mipmap, sigma
 from pyramid_cli import io as pio  # noqa: E402
-from pyramid_cli.pyramids import blur_plan_sigma, collapse_plan, levels_plan, mip_levels  # noqa: E402
+from pyramid_cli.geometry import mip_levels  # noqa: E402
+from pyramid_cli.pyramids import blur_plan_sigma, collapse_plan, levels_plan  # noqa: E402
 
 
 def write_exr(path, px, pixel_type="float"):

@@ -1,10 +1,7 @@
 """GLSL for the GL executor: the templates beside this file, specialised per pass shape.
 
-This module is ``pyramid_cli.shaders.generate``: the top-level ``shaders/`` folder is
-installed as the package ``pyramid_cli.shaders`` (see ``pyproject.toml``), so the
-generator lives next to its templates. (A module ``pyramid_cli/shaders.py`` cannot
-exist beside that package: in an editable install it hides the package, in a wheel
-the package hides it.)
+This module is ``pyramid_cli.shaders.generate``, next to its templates in the package
+``pyramid_cli.shaders`` (installed with them as package data, see ``pyproject.toml``).
 
 A pass of a :class:`~pyramid_cli.plan.Plan` becomes a :class:`PassShape`: everything a
 fragment shader needs except sizes and guard bands (those are uniforms), so one compiled program serves every image

@@ -1,0 +1,26 @@
+"""What a plan costs by the calibrated cost model (:mod:`pyramid_cli.cost`)."""
+
+from __future__ import annotations
+
+from .. import cost
+from .model import Image, Pass, Plan
+
+
+def pass_measures(images: list[Image], ps: Pass) -> tuple[int, tuple[int, int], float, float, int]:
+    """What the cost model weighs for one pass: (texture reads in its shader, the target's stored
+    size, bilinear and single-texel fetches each fragment executes, stored pixels of the sources read)."""
+    in_shader = sum(len(taps) for taps in ps.phases.values())
+    linear, nearest = cost.executed_fetches([[(t.source, t.linear) for t in taps] for _, taps in
+                                             sorted(ps.phases.items())])
+    read = sum(images[s].stored[0] * images[s].stored[1] for s in ps.sources())
+    return in_shader, images[ps.target].stored, linear, nearest, read
+
+
+def pass_seconds(images: list[Image], ps: Pass, model: cost.CostModel | None = None) -> float:
+    """The cost model's seconds for one pass: its stored target, executed fetches and sources read."""
+    return (model or cost.model()).pass_seconds(*pass_measures(images, ps))
+
+
+def estimate_seconds(p: Plan, model: cost.CostModel | None = None) -> float:
+    """The cost model's seconds for a whole plan (passes only: no upload, read-back or compile)."""
+    return sum(pass_seconds(p.images, ps, model) for ps in p.passes)

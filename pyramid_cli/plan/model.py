@@ -1,0 +1,120 @@
+"""The Plan: images and passes of bilinear taps, the contract every executor runs (DESIGN.md §5).
+
+A :class:`Plan` is the contract between the planner and the executors (the
+numpy emulator in :mod:`pyramid_cli.emulate` and the GL executor): a list of
+images (``images[0]`` is the input; image k > 0 is written by pass k − 1), and
+for every pass the taps each output fragment sums.
+
+Coordinates: every image has a *logical* 1-based pixel grid ``1..h`` (rows) and
+``1..w`` (columns), plus a guard band (rows ``1 − top .. h + bottom`` …) that
+bounds inference found later passes read. A pass maps output pixel ``r`` to
+the source base index ``R = S·⌈r/P⌉`` (``S``, ``P`` per axis) and a tap with
+offset ``t`` reads the source at the (possibly fractional) index ``R − t``:
+a fraction ``α`` of ``t`` mixes ``(1 − α)·src[R − ⌊t⌋] + α·src[R − ⌊t⌋ − 1]``
+(hardware bilinear filtering). Reads clamp to the source texture's stored
+extent (logical grid plus guard), which is the paper's clamp at the borders of
+the input and of every written operator, while guard bands keep a named
+filter atomic (DESIGN.md §1). Every fractional offset is a multiple of ¼.
+
+Border modes (DESIGN.md §1: clamp, mirror, wrap, zero) belong to the plan:
+each :class:`Image` says how reads outside its stored extent resolve. A read
+at the fractional index ``x = i + α`` (``i = ⌊x⌋``) is
+``(1 − α)·read(i) + α·read(i + 1)`` per axis, where ``read`` folds an integer
+index through the image's border mode (:func:`pyramid_cli.border.fold`) over
+its stored extent. For ``clamp`` this is the hardware's clamped bilinear read;
+the other modes only ever apply to images without guard bands: the plan's
+inputs and the results of written operators (the boundaries), since the
+intermediates of a named filter store every pixel later passes read.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from fractions import Fraction
+
+Half = Fraction(1, 2)
+
+
+@dataclass(frozen=True)
+class Tap:
+    source: int                        # image index
+    offset: tuple[Fraction, Fraction]  # t: reads source index R − t (rows, columns)
+    weight: Fraction
+    linear: bool                       # bilinear (fractional offset) or nearest
+
+    @property
+    def sampler(self) -> str:
+        return "linear" if self.linear else "nearest"
+
+
+@dataclass
+class Image:
+    size: tuple[int, int]                       # logical (rows, columns)
+    guard: list[int] = field(default_factory=lambda: [0, 0, 0, 0])  # top, left, bottom, right
+    border: str = "clamp"                       # how reads outside the stored extent resolve
+
+    @property
+    def stored(self) -> tuple[int, int]:
+        """Texture size: logical size plus guard band."""
+        t, l, b, r = self.guard
+        return self.size[0] + t + b, self.size[1] + l + r
+
+
+@dataclass
+class Pass:
+    label: str
+    target: int                                  # image index written
+    period: tuple[int, int]
+    stride: tuple[int, int]
+    phases: dict[tuple[int, int], list[Tap]]     # keyed by (r mod Pr, c mod Pc)
+    why: str = ""                                # the cost model's choice, on a filter's first pass
+
+    def sources(self) -> set[int]:
+        return {t.source for taps in self.phases.values() for t in taps}
+
+    @property
+    def fetches(self) -> float:
+        """Texture reads per fragment, the mean over phases (each phase is equally frequent)."""
+        return sum(len(t) for t in self.phases.values()) / len(self.phases)
+
+
+@dataclass
+class Plan:
+    images: list[Image]
+    passes: list[Pass]
+    expression: str
+    paper_fetches: float | None = None
+    outputs: list[int] = field(default_factory=list)  # images read back, in order; default: the last
+    inputs: list[int] = field(default_factory=lambda: [0])  # images uploaded, in order
+    border: str = "clamp"                             # the border mode of every written operator
+
+    def __post_init__(self):
+        if not self.outputs:
+            self.outputs = [len(self.images) - 1]
+
+    @property
+    def output(self) -> Image:
+        return self.images[self.outputs[-1]]
+
+    @property
+    def fetches(self) -> float:
+        return sum(p.fetches for p in self.passes)
+
+    @property
+    def fetches_per_output_pixel(self) -> float:
+        """Fetches weighted by each pass's stored size relative to the output (DESIGN.md §5)."""
+        out = self.output.size[0] * self.output.size[1]
+        return sum(p.fetches * self.images[p.target].stored[0] * self.images[p.target].stored[1] / out
+                   for p in self.passes)
+
+
+def check(p: Plan) -> None:
+    """Invariants every executor relies on; raises AssertionError on a planner bug."""
+    for k, im in enumerate(p.images):
+        assert im.border == "clamp" or not any(im.guard), f"image {k}: border {im.border} with a guard band"
+    for ps in p.passes:
+        for taps in ps.phases.values():
+            for t in taps:
+                assert t.source < ps.target
+                for o in t.offset:
+                    assert o % Fraction(1, 4) == 0, f"tap offset {o} not on a quarter texel"

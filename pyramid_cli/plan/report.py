@@ -1,0 +1,66 @@
+"""The ``pyramid plan`` report: text and JSON."""
+
+from __future__ import annotations
+
+from .. import cost
+from .estimate import estimate_seconds, pass_seconds
+from .model import Plan, Tap
+
+
+def _tap_json(t: Tap) -> dict:
+    return {"pos": [float(-t.offset[1]), float(-t.offset[0])], "weight": float(t.weight),
+            "exact": str(t.weight), "sampler": t.sampler, "source": t.source}
+
+
+def to_json(p: Plan) -> dict:
+    """The ``pyramid plan --json`` object. ``pos`` is [x, y] in source texels relative to the
+    source pixel ``R = S·⌈r/P⌉`` the output fragment maps to; sizes are [width, height].
+    ``estimate_s`` is the calibrated cost model's time (per pass and in all; passes only, no
+    upload, read-back or compile), ``cost_model`` where it was measured."""
+    model = cost.model()
+    passes = []
+    for ps in p.passes:
+        img = p.images[ps.target]
+        entry = {"label": ps.label, "size": [img.size[1], img.size[0]], "guard": list(img.guard),
+                 "period": [ps.period[1], ps.period[0]], "stride": [ps.stride[1], ps.stride[0]],
+                 "fetches": ps.fetches, "estimate_s": pass_seconds(p.images, ps, model)}
+        if ps.why:
+            entry["why"] = ps.why
+        if len(ps.phases) == 1:
+            entry["taps"] = [_tap_json(t) for t in next(iter(ps.phases.values()))]
+        else:
+            entry["phases"] = [{"phase": list(ph), "taps": [_tap_json(t) for t in taps]}
+                               for ph, taps in sorted(ps.phases.items(), reverse=True)]
+        passes.append(entry)
+    return {"expression": p.expression, "input": [p.images[0].size[1], p.images[0].size[0]],
+            "output": [p.output.size[1], p.output.size[0]], "passes": passes, "fetches": p.fetches,
+            "fetches_per_output_pixel": p.fetches_per_output_pixel, "paper_fetches": p.paper_fetches,
+            "estimate_s": estimate_seconds(p, model), "cost_model": model.name}
+
+
+def render(p: Plan) -> str:
+    """The human-readable ``pyramid plan`` report."""
+    h, w = p.images[0].size
+    oh, ow = p.output.size
+    lines = [f"plan   {p.expression}", f"input  {w}×{h} → output {ow}×{oh}, {len(p.passes)} pass(es)"]
+    for n, ps in enumerate(p.passes, 1):
+        img = p.images[ps.target]
+        t, l, b, r = img.guard
+        guard = f" + guard t{t} l{l} b{b} r{r}" if any(img.guard) else ""
+        srcs = ", ".join("input" if s == 0 else f"pass {s}" for s in sorted(ps.sources()))
+        lines.append(f"pass {n}  {ps.label}: {img.size[1]}×{img.size[0]}{guard}, reads {srcs}, "
+                     f"{ps.fetches:g} fetch(es) per fragment")
+        if ps.why:
+            lines.append(f"        chosen: {ps.why}")
+        for ph, taps in sorted(ps.phases.items(), reverse=True):
+            head = f"  phase {ph[0]},{ph[1]}" if len(ps.phases) > 1 else "  "
+            for i, tap in enumerate(taps):
+                src = "" if len(ps.sources()) == 1 else (" input" if tap.source == 0 else f" pass {tap.source}")
+                lines.append(f"{head if i == 0 else ' ' * len(head)}  {tap.sampler:<7} at "
+                             f"({float(-tap.offset[1]):+.2f}, {float(-tap.offset[0]):+.2f}) × {tap.weight}{src}")
+    paper = "n/a" if p.paper_fetches is None else f"{p.paper_fetches:g}"
+    lines.append(f"fetches {p.fetches:g} (paper: {paper}); per output pixel {p.fetches_per_output_pixel:.2f}")
+    model = cost.model()
+    lines.append(f"estimate {cost.format_seconds(estimate_seconds(p, model))} for the passes "
+                 f"(no upload, read-back or compile; {model.name})")
+    return "\n".join(lines)
