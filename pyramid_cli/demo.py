@@ -1,5 +1,5 @@
 """The main job of ``make demo``: the paper's Figure 3 comparison and an analysis-filter
-comparison on a zone plate, run on the shipped samples.
+comparison on a zone plate, run on the shipped samples (installed with the package).
 
     python -m pyramid_cli.demo OUTDIR
 """
@@ -9,6 +9,7 @@ from __future__ import annotations
 import os
 import sys
 import time
+from importlib.resources import files
 
 import numpy as np
 
@@ -18,8 +19,7 @@ from .session import Session
 from .sheet import contact_sheet
 from .work import Blur, Filter
 
-HERE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-SAMPLES = os.path.join(HERE, "samples")
+SAMPLES = str(files("pyramid_cli.samples"))
 
 
 def _png(path: str, pixels: np.ndarray, like: io.ImageInfo) -> None:
@@ -70,4 +70,4 @@ def main(outdir: str) -> None:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1] if len(sys.argv) > 1 else os.path.join(SAMPLES, "out"))
+    main(sys.argv[1] if len(sys.argv) > 1 else os.path.join("samples", "out"))
