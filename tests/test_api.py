@@ -9,9 +9,9 @@ import pytest
 
 import pyramid_cli as pyr
 from pyramid_cli import api, pyramids, reference
-from pyramid_cli.geometry import mip_levels
 from pyramid_cli.border import Border
 from pyramid_cli.errors import PyramidError
+from pyramid_cli.geometry import mip_levels
 from pyramid_cli.parse import parse
 
 SIZES = [(1, 1), (1, 7), (5, 3), (17, 13), (129, 67)]

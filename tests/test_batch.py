@@ -12,6 +12,8 @@ from pyramid_cli.batch import output_for, plan_jobs
 from pyramid_cli.cli import main
 from pyramid_cli.errors import UsageError
 
+pytestmark = pytest.mark.cli
+
 
 def write_png(path, seed):
     px = (np.random.default_rng(seed).random((12, 10, 3)) * 255).astype(np.uint8)

@@ -13,6 +13,7 @@ ROOT = Path(__file__).resolve().parent.parent
 BENCH = ROOT / "bench" / "run.py"
 
 
+@pytest.mark.slow
 def test_bench_quick_startup_writes_json(tmp_path):
     out = tmp_path / "bench.json"
     p = subprocess.run([sys.executable, str(BENCH), "--quick", "--only", "startup", "--reps", "1",

@@ -67,6 +67,7 @@ def test_synthetic_passes_have_the_fetches_they_claim():
             assert first[2] + first[3] == alone and tuple(shape) == (64, 64)
 
 
+@pytest.mark.slow
 @pytest.mark.gl
 def test_quick_calibration_prints_a_model_and_writes_nothing(gl_executor):
     before = (ROOT / "pyramid_cli" / cost.MODEL_FILE).read_text()

@@ -14,6 +14,8 @@ from pyramid_cli import reference
 from pyramid_cli.cli import main
 from pyramid_cli.parse import parse
 
+pytestmark = pytest.mark.cli
+
 
 def invoke(*args):
     return CliRunner().invoke(main, list(args))

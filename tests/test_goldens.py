@@ -19,6 +19,8 @@ from pyramid_cli.pyramids import blur_reference
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
+pytestmark = pytest.mark.cli
+
 
 def write(path, px):
     out = oiio.ImageOutput.create(str(path))
@@ -86,6 +88,7 @@ def test_a_wrong_result_fails_the_golden_check(source):
     assert diff(d / "wrong.exr", d / "wrong_golden.exr").exit_code == 2
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(shutil.which("make") is None, reason="make is not installed")
 def test_samples_makefile_batch_job_passes(tmp_path):
     pyramid = os.path.join(os.path.dirname(sys.executable), "pyramid")

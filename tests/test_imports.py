@@ -73,7 +73,8 @@ def test_the_check_catches_a_forbidden_import(tmp_path):
     """Adding `import moderngl` to the planner, or `from .plan import plan` to the reference, is caught."""
     found = {name: imports_of(path) for name, path in modules().items()}
     plan_src = tmp_path / "lower.py"
-    plan_src.write_text((PACKAGE / "plan" / "lower.py").read_text(encoding="utf-8") + "\n\ndef f():\n    import moderngl\n")
+    lower = (PACKAGE / "plan" / "lower.py").read_text(encoding="utf-8")
+    plan_src.write_text(lower + "\n\ndef f():\n    import moderngl\n")
     ref_src = tmp_path / "reference.py"
     ref_src.write_text((PACKAGE / "reference.py").read_text(encoding="utf-8") + "\nfrom .plan import plan\n")
     found["plan.lower"], found["reference"] = imports_of(plan_src), imports_of(ref_src)

@@ -86,6 +86,7 @@ ALPHABET = st.sampled_from(list("⊗↓↑↘↖↙*v^()[];/,-_ {}×x²³⁴ˣ\\
     "box", "box4", "bartlett", "quadratic", "cubic", "doosabin", "midpoint", "g", " ", "h_", "(x)", "^{4×4}"])
 
 
+@pytest.mark.slow
 @settings(max_examples=3000, deadline=None)
 @given(st.lists(ALPHABET, max_size=14).map("".join) | st.text(max_size=30))
 def test_fuzz_any_string_parses_or_points_inside_it(text):

@@ -145,6 +145,7 @@ def test_plan_cli_report_and_bad_size():
     assert r.exit_code == 2 and "WIDTHxHEIGHT" in r.output
 
 
+@pytest.mark.slow
 def test_readme_fetch_table_is_generated_and_current():
     import subprocess
     import sys
