@@ -141,6 +141,28 @@ class _Program:
             self.program[name].value = value
 
 
+class _Clock:
+    """Laps between ``ctx.finish()`` calls, by name (:meth:`GLExecutor.profile`)."""
+
+    def __init__(self, per_pass: bool):
+        import time
+
+        self.per_pass = per_pass
+        self.now = time.perf_counter
+        self.laps: dict[str, list[float]] = {"upload": [], "passes": [], "readback": []}
+        self.t = 0.0
+
+    def start(self, ctx) -> None:
+        ctx.finish()
+        self.t = self.now()
+
+    def lap(self, ctx, name: str) -> None:
+        ctx.finish()
+        t = self.now()
+        self.laps[name].append(t - self.t)
+        self.t = t
+
+
 class GLExecutor:
     """Runs plans on one headless EGL context.
 
@@ -164,6 +186,7 @@ class GLExecutor:
         self._free: dict[tuple[tuple[int, int], str], list[_Target]] = {}
         self._buffers: dict[tuple[tuple[int, ...], str], np.ndarray] = {}
         self.compiles = 0  # programs built so far (the cache's misses)
+        self._clock: _Clock | None = None
         self._info: dict = {}
         self._depth = 0
 
@@ -445,6 +468,27 @@ class GLExecutor:
                 out[i].append(s)
         return out
 
+    def profile(self, plan: Plan, images, dtype=np.float32, per_pass: bool = True) -> dict:
+        """Run ``plan`` once, timed: upload, the passes and read-back, with ``ctx.finish()`` between.
+
+        The timing hook of the benchmarks. With ``per_pass`` every pass is followed by a
+        finish and timed alone (``passes`` lists them, channel group after group); without,
+        the passes of a group run back to back between two finishes (``passes`` holds one
+        span per group). ``device`` is their sum; ``total`` the whole call.
+        """
+        import time
+
+        self._clock = _Clock(per_pass)
+        try:
+            t0 = time.perf_counter()
+            self.run_outputs(plan, images, dtype)
+            total = time.perf_counter() - t0
+        finally:
+            clock, self._clock = self._clock, None
+        laps = clock.laps
+        return {"upload": sum(laps["upload"]), "passes": laps["passes"], "device": sum(laps["passes"]),
+                "readback": sum(laps["readback"]), "total": total}
+
     def prepare(self, plan: Plan) -> None:
         """Compile ``plan``'s programs and put the textures one run takes into the pool.
 
@@ -468,7 +512,12 @@ class GLExecutor:
         """All passes for one group of ≤ 4 channels; writes the read-back images into ``outs``."""
         ctx = self.ctx
         dtype = PRECISIONS[self.precision]
+        clock = self._clock
+        if clock:
+            clock.start(ctx)
         held: dict[int, _Target] = {k: self._upload(a) for k, a in zip(plan.inputs, inputs, strict=True)}
+        if clock:
+            clock.lap(ctx, "upload")
         for ps, prog, done in zip(plan.passes, programs, self._releases(plan), strict=True):
             target_image = plan.images[ps.target]
             stored = target_image.stored
@@ -486,9 +535,13 @@ class GLExecutor:
             target.fbo.use()                  # bind first: ctx.viewport is stored with the bound framebuffer
             ctx.viewport = (0, 0, wc, wr)
             prog.vao.render(vertices=3)
+            if clock and clock.per_pass:
+                clock.lap(ctx, "passes")
             held[ps.target] = target
             for s in done:
                 self._release(held.pop(s))
+        if clock and not clock.per_pass:
+            clock.lap(ctx, "passes")
         inputs_by_index = dict(zip(plan.inputs, inputs, strict=True))
         for j, (k, out) in enumerate(zip(plan.outputs, outs, strict=True)):
             if k in inputs_by_index:  # an input read back as given (e.g. level 0 of a pyramid)
@@ -497,6 +550,8 @@ class GLExecutor:
             im = plan.images[k]
             rows, cols = im.size
             self._read_back(held[k], (im.guard[1], im.guard[0], cols, rows), out, slot=j)
+        if clock:
+            clock.lap(ctx, "readback")
         for t in held.values():
             self._release(t)
 

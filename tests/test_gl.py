@@ -371,3 +371,17 @@ def test_runs_after_clear_pool(gl):
         np.testing.assert_array_equal(fresh.run(p, image), first)
         assert fresh.error == "GL_NO_ERROR"
     np.testing.assert_allclose(first, reference.run(expr, image), rtol=0, atol=1e-5)
+
+
+@gl_mark
+@pytest.mark.parametrize("per_pass", [True, False])
+def test_profile_times_a_run_and_computes_the_same(gl, per_pass):
+    _, p = planned("doosabin *^ (box4 *v g)", (33, 17))
+    image = random_image((33, 17), 6, 1)
+    t = gl.profile(p, image, per_pass=per_pass)
+    groups = 2  # six channels run as two groups of four
+    assert len(t["passes"]) == (len(p.passes) * groups if per_pass else groups)
+    assert all(v >= 0 for v in t["passes"]) and t["device"] == sum(t["passes"])
+    assert 0 < t["upload"] + t["device"] + t["readback"] <= t["total"]
+    assert gl._clock is None
+    np.testing.assert_array_equal(gl.run(p, image), gl.run(p, image))
