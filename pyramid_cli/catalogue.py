@@ -159,10 +159,6 @@ def synthesis(key: str) -> NamedSynthesis:
     return _SYNTH[key]
 
 
-def mask_keys() -> list[str]:
-    return sorted(_MASKS) + ["gauss5", "gauss7"]
-
-
 def synthesis_keys() -> list[str]:
     return sorted(_SYNTH)
 

@@ -88,16 +88,6 @@ def available() -> tuple[bool, str]:
         ctx.release()
 
 
-def info() -> dict:
-    """Renderer, version and limits of the GL behind the executor (for ``--verbose``)."""
-    ctx = _create_context()
-    try:
-        with ctx:
-            return _context_info(ctx)
-    finally:
-        ctx.release()
-
-
 def _context_info(ctx) -> dict:
     return {
         "vendor": ctx.info["GL_VENDOR"],
@@ -180,7 +170,6 @@ class GLExecutor:
             raise ValueError(f"precision must be one of {sorted(PRECISIONS)}, not {precision!r}")
         self.precision = precision
         self._ctx = None
-        self._vertex = None
         self._programs: dict[generate.PassShape, _Program] = {}
         self._plan_programs: dict[int, tuple[Plan, list[_Program]]] = {}
         self._free: dict[tuple[tuple[int, int], str], list[_Target]] = {}
@@ -556,15 +545,4 @@ class GLExecutor:
             self._release(t)
 
 
-_default: GLExecutor | None = None
-
-
-def default_executor() -> GLExecutor:
-    """A process-wide executor (float precision), so programs compile once per process."""
-    global _default
-    if _default is None:
-        _default = GLExecutor()
-    return _default
-
-
-__all__ = ["GLExecutor", "available", "info", "default_executor", "texture_size", "INSTALL_HINT"]
+__all__ = ["GLExecutor", "available", "texture_size", "INSTALL_HINT"]

@@ -15,8 +15,6 @@ from .expr import Apply, Expr, Input, Named, Op, steps
 from .geometry import level_sizes
 from .plan import Builder, Plan, plan_steps
 
-ANALYSIS = list(catalogue.ANALYSIS_FILTERS)
-SYNTHESIS = list(catalogue.SYNTHESIS_FILTERS)
 A0, S0 = catalogue.ANALYSIS_DEFAULT, catalogue.SYNTHESIS_DEFAULT
 
 

@@ -5,11 +5,11 @@ import pytest
 from click.testing import CliRunner
 
 from pyramid_cli import emulate, reference
+from pyramid_cli.catalogue import ANALYSIS_FILTERS as ANALYSIS
+from pyramid_cli.catalogue import SYNTHESIS_FILTERS as SYNTHESIS
 from pyramid_cli.cli import main
 from pyramid_cli.parse import parse
 from pyramid_cli.pyramids import (
-    ANALYSIS,
-    SYNTHESIS,
     blur_plan,
     blur_reference,
     impulse_sigma,
