@@ -271,20 +271,24 @@ def read_image(path: str | os.PathLike[str], *, colorspace: str = "auto", alpha:
     return io.read_image(path, colorspace=colorspace, alpha=alpha, nan=nan)
 
 
-def write_image(path: str | os.PathLike[str], image, *, pixel_type: str | None = None,
-                colorspace: str | None = None, alpha: str | None = None, dither: bool = False,
-                compression: str | None = None, force: bool = False,
+def write_image(path: str | os.PathLike[str], image, *, like: io.Image | None = None,
+                pixel_type: str | None = None, colorspace: str | None = None, alpha: str | None = None,
+                dither: bool = False, compression: str | None = None, force: bool = False,
                 channel_names: list[str] | None = None) -> None:
     """Write an :class:`~pyramid_cli.io.Image` (like its source) or an array of linear pixels, atomically.
 
-    An array is stored as float where the format allows, channels named by count
-    (Y, YA, RGB, RGBA, or ``channel_names``); ``pixel_type`` etc. are the CLI's options.
+    An array is stored like ``like`` (an image from :func:`read_image`: its type,
+    channels, colour and alpha rules and metadata) or, without it, as float where the
+    format allows with channels named by count (Y, YA, RGB, RGBA, or ``channel_names``).
+    ``pixel_type`` etc. are the CLI's options.
     """
     if not isinstance(image, io.Image):
         pixels = as_pixels(image)
         pixels = pixels if pixels.ndim == 3 else pixels[:, :, None]
-        image = io.Image(np.ascontiguousarray(pixels, dtype=np.float32),
-                         io.info_for_array(path, pixels.shape[2], channel_names))
+        info = like.spec if like is not None else io.info_for_array(path, pixels.shape[2], channel_names)
+        if len(info.channel_names) != pixels.shape[2]:
+            raise ValueError(f"{pixels.shape[2]} channel(s) cannot be stored like {len(info.channel_names)}")
+        image = io.Image(np.ascontiguousarray(pixels, dtype=np.float32), info)
     io.write_image(path, image, pixel_type=pixel_type, colorspace=colorspace, alpha=alpha, dither=dither,
                    compression=compression, force=force)
 

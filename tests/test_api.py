@@ -149,3 +149,14 @@ def test_docstring_examples_run():
     from pyramid_cli import session
 
     assert doctest.testmod(session).failed == 0
+
+
+def test_write_like_a_source_keeps_its_encoding(tmp_path):
+    src = np.random.default_rng(8).random((6, 5, 3)).astype(np.float32)
+    pyr.write_image(tmp_path / "src.png", src, pixel_type="uint8")
+    img = pyr.read_image(tmp_path / "src.png")
+    pyr.write_image(tmp_path / "out.png", pyr.blur(img.pixels, 1, backend="cpu"), like=img)
+    out = pyr.read_image(tmp_path / "out.png")
+    assert out.spec.pixel_type == "uint8" and out.spec.colorspace == "srgb"
+    with pytest.raises(ValueError, match="1 channel"):
+        pyr.write_image(tmp_path / "bad.png", np.ones((2, 2)), like=img)
