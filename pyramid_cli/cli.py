@@ -14,6 +14,12 @@ import click
 
 from . import catalogue
 from .errors import EXIT_CODES, ExpressionError, PyramidError, UsageError
+from .options import STRATEGIES
+
+
+def _choice(values) -> click.Choice:
+    return click.Choice(list(values))
+
 
 EXIT_CODE_HELP = "\b\nExit codes:\n" + "\n".join(f"  {code}  {text}" for code, text in EXIT_CODES.values())
 
@@ -119,7 +125,7 @@ def _size(ctx, param, value):
 @click.argument("expression", type=EXPR)
 @click.option("--size", required=True, callback=_size, metavar="WxH", help="Input image size, e.g. 1920x1080.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of the report.")
-@click.option("--strategy", type=click.Choice(["cost", "paper"]), default="cost", show_default=True,
+@click.option("--strategy", type=_choice(STRATEGIES), default="cost", show_default=True,
               help="cost: per filter, the paper's decomposition or one fused pass, whichever is faster by the "
                    "cost model calibrated by bench/calibrate.py (pyramid_cli/cost_model.json); paper: always "
                    "the paper's.")
@@ -141,10 +147,6 @@ def plan_command(expression, size, as_json: bool, strategy: str) -> None:
     p = plan(expression, (h, w), strategy)
     check(p)
     click.echo(json.dumps(to_json(p), ensure_ascii=False) if as_json else render(p))
-
-
-def _choice(values) -> click.Choice:
-    return click.Choice(list(values))
 
 
 def io_options(f):

@@ -126,7 +126,7 @@ def process(paths: list[str], template: str | None, work: Work, session: Session
         half = (not mip_tile and image.pixels.dtype == np.float16
                 and io.stores_half_unchanged(job.output, image.spec, pixel_type=wo.pixel_type))
         outs = session.run(work, [image.pixels], np.float16 if half else np.float32)
-        reporter.detail(f"{job.input}: {io.describe_rules(image.spec)}; executor {session.ran}")
+        reporter.detail(f"{io.describe_rules(image.spec)}; executor {session.ran}")
         return [io.Image(px, image.spec) for px in (outs if mip_tile else outs[-1:])]
 
     def write_job(job, images):
@@ -181,7 +181,7 @@ def write_levels_files(input_path: str, pattern: str, work: Levels | Laplacian, 
     laplacian = isinstance(work, Laplacian)
     image = _read(input_path, ro, reporter)
     stack = session.run(work, [image.pixels])
-    reporter.detail(f"{input_path}: {io.describe_rules(image.spec)}; executor {session.ran}")
+    reporter.detail(f"{io.describe_rules(image.spec)}; executor {session.ran}")
     images = [io.Image(px, image.spec) for px in stack]
     options = wo.for_inputs([input_path])
     if laplacian:
