@@ -35,6 +35,7 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
+SCRIPTS = Path(__file__).resolve().parent / "scripts"  # helper programs run in fresh interpreters
 if str(ROOT) not in sys.path:  # run from a checkout even without the editable install
     sys.path.insert(0, str(ROOT))
 
@@ -206,109 +207,30 @@ def plan_bytes(plan) -> int:
     return total
 
 
-class _TimedVAO:
-    """Stands in for a program's vertex array: renders, waits for the GL, records the pass time."""
-
-    def __init__(self, vao, ctx, sink: list):
-        self._vao, self._ctx, self._sink = vao, ctx, sink
-
-    def render(self, *a, **k):
-        t0 = perf()
-        self._vao.render(*a, **k)
-        self._ctx.finish()
-        self._sink.append(perf() - t0)
-
-    def __getattr__(self, name):
-        return getattr(self._vao, name)
-
-
 class GLSplit:
-    """Times one executor run split into upload / each pass / read-back, with ``ctx.finish()`` between.
+    """One executor run split into upload / passes / read-back, through ``GLExecutor.profile``.
 
-    The executor exposes no timing hooks, so this wraps its private ``_upload`` and each cached
-    program's ``vao`` for the duration of one run. ``available`` is False (and ``why`` says so)
-    when those internals are not there; the suite then reports only upload+run+read-back.
-
-    With ``per_pass=False`` the passes run back to back as the executor issues them: one
-    ``ctx.finish()`` before the first and one after the last, and ``device`` is that span (on a
-    GPU a finish after every pass costs about as much as a pass at 4K). ``passes`` is then empty.
+    With ``per_pass`` every pass is followed by ``ctx.finish()`` and timed alone; without, the
+    passes run back to back as the executor issues them, between two finishes (on a GPU a finish
+    after every pass costs about as much as a pass at 4K), and ``passes`` is then one span per
+    channel group.
     """
 
     def __init__(self, executor, per_pass: bool = True):
         self.ex = executor
         self.per_pass = per_pass
-        self.available = all(hasattr(executor, a) for a in ("_upload", "_programs", "program", "current"))
-        self.why = "" if self.available else "GLExecutor internals (_upload/_programs) changed; no split"
+        self.available = hasattr(executor, "profile")
+        self.why = "" if self.available else "this executor has no profile() hook; no split"
 
     def __call__(self, plan, img) -> dict:
-        ex = self.ex
-        passes: list[float] = []
-        upload = [0.0]
-        groups = -(-(img.shape[2] if img.ndim == 3 else 1) // 4)
-        with ex.current() as ctx:
-            progs = {id(p): p for p in (ex.program(ps) for ps in plan.passes)}.values()
-            real_upload = ex._upload
-
-            def timed_upload(im):
-                t0 = perf()
-                t = real_upload(im)
-                ctx.finish()
-                upload[0] += perf() - t0
-                return t
-
-            saved = [(p, p.vao) for p in progs]
-            ex._upload = timed_upload
-            span = _Span(ctx, len(plan.passes))
-            for p, vao in saved:
-                p.vao = _TimedVAO(vao, ctx, passes) if self.per_pass else _SpanVAO(vao, span)
-            try:
-                ctx.finish()
-                t0 = perf()
-                ex.run(plan, img)
-                total = perf() - t0
-            finally:
-                del ex._upload  # back to the class's method
-                for p, vao in saved:
-                    p.vao = vao
-        device = sum(passes) if self.per_pass else sum(span.spans)
-        if not self.per_pass and len(span.spans) != groups:
-            raise RuntimeError(f"GLSplit: {len(span.spans)} pass spans for {groups} channel group(s)")
-        return {"upload": upload[0], "device": device, "readback_host": total - upload[0] - device,
-                "passes": passes}
+        t = self.ex.profile(plan, [img], img.dtype if img.dtype in (np.float16, np.float32) else np.float32,
+                            per_pass=self.per_pass)
+        return {"upload": t["upload"], "device": t["device"], "readback_host": t["total"] - t["upload"] - t["device"],
+                "passes": t["passes"] if self.per_pass else []}
 
 
-class _Span:
-    """Times runs of ``n`` consecutive passes: finish before the first, finish after the last."""
-
-    def __init__(self, ctx, n: int):
-        self.ctx, self.n, self.count, self.t0, self.spans = ctx, n, 0, 0.0, []
-
-    def render(self, vao, *a, **k):
-        if self.count % self.n == 0:
-            self.ctx.finish()
-            self.t0 = perf()
-        vao.render(*a, **k)
-        self.count += 1
-        if self.count % self.n == 0:
-            self.ctx.finish()
-            self.spans.append(perf() - self.t0)
-
-
-class _SpanVAO:
-    """Stands in for a program's vertex array in a back-to-back timing (:class:`_Span`)."""
-
-    def __init__(self, vao, span: _Span):
-        self._vao, self._span = vao, span
-
-    def render(self, *a, **k):
-        self._span.render(self._vao, *a, **k)
-
-    def __getattr__(self, name):
-        return getattr(self._vao, name)
-
-
-def _filter_contenders(runner, split, plan, img, peer_fns, copy_in, copy_plan) -> dict:
-    fns = {"GL upload+run+readback": lambda: runner.run_plan(plan, img)}
+def _filter_contenders(session, split, plan, img, peer_fns, copy_in, copy_plan) -> dict:
+    fns = {"GL upload+run+readback": lambda: session.run_plan(plan, [img])}
     if split.available:
         fns["GL split"] = lambda: split(plan, img)
     for pname, fn in peer_fns.items():
@@ -320,10 +242,11 @@ def _filter_contenders(runner, split, plan, img, peer_fns, copy_in, copy_plan) -
 
 
 def scenario_filter(args, libs: dict, report: dict) -> None:
+    from pyramid_cli.geometry import level_sizes
     from pyramid_cli.parse import parse
     from pyramid_cli.plan import plan as make_plan
-    from pyramid_cli.pyramids import blur_plan, level_sizes
-    from pyramid_cli.run import Runner
+    from pyramid_cli.pyramids import blur_plan
+    from pyramid_cli.session import Session
 
     rows, cols = (270, 480) if args.quick else (2160, 3840)
     reps = args.reps or (2 if args.quick else 5)
@@ -331,17 +254,17 @@ def scenario_filter(args, libs: dict, report: dict) -> None:
     sc = report["scenarios"]["filter"] = {"size": [rows, cols], "reps": reps, "cases": [], "notes": []}
     notes = sc["notes"]
     try:
-        runner = Runner("gl")
+        session = Session("gl")
     except Exception as e:  # noqa: BLE001
         notes.append(f"GL backend unavailable ({e}); scenario skipped")
         report["skipped"].append("filter: no GL context")
         return
-    ex = runner._gl
+    ex = session.executor
     split = GLSplit(ex)
     if not split.available:
         notes.append(split.why)
     notes.append("GL device-only = the passes, each followed by ctx.finish() (upload and read-back timed apart "
-                 "in the same run by wrapping the executor's _upload and program vertex arrays)")
+                 "in the same run through GLExecutor.profile)")
     notes.append("memcpy floors: np.copyto of the input's bytes, and of the plan's bytes "
                  "(Σ passes: target stored extent + each source's stored extent, ×16 B RGBA32F)")
     levels_full = max(math.ceil(math.log2(rows)), math.ceil(math.log2(cols)))
@@ -398,6 +321,10 @@ def scenario_filter(args, libs: dict, report: dict) -> None:
             "opencv pyrDown⁵/pyrUp⁵": cv2 and cv_blur,
             "skimage reduce⁵/expand⁵": ski and ski_blur,
         }),
+        ("blur 5 levels box4/doosabin, border mirror",
+         blur_plan((rows, cols), 5, "box4", "doosabin", border="mirror"), {
+             "opencv pyrDown⁵/pyrUp⁵": cv2 and cv_blur,
+         }),
         ("gauss7 (binomial 7×7)", make_plan(parse("gauss7 * g"), (rows, cols)), {
             "opencv GaussianBlur 7×7 σ=√6/2": cv2 and (lambda x: cv2.GaussianBlur(
                 x, (7, 7), SIGMA7, borderType=cv2.BORDER_REPLICATE)),
@@ -419,7 +346,7 @@ def scenario_filter(args, libs: dict, report: dict) -> None:
             pb = plan_bytes(plan)
             pb_src = np.ones(pb // 4, np.float32)
             pb_dst = np.empty_like(pb_src)
-            fns = _filter_contenders(runner, split, plan, img, peer_fns, (src_in, dst_in), (pb_src, pb_dst))
+            fns = _filter_contenders(session, split, plan, img, peer_fns, (src_in, dst_in), (pb_src, pb_dst))
             log(f"filter: {name}, {cols}×{rows}×{channels} …")
             res = interleaved(fns, reps)
             skipped = [p for p, fn in peer_fns.items() if not fn]
@@ -446,7 +373,7 @@ def scenario_filter(args, libs: dict, report: dict) -> None:
             sc["cases"].append(case)
             del pb_src, pb_dst
         del src_in, dst_in, img
-    runner.close()
+    session.close()
 
 
 # ====================================================================== inputs for process scenarios
@@ -478,66 +405,6 @@ def _write(oiio, path: Path, spec, data) -> None:
     out.close()
 
 
-# Scripts run in fresh interpreters (sys.argv: input output [input output …]).
-IO_FLOOR_SCRIPT = r"""
-import sys, time, OpenImageIO as oiio
-t0 = time.perf_counter()
-a = sys.argv[1:]
-for src, dst in zip(a[0::2], a[1::2]):
-    inp = oiio.ImageInput.open(src)
-    spec = inp.spec()
-    px = inp.read_image(0, 0, 0, spec.nchannels, spec.format)
-    inp.close()
-    out = oiio.ImageOutput.create(dst)
-    out.open(dst, spec)
-    out.write_image(px)
-    out.close()
-print(time.perf_counter() - t0)
-"""
-
-# sys.argv: MODE input output …; MODE "oiio-exr" reads/writes EXR with OpenImageIO (for OpenCV builds
-# without the OpenEXR codec, e.g. the opencv-python-headless 5.0 wheels), the filter stays OpenCV's.
-OPENCV_SCRIPT = r"""
-import os, sys, time
-os.environ["OPENCV_IO_ENABLE_OPENEXR"] = "1"
-import cv2, numpy as np
-t0 = time.perf_counter()
-mode, a = sys.argv[1], sys.argv[2:]
-for src, dst in zip(a[0::2], a[1::2]):
-    exr = src.endswith(".exr")
-    if exr and mode == "oiio-exr":
-        import OpenImageIO as oiio
-        inp = oiio.ImageInput.open(src)
-        spec = inp.spec()
-        x = inp.read_image(0, 0, 0, spec.nchannels, "float")
-        inp.close()
-    else:
-        x = cv2.imread(src, cv2.IMREAD_UNCHANGED)
-    eight = x.dtype == np.uint8
-    x = x.astype(np.float32) / 255 if eight else x.astype(np.float32)
-    sizes = [x.shape[:2]]
-    for _ in range(5):
-        x = cv2.pyrDown(x)
-        sizes.append(x.shape[:2])
-    for k in range(5, 0, -1):
-        h, w = sizes[k - 1]
-        x = cv2.pyrUp(x, dstsize=(w, h))
-    if eight:
-        cv2.imwrite(dst, np.clip(np.rint(x * 255), 0, 255).astype(np.uint8), [cv2.IMWRITE_PNG_COMPRESSION, 6])
-    elif mode == "oiio-exr":
-        spec = oiio.ImageSpec(x.shape[1], x.shape[0], x.shape[2], "half")
-        spec.attribute("compression", "piz" if "piz" in src else "zip")
-        out = oiio.ImageOutput.create(dst)
-        out.open(dst, spec)
-        out.write_image(x.astype(np.float16))
-        out.close()
-    else:
-        comp = cv2.IMWRITE_EXR_COMPRESSION_PIZ if "piz" in src else cv2.IMWRITE_EXR_COMPRESSION_ZIP
-        cv2.imwrite(dst, x, [cv2.IMWRITE_EXR_TYPE, cv2.IMWRITE_EXR_TYPE_HALF, cv2.IMWRITE_EXR_COMPRESSION, comp])
-print(time.perf_counter() - t0)
-"""
-
-
 def opencv_has_exr(cv2) -> bool:
     """Whether this OpenCV build reads and writes OpenEXR (the 5.0 headless wheels do not)."""
     os.environ.setdefault("OPENCV_IO_ENABLE_OPENEXR", "1")
@@ -547,25 +414,6 @@ def opencv_has_exr(cv2) -> bool:
             return bool(cv2.imwrite(p, np.zeros((2, 2, 3), np.float32))) and cv2.imread(p, -1) is not None
         except Exception:  # noqa: BLE001 - "could not find a writer" is a cv2.error
             return False
-
-
-# One process, one Runner, the CLI's own read / plan / run / write functions (what a batch CLI would do).
-PYRAMID_BATCH_SCRIPT = r"""
-import sys, time
-t0 = time.perf_counter()
-from pyramid_cli import io
-from pyramid_cli.pyramids import blur_plan
-from pyramid_cli.run import Runner
-runner = Runner("gl")
-t1 = time.perf_counter()
-a = sys.argv[1:]
-for src, dst in zip(a[0::2], a[1::2]):
-    image = io.read_image(src)
-    image.pixels = runner.run_plan(blur_plan(image.pixels.shape[:2], 5), image.pixels)
-    io.write_image(dst, image, inputs=(src,))
-runner.close()
-print(time.perf_counter() - t1, t1 - t0)
-"""
 
 
 def in_process_profile(path: Path, out: Path) -> dict:
@@ -578,7 +426,7 @@ def in_process_profile(path: Path, out: Path) -> dict:
 
     t = {}
     t["fresh interpreter + imports (subprocess)"] = cmd_time([sys.executable, "-c", (
-        "import numpy, OpenImageIO, moderngl, click, pyramid_cli.cli, pyramid_cli.io, pyramid_cli.run, "
+        "import numpy, OpenImageIO, moderngl, click, pyramid_cli.cli, pyramid_cli.io, pyramid_cli.session, "
         "pyramid_cli.gl, pyramid_cli.pyramids")])
     t0 = perf()
     image = io.read_image(str(path), keep_half=True)
@@ -648,11 +496,11 @@ def scenario_e2e(args, libs: dict, report: dict, tmp: Path) -> None:
             "pyramid blur --levels 5": lambda p=path, e=ext: cmd_time(
                 [*pyr, "blur", "--levels", "5", "--backend", "gl", "-q", "--force", str(p), str(folder / f"o_pyr{e}")]),
             "OIIO read+write (python)": lambda p=path, e=ext: cmd_time(
-                [sys.executable, "-c", IO_FLOOR_SCRIPT, str(p), str(folder / f"o_io{e}")]),
+                [sys.executable, str(SCRIPTS / "io_floor.py"), str(p), str(folder / f"o_io{e}")]),
         }
         if "cv2" in libs:
             fns["OpenCV script"] = lambda p=path, e=ext: cmd_time(
-                [sys.executable, "-c", OPENCV_SCRIPT, cv_mode, str(p), str(folder / f"o_cv{e}")])
+                [sys.executable, str(SCRIPTS / "opencv_blur.py"), cv_mode, str(p), str(folder / f"o_cv{e}")])
         log(f"e2e: {label} …")
         res = interleaved(fns, reps)
         case = {"case": label, "file_bytes": path.stat().st_size,
@@ -681,7 +529,7 @@ def scenario_batch(args, libs: dict, report: dict, tmp: Path) -> None:
     many = "INPUT..." in help_text and "TEMPLATE" in help_text
     sc["cli_accepts_many_inputs"] = many
     sc["notes"].append("one-process loop: a python script that imports pyramid_cli and loops io.read_image → "
-                       "blur_plan → Runner.run_plan → io.write_image with one Runner (one GL context, programs "
+                       "Session.run(Blur(levels=5)) → io.write_image with one Session (one GL context, programs "
                        "compiled once)")
     sc["notes"].append("`pyramid blur IN… -o TEMPLATE` (the CLI's own batch mode) is timed too and carries the "
                        "targets: per-image cost = its wall time / N vs the OIIO loop's wall time / N"
@@ -704,7 +552,7 @@ def scenario_batch(args, libs: dict, report: dict, tmp: Path) -> None:
     def loop(script, n, tag):
         def fn():
             t0 = perf()
-            p = subprocess.run([sys.executable, "-c", script, *pairs(n, tag)], capture_output=True, text=True)
+            p = subprocess.run([sys.executable, str(script), *pairs(n, tag)], capture_output=True, text=True)
             wall = perf() - t0
             if p.returncode:
                 raise RuntimeError(p.stderr[-600:])
@@ -730,9 +578,9 @@ def scenario_batch(args, libs: dict, report: dict, tmp: Path) -> None:
 
     for n in counts:
         n_calls = min(n, sample_calls)
-        fns = {"pyramid, one process": loop(PYRAMID_BATCH_SCRIPT, n, "a"),
+        fns = {"pyramid, one process": loop(SCRIPTS / "pyramid_batch.py", n, "a"),
                **({"pyramid blur IN… -o TEMPLATE": cli_batch(n)} if many else {}),
-               "OIIO read+write, one process": loop(IO_FLOOR_SCRIPT, n, "b"),
+               "OIIO read+write, one process": loop(SCRIPTS / "io_floor.py", n, "b"),
                f"pyramid blur, one call each ({n_calls} timed)": calls(n_calls, "c")}
         log(f"batch: {n} images …")
         res = interleaved(fns, reps, warmup=0)
@@ -989,9 +837,8 @@ def targets(report: dict, args, tmp: Path) -> None:
                 ins = sorted(folder.glob("im*.png"))[:c["images"]]
                 argv = [str(x) for p in ins for x in (p, folder / "out" / f"p_{p.name}")]
                 log("profile: batch …")
-                script = tmp / "batch_loop.py"
-                script.write_text(PYRAMID_BATCH_SCRIPT)
-                prof["batch"] = {"cprofile_one_process_loop": cprofile_top([str(script), *argv], lines=28)}
+                prof["batch"] = {"cprofile_one_process_loop": cprofile_top([str(SCRIPTS / "pyramid_batch.py"), *argv],
+                                                                           lines=28)}
                 if b.get("cli_accepts_many_inputs"):
                     prof["batch"]["cprofile_cli_batch"] = cprofile_top(
                         ["-m", "pyramid_cli.cli", "blur", "--levels", "5", "--backend", "gl", "-q", "--force",
