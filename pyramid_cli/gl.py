@@ -59,6 +59,7 @@ INSTALL_HINT = ("install the drivers: sudo apt-get install -y libegl1 libgl1 lib
 PRECISIONS = {"float": "f4", "half": "f2"}  # intermediate and target texture formats
 READ_DTYPES = {np.dtype(np.float32): "f4", np.dtype(np.float16): "f2"}
 BAND_BYTES = 8 << 20  # upload staging: rows of RGBA32F per texture write
+MAX_TEXTURE_BYTES = 2 << 30  # llvmpipe fails to attach a texture of 2 GiB (8193², 12000×6000: DESIGN.md §6)
 
 
 def _create_context():
@@ -301,10 +302,18 @@ class GLExecutor:
         import moderngl
 
         ctx = self.ctx
-        tex = ctx.texture((size[1], size[0]), 4, dtype=dtype)
-        tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
-        tex.repeat_x = tex.repeat_y = False  # clamp to edge: the texture's own last texel
-        return _Target(tex, ctx.framebuffer(color_attachments=[tex]), size, dtype)
+        tex = None
+        try:
+            tex = ctx.texture((size[1], size[0]), 4, dtype=dtype)
+            tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
+            tex.repeat_x = tex.repeat_y = False  # clamp to edge: the texture's own last texel
+            return _Target(tex, ctx.framebuffer(color_attachments=[tex]), size, dtype)
+        except moderngl.Error as e:  # out of memory, an incomplete framebuffer: whatever the driver says
+            if tex is not None:
+                tex.release()
+            ctx.error  # noqa: B018 - reading it clears the GL error flag the failure left
+            reason = " ".join(str(e).split())
+            raise DataError(f"the GL cannot allocate a {size[1]}x{size[0]} RGBA {dtype} texture ({reason})") from None
 
     def _release(self, t: _Target) -> None:
         self._free.setdefault((t.size, t.dtype), []).append(t)
@@ -333,7 +342,8 @@ class GLExecutor:
 
     # ------------------------------------------------------------ running
     def check(self, plan: Plan) -> None:
-        """DataError if an image of ``plan`` or its texture exceeds GL_MAX_TEXTURE_SIZE."""
+        """DataError if an image of ``plan`` or its texture exceeds GL_MAX_TEXTURE_SIZE, or a texture
+        would reach 2 GiB (Mesa cannot attach one: "framebuffer is not complete")."""
         limit = self.max_texture_size
         for k in plan.inputs:
             rows, cols = plan.images[k].size
@@ -345,6 +355,9 @@ class GLExecutor:
             if th > limit or tw > limit:
                 raise DataError(f"image {k} of the plan needs a {tw}x{th} texture (power-of-two sides), "
                                 f"over the GL limit of {limit}x{limit}")
+            if th * tw * 16 >= MAX_TEXTURE_BYTES:
+                raise DataError(f"image {k} of the plan needs a {tw}x{th} RGBA32F texture (power-of-two sides) "
+                                f"of {th * tw * 16 / 2 ** 30:.0f} GiB; GL textures stay under 2 GiB")
 
     def run(self, plan: Plan, image) -> np.ndarray:
         """Execute ``plan`` on ``image`` (H, W) or (H, W, C); returns the output's logical pixels, float32.

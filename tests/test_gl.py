@@ -385,3 +385,23 @@ def test_profile_times_a_run_and_computes_the_same(gl, per_pass):
     assert 0 < t["upload"] + t["device"] + t["readback"] <= t["total"]
     assert gl._clock is None
     np.testing.assert_array_equal(gl.run(p, image), gl.run(p, image))
+
+
+@gl_mark
+@pytest.mark.parametrize("size", [(8193, 8193), (6000, 12000), (8192, 8193)])
+def test_textures_of_2_gib_are_refused_before_allocating(gl, size):
+    p = plan(parse("box *v g"), size)
+    with pytest.raises(DataError, match="GL textures stay under 2 GiB"):
+        gl.check(p)
+
+
+@gl_mark
+def test_allocation_failures_become_data_errors(gl, monkeypatch):
+    import moderngl
+
+    def fail(*a, **k):
+        raise moderngl.Error("the framebuffer is not complete")
+
+    monkeypatch.setattr(gl.ctx, "framebuffer", fail)
+    with pytest.raises(DataError, match="cannot allocate a 64x32 RGBA f4 texture"):
+        gl._acquire((32, 64), "f4")
