@@ -235,3 +235,34 @@ def test_cpu_backend_does_not_prepare_gl_work(tmp_path, monkeypatch):
     write_exr(src, np.random.default_rng(6).random((9, 7, 3)))
     r = invoke("blur", "--backend", "cpu", "--levels", "2", "-q", str(src), str(tmp_path / "o.exr"))
     assert r.exit_code == 0, r.output
+
+
+@pytest.mark.parametrize("border", ["mirror", "wrap", "zero"])
+def test_gl_runs_non_clamp_borders_itself_and_says_so(gl, tmp_path, border):
+    """--backend gl --border mirror runs on GL (the -v line names the executor that ran the image)."""
+    from pyramid_cli.pyramids import blur_reference
+
+    g = np.random.default_rng(7).random((21, 13, 3))
+    src, dst = tmp_path / "in.exr", tmp_path / "out.exr"
+    write_exr(src, g)
+    r = CliRunner().invoke(main, ["blur", "--backend", "gl", "--border", border, "--levels", "2", "-v", "--type",
+                                  "float", str(src), str(dst)])
+    assert r.exit_code == 0, r.output
+    assert "executor gl (" in r.stderr and "executor cpu" not in r.stderr and "reference" not in r.stderr
+    np.testing.assert_allclose(read(dst)[0], blur_reference(g.astype(np.float32).astype(np.float64), 2,
+                                                            border=border), rtol=0, atol=1e-5)
+
+
+@pytest.mark.parametrize("backend", ["cpu", "reference"])
+def test_every_backend_runs_every_command(tmp_path, backend):
+    src = tmp_path / "in.exr"
+    write_exr(src, np.random.default_rng(8).random((9, 11, 4)))
+    for args in (["apply", "quadratic"], ["blur", "--levels", "2", "--border", "wrap"], ["mipmap", "--tile", "16"]):
+        out = tmp_path / f"{args[0]}.exr"
+        r = invoke(args[0], "--backend", backend, "-q", *args[1:], str(src), str(out))
+        assert r.exit_code == 0 and out.exists(), r.output
+    r = invoke("levels", "--backend", backend, "--laplacian", "--multipart", "-q", str(src), str(tmp_path / "b.exr"))
+    assert r.exit_code == 0, r.output
+    r = invoke("collapse", "--backend", backend, "-q", str(tmp_path / "b.exr"), str(tmp_path / "back.exr"))
+    assert r.exit_code == 0, r.output
+    np.testing.assert_allclose(read(tmp_path / "back.exr")[0], read(src)[0], rtol=0, atol=2e-3)
