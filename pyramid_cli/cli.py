@@ -128,7 +128,7 @@ def _size(ctx, param, value):
 @click.option("--strategy", type=_choice(STRATEGIES), default="cost", show_default=True,
               help="cost: per filter, the paper's decomposition or one fused pass, whichever is faster by the "
                    "cost model calibrated by bench/calibrate.py (pyramid_cli/cost_model.json); paper: always "
-                   "the paper's.")
+                   "the paper's; fused: always one pass per filter (what the CPU executor runs).")
 def plan_command(expression, size, as_json: bool, strategy: str) -> None:
     """Show the render passes and bilinear taps that compute EXPRESSION.
 

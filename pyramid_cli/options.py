@@ -18,7 +18,7 @@ PIXEL_TYPES = ("uint8", "uint16", "half", "float")
 COLORSPACES = ("auto", "linear", "srgb")
 ALPHA_MODES = ("auto", "straight", "premultiplied", "none")
 NAN_POLICIES = ("keep", "zero", "fail")
-STRATEGIES = ("cost", "paper")
+STRATEGIES = ("cost", "paper", "fused")
 
 
 def check(name: str, value: str, choices) -> str:

@@ -63,14 +63,14 @@ def sigma_blend(sigma: float, analysis: str = A0, synthesis: str = S0) -> tuple[
 
 @lru_cache(maxsize=32)  # batches re-use a plan per image size
 def blur_plan_sigma(size: tuple[int, int], sigma: float, analysis: str = A0, synthesis: str = S0,
-                    border: str = "clamp"):
+                    border: str = "clamp", strategy: str = "cost"):
     """A blur of Gaussian-equivalent ``sigma`` (input pixels): the blend of the m- and (m+1)-level blurs
     whose variance is sigma², so the strength changes continuously with sigma. Returns (plan, levels, t)."""
     m, t = sigma_blend(sigma, analysis, synthesis)
     down = steps(_one_step(analysis, Op.DOWN))
     up = steps(_one_step(synthesis, Op.UP))
     sizes = level_sizes(size, m + 1)
-    b = Builder(size, border=border)
+    b = Builder(size, strategy, border)
     g = [0]
     for _ in range(m + 1):
         g.append(_run_steps(b, g[-1], down))
@@ -94,14 +94,14 @@ def _run_steps(b: Builder, source: int, step_list, crop=None) -> int:
 
 @lru_cache(maxsize=32)  # batches re-use a plan per image size
 def levels_plan(size: tuple[int, int], levels: int, analysis: str = A0, laplacian: bool = False,
-                synthesis: str = S0, border: str = "clamp") -> Plan:
+                synthesis: str = S0, border: str = "clamp", strategy: str = "cost") -> Plan:
     """Levels 1..m of the analysis pyramid, or with ``laplacian`` the bands L_0..L_{m−1} and G_m
     (L_k = G_k − expand(G_{k+1}), cropped to level k), as one job."""
     if levels < 1:
         raise UsageError("--levels must be at least 1")
     down = steps(_one_step(analysis, Op.DOWN))
     sizes = level_sizes(size, levels)
-    b = Builder(size, border=border)
+    b = Builder(size, strategy, border)
     g = [0]
     for _ in range(levels):
         g.append(_run_steps(b, g[-1], down))
@@ -116,10 +116,11 @@ def levels_plan(size: tuple[int, int], levels: int, analysis: str = A0, laplacia
 
 
 @lru_cache(maxsize=32)  # batches re-use a plan per image size
-def collapse_plan(sizes: tuple[tuple[int, int], ...], synthesis: str = S0, border: str = "clamp") -> Plan:
+def collapse_plan(sizes: tuple[tuple[int, int], ...], synthesis: str = S0, border: str = "clamp",
+                  strategy: str = "cost") -> Plan:
     """Rebuild G_0 from L_0..L_{m−1}, G_m (inputs 0..m): G_k = L_k + expand(G_{k+1})."""
     up = steps(_one_step(synthesis, Op.UP))
-    b = Builder(sizes[0], border=border)
+    b = Builder(sizes[0], strategy, border)
     for sz in sizes[1:]:
         b.add_input(sz)
     x = len(sizes) - 1

@@ -147,8 +147,11 @@ class Session:
         return self._executor
 
     # ------------------------------------------------------------ running
-    def plan(self, work: Work, sizes) -> Plan | None:
-        return work.plan(tuple(tuple(s[:2]) for s in sizes))
+    def plan(self, work: Work, sizes, executor=None) -> Plan | None:
+        """``work``'s plan for inputs of ``sizes``, as the executor wants it planned (its ``strategy``:
+        the GL executor's calibrated cost model by default, one fused pass per filter on the CPU)."""
+        strategy = getattr(executor or self._executor, "strategy", "cost")
+        return work.plan(tuple(tuple(s[:2]) for s in sizes), strategy)
 
     def run(self, work: Work, images, dtype=np.float32) -> list[np.ndarray]:
         """Every output of ``work`` on ``images`` (one array, or one per input), as ``dtype``.
@@ -167,9 +170,9 @@ class Session:
         if p is None:
             self.ran = self.name
             return kept
-        return kept + self.run_plan(p, images, dtype)
+        return kept + self.run_plan(p, images, dtype, work)
 
-    def run_plan(self, p: Plan, images, dtype=np.float32) -> list[np.ndarray]:
+    def run_plan(self, p: Plan, images, dtype=np.float32, work: Work | None = None) -> list[np.ndarray]:
         """Every output of a plan, on this session's executor (the reference cannot run plans)."""
         if self._executor is None:
             raise BackendError("the reference backend runs jobs, not plans")
@@ -184,6 +187,8 @@ class Session:
             self._warn(f"{e.message}; running this image on the CPU")
         if self._cpu is None:
             self._cpu = _cpu_executor(self.threads)
+        if getattr(self._cpu, "strategy", "cost") != getattr(self._executor, "strategy", "cost") and work is not None:
+            p = self.plan(work, [im.shape for im in images], self._cpu)
         outs = self._cpu.run_outputs(p, images, dtype)
         self.ran = _name(self._cpu)
         return outs

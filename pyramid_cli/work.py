@@ -94,7 +94,8 @@ class SigmaBlur(Work):
     label = "blur"
 
     def plan(self, sizes, strategy="cost"):
-        return pyramids.blur_plan_sigma(tuple(sizes[0]), self.sigma, self.analysis, self.synthesis, self.border)[0]
+        return pyramids.blur_plan_sigma(tuple(sizes[0]), self.sigma, self.analysis, self.synthesis, self.border,
+                                        strategy)[0]
 
     def reference(self, images):
         return [pyramids.blur_sigma_reference(images[0], self.sigma, self.analysis, self.synthesis, self.border)]
@@ -117,7 +118,8 @@ class Levels(Work):
 
     def plan(self, sizes, strategy="cost"):
         m = self.count(tuple(sizes[0]))
-        return pyramids.levels_plan(tuple(sizes[0]), m, self.analysis, border=self.border) if m else None
+        return pyramids.levels_plan(tuple(sizes[0]), m, self.analysis, border=self.border,
+                                    strategy=strategy) if m else None
 
     def reference(self, images):
         return pyramids.levels_reference(images[0], self.count(images[0].shape[:2]), self.analysis,
@@ -134,7 +136,8 @@ class Laplacian(Work):
     label = "laplacian"
 
     def plan(self, sizes, strategy="cost"):
-        return pyramids.levels_plan(tuple(sizes[0]), self.levels, self.analysis, True, self.synthesis, self.border)
+        return pyramids.levels_plan(tuple(sizes[0]), self.levels, self.analysis, True, self.synthesis, self.border,
+                                    strategy)
 
     def reference(self, images):
         return pyramids.laplacian_reference(images[0], self.levels, self.analysis, self.synthesis, self.border)
@@ -153,7 +156,7 @@ class Collapse(Work):
         return self.bands
 
     def plan(self, sizes, strategy="cost"):
-        return pyramids.collapse_plan(tuple(tuple(s) for s in sizes), self.synthesis, self.border)
+        return pyramids.collapse_plan(tuple(tuple(s) for s in sizes), self.synthesis, self.border, strategy)
 
     def reference(self, images):
         return [pyramids.collapse_reference(list(images), self.synthesis, self.border)]

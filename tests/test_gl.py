@@ -403,5 +403,5 @@ def test_allocation_failures_become_data_errors(gl, monkeypatch):
         raise moderngl.Error("the framebuffer is not complete")
 
     monkeypatch.setattr(gl.ctx, "framebuffer", fail)
-    with pytest.raises(DataError, match="cannot allocate a 64x32 RGBA f4 texture"):
-        gl._acquire((32, 64), "f4")
+    with pytest.raises(DataError, match="cannot allocate a 65x33 RGBA f4 texture"):
+        gl._acquire((33, 65), "f4")  # a size the pool never holds (textures are powers of two)

@@ -26,6 +26,9 @@ def recipe_seconds(stages: list[Stage], size: tuple[int, int], model: cost.CostM
     return sum(pass_seconds(b.images, ps, model) for ps in b.passes)
 
 
+FUSED_WHY = "one fused pass per filter (the executor's choice: fewer passes over memory)"
+
+
 @lru_cache(maxsize=1024)
 def choose_recipe(op: Op, f, stride: int, size: tuple[int, int], strategy: str = "cost") -> tuple[list[Stage], str]:
     """The paper's decomposition (§3–§5), or one fused pass when the calibrated cost model
@@ -34,11 +37,15 @@ def choose_recipe(op: Op, f, stride: int, size: tuple[int, int], strategy: str =
     The choice depends on the size: a tiny pyramid level is all per-pass overhead, so fewer
     passes win there, while at full resolution fewer fetches do. Both candidates compute the
     same filter at every pixel (guard bands keep a named filter atomic, DESIGN.md §1).
+    ``strategy`` "paper" always takes the paper's decomposition, "fused" always one pass per
+    filter (what a CPU executor wants: each pass streams its whole target through memory).
     """
     paper = checked_recipe(op, f, stride)
     if strategy == "paper" or len(paper) == 1:
         return paper, ""
     fused = direct_recipe(op, f, stride)
+    if strategy == "fused":
+        return fused, FUSED_WHY
     model = cost.model()
     tp, tf = recipe_seconds(paper, size, model), recipe_seconds(fused, size, model)
     fmt = cost.format_seconds
