@@ -6,8 +6,9 @@ into linear, premultiplied light for filtering; ``pyramid diff`` compares files
 the way OpenImageIO's ``idiff`` does, which needs what the file stores:
 
 * integer files (8/16/32-bit) as code values scaled to 0-1 (``code / 255``,
-  ``code / 65535``), with no sRGB decoding and no premultiplication, which is
-  what ``idiff`` reads (OpenImageIO's conversion to float);
+  ``code / 65535``), with no sRGB decoding, which is what ``idiff`` reads
+  (OpenImageIO's conversion to float; straight-alpha PNG and TIFF colour is
+  premultiplied by OpenImageIO on read, in the stored encoding, as in idiff);
 * half and float files as stored;
 * every subimage (EXR part) and every MIP level, for ``idiff -a``.
 """
@@ -56,10 +57,10 @@ def _open(path: str) -> oiio.ImageInput:
         raise InputError(f"cannot read {path}: no such file")
     if os.path.isdir(path):
         raise InputError(f"cannot read {path}: it is a directory")
-    config = oiio.ImageSpec()
-    config.attribute("oiio:UnassociatedAlpha", 1)  # the stored values, not premultiplied by OIIO
     try:
-        inp = oiio.ImageInput.open(path, config)
+        # No "oiio:UnassociatedAlpha" hint: like idiff, take OpenImageIO's default read, which
+        # premultiplies straight-alpha files (PNG, TIFF) by their alpha in the stored encoding.
+        inp = oiio.ImageInput.open(path)
     except Exception as exc:  # binding errors become one line
         raise InputError(f"cannot read {path}: {_one_line(str(exc), 'open failed')}") from None
     if inp is None:
