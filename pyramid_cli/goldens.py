@@ -27,6 +27,7 @@ from __future__ import annotations
 import glob
 import math
 import os
+import re
 import shutil
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -281,11 +282,26 @@ def _fmt(v: float) -> str:
 # Pairing folders and globs
 
 _MAGIC = set("*?[")
+_FRAMES = re.compile(r"%0?(\d*)d|#|@")
+
+
+def as_glob(path: str) -> str:
+    """``path`` with frame-number patterns as globs: ``%04d`` is four digits, ``%d`` any digits,
+    ``#`` four digits and ``@`` one (oiiotool's spelling)."""
+    def digits(m: re.Match[str]) -> str:
+        tok = m.group(0)
+        if tok == "#":
+            return "[0-9]" * 4
+        if tok == "@":
+            return "[0-9]"
+        return "[0-9]" * int(m.group(1)) if m.group(1) else "[0-9]*"
+    return _FRAMES.sub(digits, path)
 
 
 def is_pattern(path: str) -> bool:
-    """True when ``path`` is a glob pattern (has ``*``, ``?`` or ``[``)."""
-    return any(ch in _MAGIC for ch in path)
+    """True when ``path`` is a glob pattern (``*``, ``?``, ``[``) or a frame sequence
+    (``%04d``, ``#``, ``@``)."""
+    return any(ch in _MAGIC for ch in as_glob(path))
 
 
 def _listing(arg: str) -> tuple[str, dict[str, str]]:
@@ -294,7 +310,8 @@ def _listing(arg: str) -> tuple[str, dict[str, str]]:
 
     exts = image_extensions()
     found: dict[str, str] = {}
-    if is_pattern(arg):
+    if is_pattern(arg) and not os.path.exists(arg):
+        arg = as_glob(arg)
         parts = arg.split(os.sep)
         fixed = []
         for part in parts:
@@ -339,7 +356,8 @@ def pair_inputs(a: str, b: str) -> Pairing:
         Two files; a file and a folder (``b/basename(a)``, as idiff does); two
         folders (every image file below them, paired by relative path); or two
         glob patterns (``**`` recursive; paired by the path below each
-        pattern's fixed leading folders).
+        pattern's fixed leading folders), or two frame sequences
+        (``out/f.%04d.exr``, ``out/f.#.exr``: see :func:`as_glob`).
 
     Returns
     -------

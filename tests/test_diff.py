@@ -592,6 +592,8 @@ def _idiff() -> str | None:
 IDIFF = _idiff()
 
 
+@pytest.mark.slow
+@pytest.mark.cli
 @pytest.mark.skipif(IDIFF is None, reason="OpenImageIO's idiff is not installed")
 def test_exit_codes_agree_with_idiff(tmp_path):
     """Random images and thresholds: same exit code as the idiff binary, every case, in both spellings."""

@@ -122,6 +122,19 @@ def test_globs_pair_by_relative_path(tree):
     assert res.exit_code == 0, res.output
 
 
+def test_frame_sequences(tmp_path):
+    for f in (1, 2, 3):
+        write(tmp_path / "o" / f"shot.{f:04d}.exr", img(f))
+        write(tmp_path / "g" / f"shot.{f:04d}.exr", img(f) + (0.5 if f == 2 else 0))
+    assert goldens.as_glob("o/shot.%04d.exr") == "o/shot.[0-9][0-9][0-9][0-9].exr"
+    assert goldens.as_glob("o/shot.#.exr") == goldens.as_glob("o/shot.%04d.exr")
+    for pattern in ("shot.%04d.exr", "shot.#.exr"):
+        res = run("--json", tmp_path / "o" / pattern, tmp_path / "g" / pattern)
+        obj = json.loads(res.stdout)
+        assert res.exit_code == 2 and obj["summary"]["failure"] == 1 and obj["summary"]["match"] == 2
+        assert [p["name"] for p in obj["pairs"] if p["status"] == "failure"] == ["shot.0002.exr"]
+
+
 def test_folder_against_file_is_a_usage_error(tree):
     out, gold = tree
     res = run(out, gold / "pass.exr")
@@ -254,6 +267,25 @@ def test_gl_against_cpu_blur_of_zoneplate_passes_at_one_code(tmp_path, gl_execut
     assert res.exit_code == 0, obj
     assert obj["max_error"] <= 1 / 255 + 1e-7     # at most one 8-bit code apart
     assert run("-fail", "0.003", outs["gl"], outs["cpu"]).exit_code in (0, 2)
+
+
+def test_half_advice_default_below_4_relative_above(tmp_path):
+    v = np.random.default_rng(4).random((16, 16, 3)).astype(np.float32)
+    low = v * 3.99
+    high = 4 + v * 60
+    for name, px in (("low", low), ("high", high)):
+        write(tmp_path / f"{name}_f.exr", px)
+        write(tmp_path / f"{name}_h.exr", px, "half")
+    assert run(tmp_path / "low_h.exr", tmp_path / "low_f.exr").exit_code == 0
+    assert run(tmp_path / "high_h.exr", tmp_path / "high_f.exr").exit_code == 2
+    assert run("--failrelative", "1e-3", tmp_path / "high_h.exr", tmp_path / "high_f.exr").exit_code == 0
+
+
+def test_sixteen_bit_advice(tmp_path):
+    v = np.random.default_rng(3).integers(2, 60000, (6, 6, 3)).astype(np.uint16)
+    a = write(tmp_path / "a.png", v, "uint16")
+    assert run("-fail", "2e-5", a, write(tmp_path / "one.png", v + 1, "uint16")).exit_code == 0
+    assert run("-fail", "2e-5", a, write(tmp_path / "two.png", v + 2, "uint16")).exit_code == 2
 
 
 def test_eight_bit_advice_one_code_passes_two_fail(tmp_path):
