@@ -311,7 +311,10 @@ def diff(ctx: click.Context, path_a: str, path_b: str, fail: float, warn: float,
 
     if as_json:
         if pairing.many:
+            worst = max(results, key=lambda r: r.exit_code, default=None)
             obj: dict[str, Any] = {"exit_code": code, "summary": _summary(results),
+                                   "decided_by": ({"name": worst.name, "status": worst.status, "rule": worst.rule}
+                                                  if worst is not None and code else None),
                                    "pairs": [r.to_dict() for r in results]}
         else:
             obj = _single_json(results[0])

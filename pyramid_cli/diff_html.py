@@ -94,6 +94,11 @@ def display(px: np.ndarray, names: Sequence[str], encoded: bool) -> np.ndarray:
     encoded : bool
         True for stored integer code values (shown as they are); False for
         linear values (clamped and sRGB-encoded). NaN shows black, +Inf white.
+
+    Returns
+    -------
+    numpy.ndarray
+        float64 ``(H, W, 3)`` display colours.
     """
     rgb = np.nan_to_num(_colour(np.asarray(px, dtype=np.float64), names), nan=0.0, posinf=1.0, neginf=0.0)
     return np.clip(rgb, 0.0, 1.0) if encoded else _srgb(rgb)

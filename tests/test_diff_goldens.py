@@ -84,6 +84,7 @@ def test_folders_json(tree):
     res = run("--json", out, gold)
     obj = json.loads(res.stdout)
     assert obj["exit_code"] == res.exit_code == 2
+    assert obj["decided_by"] == {"name": "fail.exr", "status": "failure", "rule": "fail"}
     assert obj["summary"] == {"match": 2, "warning": 0, "failure": 1, "size": 0, "file": 0, "missing": 1,
                               "extra": 1}
     by = {p["name"]: p for p in obj["pairs"]}

@@ -253,6 +253,8 @@ CASES: list[Case] = [
          why="Inf against a number fails here"),
     Case("neg_inf_in_a", files(nan_in(BASE, 4, 1, 2, -np.inf), BASE), T, ours=2, stats=False,
          why="-Inf against a number fails here"),
+    Case("opposite_infinities", files(nan_in(BASE, 4, 1, 2, np.inf), nan_in(BASE, 4, 1, 2, -np.inf)), T,
+         ours=2, stats=False, why="+Inf against -Inf fails here; idiff matches them"),
     Case("same_inf_both", files(nan_in(BASE, 4, 1, 2, np.inf), nan_in(BASE, 4, 1, 2, np.inf)), T, stats=False),
     Case("size_differs", files(BASE, BASE[:8, :8]), T, ours=3, stats=False,
          why="different sizes exit 3 here; idiff compares the union with zeros"),
@@ -384,7 +386,7 @@ def _case(name: str) -> Case:
     return next(c for c in CASES if c.name == name)
 
 
-@pytest.mark.parametrize("name", ["nan_in_b", "nan_in_a", "pos_inf_in_b", "neg_inf_in_a"])
+@pytest.mark.parametrize("name", ["nan_in_b", "nan_in_a", "pos_inf_in_b", "neg_inf_in_a", "opposite_infinities"])
 def test_deliberate_nonfinite_against_a_number_fails(tmp_path, name):
     theirs, ours, code = run_both(tmp_path, _case(name))
     assert theirs.returncode == 0 and code == 2
