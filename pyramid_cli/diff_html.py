@@ -2,8 +2,9 @@
 
 ``DIR/index.html`` plus one folder of PNGs (``DIR/img``), no network: per
 pair, failures first, the statistics, A and B (click or press a key on the
-picture to flip between them), the colour difference and the alpha
-difference, each amplified so that its largest error is full white.
+picture to flip between them; ``index.html#B`` opens on B), the colour
+difference and the alpha difference, each amplified so that its largest
+error is full white (and sRGB-encoded, so small errors show).
 Pictures are tone-mapped for display: stored integer code values are shown as
 they are (they are display-encoded already); float and half values and
 ``--linear`` comparisons are clamped to 0-1 and sRGB-encoded.
@@ -56,6 +57,7 @@ document.querySelectorAll('img.flip').forEach(function(img){
 document.getElementById('flip-all').addEventListener('click', function(){
   document.querySelectorAll('img.flip').forEach(flip);
 });
+if (location.hash === '#B') document.querySelectorAll('img.flip').forEach(flip);  // index.html#B opens on B
 """
 
 
@@ -145,12 +147,12 @@ def _pictures(pr: PairResult, opts: CompareOptions, img_dir: str, key: str) -> l
         err[np.isnan(err) & ~(np.isnan(pa) & np.isnan(pb))] = np.inf
         err[np.isnan(err)] = 0.0
         colour, gain = _amplified(_colour(err, names))
-        io_raw.write_display_png(os.path.join(img_dir, f"{key}-dc.png"), colour)
+        io_raw.write_display_png(os.path.join(img_dir, f"{key}-dc.png"), _srgb(colour))
         tiles.append(("dc", f"{key}-dc.png", f"|A-B| colour x{gain:.3g} (white: NaN/Inf)"))
         ai = _alpha_index(names)
         if ai >= 0:
             alpha, again = _amplified(err[..., ai:ai + 1])
-            io_raw.write_display_png(os.path.join(img_dir, f"{key}-da.png"), np.repeat(alpha, 3, axis=2))
+            io_raw.write_display_png(os.path.join(img_dir, f"{key}-da.png"), _srgb(np.repeat(alpha, 3, axis=2)))
             tiles.append(("da", f"{key}-da.png", f"|A-B| alpha x{again:.3g}"))
     return tiles
 

@@ -375,6 +375,13 @@ def test_html_report_in_headless_chromium(tree, tmp_path):
                              capture_output=True, text=True, timeout=60)
     assert "<section class=\"pair failure\"" in dom.stdout, dom.stderr[-2000:]
     assert "Uncaught" not in dom.stderr and "CONSOLE" not in dom.stderr, dom.stderr[-2000:]
+    assert "data-showing=\"A\"" in dom.stdout
+    with tempfile.TemporaryDirectory() as profile:   # the script runs: #B flips every picture to B
+        dom_b = subprocess.run([_chromium(), *CHROMIUM_FLAGS, f"--user-data-dir={profile}",
+                                "--virtual-time-budget=2000", "--dump-dom", url + "#B"],
+                               capture_output=True, text=True, timeout=60)
+    assert "data-showing=\"B\"" in dom_b.stdout and "data-showing=\"A\"" not in dom_b.stdout
+    assert "B (reference) \u2014 click to flip" in dom_b.stdout
     shot = tmp_path / "shot.png"
     with tempfile.TemporaryDirectory() as profile:
         subprocess.run([_chromium(), *CHROMIUM_FLAGS, f"--user-data-dir={profile}", f"--screenshot={shot}",
