@@ -165,16 +165,15 @@ def nan_in(px, y, x, c, v=np.nan):
     return out
 
 
-def mip_pair(change_level: int | None, drop_last: bool = False, *, dv: float = 0.25):  # noqa: D103
+def mip_pair(change_level: int | None, drop_last: bool = False, *, dv: float = 0.25, swap: bool = False):
     def make(d: Path) -> tuple[str, str]:
         la = mip_chain(rnd(11, 32, 32))
         lb = [lv.copy() for lv in la]
         if change_level is not None:
             lb[change_level][0, 0, 0] += np.float32(dv)
         pa = write_mip(d / "a.exr", la)
-        if drop_last:  # B: level 0 alone, not MIP-mapped
-            return str(pa), str(write(d / "b.exr", lb[0]))
-        return str(pa), str(write_mip(d / "b.exr", lb))
+        pb = write(d / "b.exr", lb[0]) if drop_last else write_mip(d / "b.exr", lb)  # drop_last: not MIP-mapped
+        return (str(pb), str(pa)) if swap else (str(pa), str(pb))
     return make
 
 
@@ -280,6 +279,9 @@ CASES: list[Case] = [
     Case("mip_level2_differs_a", mip_pair(2), ("-a", *T)),
     Case("mip_level2_differs_no_a", mip_pair(2), T),
     Case("mip_count_differs_a", mip_pair(None, drop_last=True), ("-a", *T), stats=False),
+    Case("mip_count_differs_a_plain_first", mip_pair(None, drop_last=True, swap=True), ("-a", *T), stats=False,
+         ours=3, why="-a: different MIP level counts exit 3 either way; idiff only when A has more levels"),
+    Case("mip_count_differs_no_a", mip_pair(None, drop_last=True), T),
     Case("parts_identical_a", parts_pair(None), ("-a", *T)),
     Case("parts_second_differs_a", parts_pair(1), ("-a", *T)),
     Case("parts_second_differs_no_a", parts_pair(1), T),
@@ -398,6 +400,14 @@ def test_deliberate_shape_mismatch_exits_3(tmp_path, name):
     theirs, ours, code = run_both(tmp_path, _case(name))
     assert theirs.returncode in (0, 2) and code == 3
     assert ours["rule"] in ("size", "channels") and ours["error"]
+
+
+def test_deliberate_mip_level_counts_differ_either_way(tmp_path):
+    theirs, ours, code = run_both(tmp_path, _case("mip_count_differs_a_plain_first"))
+    assert theirs.returncode == 0 and code == 3 and ours["rule"] == "miplevels"
+    (tmp_path / "r").mkdir()
+    theirs, ours, code = run_both(tmp_path / "r", _case("mip_count_differs_a"))
+    assert theirs.returncode == code == 3
 
 
 def test_deliberate_defaults_are_looser_than_idiffs(tmp_path):
