@@ -428,3 +428,32 @@ def test_deliberate_perceptual_is_refused(tmp_path):
     res = CliRunner().invoke(diff, ["-p", a, a])
     assert res.exit_code == 2 and "--metric flip" in res.stderr
     assert len(res.stderr.strip().splitlines()) == 1
+
+
+# ---------------------------------------------------------------------------
+# -o: the difference image equals idiff's
+
+
+def _pixels(path: Path) -> np.ndarray:
+    inp = oiio.ImageInput.open(str(path))
+    px = inp.read_image("float")
+    inp.close()
+    return np.asarray(px)
+
+
+@pytest.mark.parametrize("opts", [(), ("-abs",), ("-scale", "10"), ("-abs", "-scale", "0.5")],
+                         ids=["signed", "abs", "scale", "abs_scale"])
+def test_out_image_equals_idiffs(tmp_path, opts):
+    a = write(tmp_path / "a.exr", BASE)
+    b = write(tmp_path / "b.exr", noise(BASE, 12, 0.05))
+    subprocess.run([IDIFF, "-q", "-o", str(tmp_path / "theirs.exr"), *opts, str(a), str(b)], capture_output=True)
+    res = CliRunner().invoke(diff, ["-q", "-o", str(tmp_path / "ours.exr"), *opts, str(a), str(b)])
+    assert res.exit_code == 2
+    np.testing.assert_array_equal(_pixels(tmp_path / "ours.exr"), _pixels(tmp_path / "theirs.exr"))
+
+
+def test_out_diff_only_like_idiff(tmp_path):
+    a = write(tmp_path / "a.exr", BASE)
+    subprocess.run([IDIFF, "-q", "-od", "-o", str(tmp_path / "theirs.exr"), str(a), str(a)], capture_output=True)
+    CliRunner().invoke(diff, ["-q", "-od", "-o", str(tmp_path / "ours.exr"), str(a), str(a)])
+    assert not (tmp_path / "theirs.exr").exists() and not (tmp_path / "ours.exr").exists()
