@@ -25,29 +25,31 @@ Non-finite values
     values (``inf`` included), so the verdict is a failure unless
     ``allowfailures`` covers it, and the largest error becomes ``inf`` at the
     first such value in row-major order.
-Verdict
-    With ``N = H * W`` pixels::
+Verdict (the idiff 3.2 binary's, tested against it)
+    With ``N = H * W`` pixels, the first rule that applies decides
+    (``DiffResult.rule`` names it)::
 
-        failure  if (n_fail > allowfailures and
-                     (n_fail > failpercent/100 * N or n_hardfail > 0))
-                    or n_hardfail > allowfailures
-        warning  elif (n_warn > allowfailures and n_warn > warnpercent/100 * N)
-                      or n_hardwarn > allowfailures
-        match    otherwise
+        failure  "nonfinite"      n_nonfinite > allowfailures   (this tool only)
+        match    "allowfailures"  n_fail <= allowfailures
+        failure  "fail"           n_fail > failpercent/100 * N
+        failure  "hardfail"       max_error > hardfail
+        warning  "warn"           n_warn > warnpercent/100 * N
+        warning  "hardwarn"       max_error > hardwarn
+        match    "failpercent"    otherwise
 
-    i.e. up to ``allowfailures`` pixels may differ by any amount and the images
-    still match, which is what idiff documents and does (idiff 3.2 skips
-    every further test when ``n_fail <= allowfailures``).
+    So, like idiff, a comparison with no failing pixel passes whatever the
+    warn thresholds say (exit 0): a warning needs failing pixels that
+    ``failpercent`` tolerates.
 
-Where this deliberately differs from the idiff 3.2 binary (which contradicts
-its own documentation in these cases): idiff reports PASS when no pixel fails
-even if pixels are over the warning threshold (its ``n_fail <= allowfailures``
-test short-circuits with the default ``allowfailures`` 0), so it can never
-warn without failing pixels; here warnings are reported as documented. idiff
-also does not count a NaN-vs-number value as a failing pixel (the first one
-only sets the max error to inf); here it fails the pixel. Opposite infinities
-match in idiff and are an error here. PSNR uses a peak of 1.0 (idiff uses
-``max(1, largest |value|)``), so the two agree for images in [0, 1].
+Deliberate differences from the idiff 3.2 binary
+    idiff counts no pixel where NaN or Inf meets a number (the comparison is
+    false), so such images pass; here every such pixel fails (rule
+    ``"nonfinite"``) unless ``allowfailures`` covers them. Opposite
+    infinities match in idiff and are an error here. Different sizes or channel
+    counts are compared by idiff over the union (missing values read 0); here
+    they raise :class:`ShapeMismatchError` (exit 3). Statistics otherwise equal
+    idiff's: mean and RMS error over all values, PSNR ``20 log10(peak / RMS)``
+    with ``peak = max(1, largest finite |value|)``.
 """
 
 from __future__ import annotations
@@ -120,6 +122,10 @@ class DiffResult:
         mismatches included.
     n_nonfinite : int
         Pixels where a NaN/Inf value meets a different value.
+    rule : str
+        The verdict rule that decided (module notes): ``"nonfinite"``,
+        ``"allowfailures"``, ``"fail"``, ``"hardfail"``, ``"warn"``,
+        ``"hardwarn"`` or ``"failpercent"``.
     thresholds : dict
         The thresholds used, by option name.
     """
@@ -145,6 +151,7 @@ class DiffResult:
     n_hardfail: int
     n_nonfinite: int
     thresholds: dict[str, float] = field(default_factory=dict)
+    rule: str = "allowfailures"
 
     @property
     def exit_code(self) -> int:
@@ -279,16 +286,19 @@ def compare(a: np.ndarray, b: np.ndarray, *, fail: float = DEFAULT_FAIL, warn: f
 
     npels = max(n_pixels, 1)
     allow = int(allowfailures)
-    failure = ((n_fail > allow and (n_fail > failpercent / 100.0 * npels or n_hardfail > 0))
-               or n_hardfail > allow)
-    warning = ((n_warn > allow and n_warn > warnpercent / 100.0 * npels) or n_hardwarn > allow)
-    verdict = "failure" if failure else "warning" if warning else "match"
-
     finite_err = np.where(mismatch, 0.0, err)
+    finite_max = float(finite_err.max()) if finite_err.size else 0.0
+    verdict, rule = _verdict(n_nonfinite=n_nonfinite, n_fail=n_fail, n_warn=n_warn, max_error=finite_max,
+                             npels=npels, allow=allow, failpercent=failpercent, warnpercent=warnpercent,
+                             hardfail=hardfail, hardwarn=hardwarn)
+
     nvals = max(err.size, 1)
     mean_error = float(finite_err.sum() / nvals)
     rms_error = float(math.sqrt(float(np.square(finite_err).sum()) / nvals))
-    psnr = math.inf if rms_error == 0.0 else 20.0 * math.log10(1.0 / rms_error)
+    with np.errstate(invalid="ignore"):
+        finite_abs = np.abs(np.concatenate([a[np.isfinite(a)], b[np.isfinite(b)]]))
+    peak = max(1.0, float(finite_abs.max()) if finite_abs.size else 0.0)
+    psnr = math.inf if rms_error == 0.0 else 20.0 * math.log10(peak / rms_error)
 
     names = list(channel_names) if channel_names is not None else []
     if n_nonfinite:
@@ -316,12 +326,30 @@ def compare(a: np.ndarray, b: np.ndarray, *, fail: float = DEFAULT_FAIL, warn: f
         a_values=a_values, b_values=b_values,
         mean_error=mean_error, rms_error=rms_error, psnr=psnr, n_pixels=n_pixels,
         n_warn=n_warn, n_fail=n_fail, n_hardwarn=n_hardwarn, n_hardfail=n_hardfail,
-        n_nonfinite=n_nonfinite, thresholds=thresholds,
+        n_nonfinite=n_nonfinite, thresholds=thresholds, rule=rule,
     )
 
 
-def difference_image(a: np.ndarray, b: np.ndarray, scale: float = 1.0) -> np.ndarray:
-    """``|a - b| * scale`` per channel, for a person to look at.
+def _verdict(*, n_nonfinite: int, n_fail: int, n_warn: int, max_error: float, npels: int, allow: int,
+             failpercent: float, warnpercent: float, hardfail: float, hardwarn: float) -> tuple[str, str]:
+    """The verdict and the rule that decided it (module notes, "Verdict")."""
+    if n_nonfinite > allow:
+        return "failure", "nonfinite"
+    if n_fail <= allow:
+        return "match", "allowfailures"
+    if n_fail > failpercent / 100.0 * npels:
+        return "failure", "fail"
+    if max_error > hardfail:
+        return "failure", "hardfail"
+    if n_warn > warnpercent / 100.0 * npels:
+        return "warning", "warn"
+    if max_error > hardwarn:
+        return "warning", "hardwarn"
+    return "match", "failpercent"
+
+
+def difference_image(a: np.ndarray, b: np.ndarray, scale: float = 1.0, *, absolute: bool = True) -> np.ndarray:
+    """``|a - b| * scale`` (or the signed ``(a - b) * scale``) per channel.
 
     Parameters
     ----------
@@ -329,6 +357,10 @@ def difference_image(a: np.ndarray, b: np.ndarray, scale: float = 1.0) -> np.nda
         Same shape, ``(H, W, C)`` or ``(H, W)``.
     scale : float
         Multiplier that makes small differences visible (idiff's ``-scale``).
+    absolute : bool
+        ``False``: the signed difference computed in float32, exactly what
+        idiff's ``-o`` writes (NaN and Inf propagate as IEEE arithmetic says).
+        ``True``: idiff's ``-abs``, with the non-finite rules below.
 
     Returns
     -------
@@ -344,6 +376,10 @@ def difference_image(a: np.ndarray, b: np.ndarray, scale: float = 1.0) -> np.nda
     a = _as_hwc(a, "A")
     b = _as_hwc(b, "B")
     _check_shapes(a, b)
+    if not absolute:
+        with np.errstate(invalid="ignore", over="ignore"):
+            signed = a.astype(np.float32) - b.astype(np.float32)
+            return (signed * np.float32(scale) if scale != 1.0 else signed).astype(np.float32)
     err, _, _ = _errors(a, b)
     with np.errstate(invalid="ignore", over="ignore"):
         out = err * float(scale)
