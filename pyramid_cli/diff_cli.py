@@ -20,6 +20,7 @@ from typing import Any
 import click
 
 from .idiff import DEFAULT_FAIL, DEFAULT_WARN, EXIT_CODES
+from .options import ALPHA_MODES, COLORSPACES
 
 _NONNEG = click.FloatRange(min=0.0)
 
@@ -197,9 +198,9 @@ def _summary(results: Sequence[Any]) -> dict[str, int]:
 @click.option("--heatmap", is_flag=True,
               help="With --out: a false-colour RGB picture of each pixel's largest error, log scale "
                    "1e-8 (dark) to 1 (yellow); black = identical, white = NaN/Inf mismatch.")
-@click.option("--colorspace", type=click.Choice(["auto", "linear", "srgb"]), default="auto", show_default=True,
+@click.option("--colorspace", type=click.Choice(COLORSPACES), default="auto", show_default=True,
               help="With --linear: encoding of integer inputs.")
-@click.option("--alpha", type=click.Choice(["auto", "straight", "premultiplied", "none"]), default="auto",
+@click.option("--alpha", type=click.Choice(ALPHA_MODES), default="auto",
               show_default=True, help="With --linear: how the inputs store alpha.")
 @click.option("--metric", type=click.Choice(["idiff", "flip"]), default="idiff", show_default=True,
               help="flip: also NVIDIA's FLIP (pip install 'bilinear-pyramid[flip]'); failure when the mean "
