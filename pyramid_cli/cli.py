@@ -290,6 +290,7 @@ def apply(expression, paths, border: str, **opts) -> None:
       pyramid apply 'box4 *v g' render.exr render_half.exr
       pyramid apply --border mirror 'h_Doo-Sabin ⊗↑ g' small.png big.png
       pyramid apply 'quadratic *v g' 'frames/*.exr' -o 'half/{stem}.exr'
+      pyramid apply 'quadratic *v g' 'plate.%04d.exr' -o 'half/plate.%04d.exr' --shard 3/10
     """
     from .work import Filter
 
@@ -322,6 +323,9 @@ def blur(paths, levels: int, analysis: str, synthesis: str, quasi: bool, sigma: 
       pyramid blur --levels 5 render.exr soft.exr
       pyramid blur --analysis box --synthesis doosabin photo.png blocky.png
       pyramid blur --levels 4 'in/*.exr' -o 'out/{stem}_blur.exr' --keep-going
+      pyramid blur 'plate.####.exr' -o 'soft/soft.####.exr' --frames 1001-1240x2
+      pyramid blur 'plate.1001-1240#.exr' -o 'soft.%04d.exr' --shard auto --skip-existing
+      pyramid blur 'plate.####.exr' -o 'soft.####.exr' --cluster local:4
     """
     from .pyramids import lattice_mismatch
     from .work import Blur, SigmaBlur
@@ -426,6 +430,7 @@ def mipmap(paths, analysis, tile, border, **opts) -> None:
     Example:
       pyramid mipmap albedo.exr albedo.tx.exr
       pyramid mipmap --border wrap --analysis cubic 'tex/*.png' -o 'tx/{stem}.tx.exr'
+      pyramid mipmap 'tex/albedo.<UDIM>.exr' -o 'tx/albedo.<UDIM>.tx.exr'
     """
     from .work import Levels
 
