@@ -110,10 +110,11 @@ def dask(tmp: Path, quick: bool) -> dict:
                                              dashboard_address=None, silence_logs=40)
     with local_cluster as local, distributed.Client(local) as client:
         res["cluster_start_s"] = perf() - t0
-        client.register_plugin(cluster.SessionPlugin(cluster.SessionSpec("cpu")), name=cluster.PLUGIN_NAME)
+        spec = cluster.SessionSpec("cpu")
+        client.register_plugin(cluster.SessionPlugin(spec), name=spec.plugin_name)
         ro, wo = pipeline.ReadOptions(), pipeline.WriteOptions()
         kw = {"keep_going": False, "skip_existing": False, "threads": 1, "mip_tile": None, "started": time.time(),
-              "quiet": True, "verbose": False, "bar": False}
+              "quiet": True, "verbose": False, "bar": False, "plugin": spec.plugin_name}
         client.gather([client.submit(cluster.run_chunk, [], Blur(), ro, wo, pure=False, **kw) for _ in range(4)])
         t0 = perf()
         futures = [client.submit(cluster.run_chunk, [], Blur(), ro, wo, pure=False, **kw) for _ in range(n_empty)]

@@ -18,6 +18,7 @@ duplicate files. ``--keep-going``, progress and the exit code are those of one p
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import math
 import os
 import threading
@@ -60,6 +61,11 @@ class SessionSpec:
 
         return Session(self.backend, self.precision)
 
+    @property
+    def plugin_name(self) -> str:
+        """The worker plugin's name: batches with other settings on the same cluster keep their own sessions."""
+        return f"{PLUGIN_NAME}-{self.backend}-{self.precision}"
+
 
 class SessionPlugin(_WorkerPlugin):
     """One :class:`~pyramid_cli.session.Session` per Dask worker, for the worker's whole life.
@@ -74,6 +80,7 @@ class SessionPlugin(_WorkerPlugin):
 
     def __init__(self, spec: SessionSpec):
         self.spec = spec
+        self.name = spec.plugin_name
         self.session = None
         self.lock: threading.Lock | None = None
 
@@ -177,7 +184,8 @@ def _crash_hook(jobs: list[batch.Job]) -> bool:
 
 
 def run_chunk(jobs: list[batch.Job], work, read, write, *, keep_going: bool, skip_existing: bool, threads: int,
-              mip_tile: int | None, started: float, quiet: bool, verbose: bool, bar: bool):
+              mip_tile: int | None, started: float, quiet: bool, verbose: bool, bar: bool,
+              plugin: str = f"{PLUGIN_NAME}-auto-float"):
     """One cluster task: the chunk's jobs on this worker's session (see the module notes).
 
     Returns ``(report, messages)``, messages being ``(stream, line)`` for the client to print.
@@ -187,7 +195,7 @@ def run_chunk(jobs: list[batch.Job], work, read, write, *, keep_going: bool, ski
     from .pipeline import Reporter, run_jobs
     from .shard import remove_stale_temps
 
-    plugin = get_worker().plugins[PLUGIN_NAME]
+    holder = get_worker().plugins[plugin]
     messages: list[tuple[str, str]] = []
     reporter = Reporter(quiet=quiet, verbose=verbose, out=lambda m: messages.append(("out", m)),
                         err=lambda m: messages.append(("err", m)), progress=_NoBar if bar else None)
@@ -196,8 +204,8 @@ def run_chunk(jobs: list[batch.Job], work, read, write, *, keep_going: bool, ski
     todo = [j for j in jobs if j not in earlier]
     options = {"read": read, "write": write, "reporter": reporter, "keep_going": keep_going,
                "skip_existing": skip_existing, "jobs": threads, "mip_tile": mip_tile, "many": True}
-    with plugin.lock:
-        session = plugin.acquire()
+    with holder.lock:
+        session = holder.acquire()
         if _crash_hook(todo):
             half = len(todo) // 2
             run_jobs(todo[:half], work, session, **options)
@@ -250,10 +258,13 @@ def run_cluster(job_list: list[batch.Job], work, cluster, *, session=None, read=
     report = batch.Report()
     if not job_list:
         return report
+    # workers resolve paths themselves: relative ones would be relative to their own folders
+    job_list = [dataclasses.replace(j, input=os.path.abspath(j.input), output=os.path.abspath(j.output))
+                for j in job_list]
     with connect(cluster) as client:
         from distributed import as_completed
 
-        client.register_plugin(SessionPlugin(spec), name=PLUGIN_NAME)
+        client.register_plugin(SessionPlugin(spec), name=spec.plugin_name)
         n_workers = max(1, len(client.scheduler_info().get("workers", {})))
         size = chunk or default_chunk(len(job_list), n_workers)
         parts = chunks(job_list, size)
@@ -266,7 +277,7 @@ def run_cluster(job_list: list[batch.Job], work, cluster, *, session=None, read=
         for i, part in enumerate(parts):
             f = client.submit(run_chunk, part, work, read, write, keep_going=keep_going,
                               skip_existing=skip_existing, threads=jobs, mip_tile=mip_tile, started=started,
-                              quiet=reporter.quiet, verbose=reporter.verbose, bar=show_bar,
+                              quiet=reporter.quiet, verbose=reporter.verbose, bar=show_bar, plugin=spec.plugin_name,
                               key=f"pyramid-{batch_id}-{i:05d}", retries=retries, pure=False)
             futures[f.key] = (i, f)
         results: dict[int, batch.Report] = {}
