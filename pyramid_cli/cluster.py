@@ -41,6 +41,7 @@ INSTALL_HINT = "pip install 'bilinear-pyramid[cluster]'"
 #: leaves a temporary file as a killed writer would, and kills its worker process.
 CRASH_VARIABLE = "PYRAMID_TEST_CLUSTER_CRASH"
 MAX_CHUNK = 16
+CONNECT_TIMEOUT = "20s"  # how long --cluster ADDRESS tries to reach the scheduler
 
 
 class ClusterError(PyramidError):
@@ -134,7 +135,7 @@ def connect(cluster) -> Iterator:
             yield client
         return
     try:
-        client = Client(address, timeout="20s")
+        client = Client(address, timeout=CONNECT_TIMEOUT)
     except (OSError, TimeoutError, ValueError) as e:
         raise UsageError(f"--cluster {address}: cannot reach a Dask scheduler there ({e})") from None
     with client:

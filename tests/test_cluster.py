@@ -71,3 +71,22 @@ def test_cli_cluster_keep_going_and_exit_code_as_one_process(tmp_path):
     assert r.exit_code == 3, r.output
     assert "plate.0005.exr" in r.output and "7 written, 0 up to date, 1 failed" in r.output
     assert len(outputs(tmp_path / "out")) == 7
+
+
+@pytest.mark.cli
+def test_unreachable_scheduler_and_bad_local_spec_exit_2(tmp_path, monkeypatch):
+    pytest.importorskip("distributed")
+    monkeypatch.setattr(cluster, "CONNECT_TIMEOUT", "0.5s")
+    write_sequence(tmp_path / "in", 1, 2)
+    base = ["blur", "--backend", "cpu", str(tmp_path / "in" / "plate.####.exr"), "-o", str(tmp_path / "o.####.exr")]
+    r = CliRunner().invoke(main, [*base, "--cluster", "tcp://127.0.0.1:9"])  # the discard port: nothing listens
+    assert r.exit_code == 2 and "cannot reach a Dask scheduler" in r.output
+    r = CliRunner().invoke(main, [*base, "--cluster", "local:0"])
+    assert r.exit_code == 2 and "local:N" in r.output
+
+
+def test_api_takes_frames_and_shards(tmp_path):
+    write_sequence(tmp_path / "in", 1, 6)
+    kw = {"template": str(tmp_path / "out" / "o.{frame}.exr"), "backend": "cpu", "frames": "1-6x1"}
+    assert pyr.process_files(WORK, [str(tmp_path / "in" / "plate.####.exr")], shard="2/3", **kw) == 0
+    assert outputs(tmp_path / "out") == ["o.3.exr", "o.4.exr"]
