@@ -41,7 +41,7 @@ if str(ROOT) not in sys.path:  # run from a checkout even without the editable i
 
 import numpy as np  # noqa: E402
 
-SCENARIOS = ["filter", "e2e", "batch", "startup", "gpu"]
+SCENARIOS = ["filter", "e2e", "batch", "startup", "gpu", "cluster"]  # cluster: bench/cluster.py, on demand
 CPU_SCENARIOS = ["filter", "e2e", "batch", "startup"]  # the default list, plus "gpu" where CUDA is present
 SIGMA7 = math.sqrt(6) / 2  # binomial 7-tap [1 6 15 20 15 6 1]/64 has variance 6/4
 perf = time.perf_counter
@@ -1012,6 +1012,8 @@ def main(argv=None) -> int:
                     scenario_startup(args, libs, report)
                 elif name == "gpu":
                     scenario_gpu(args, libs, report)
+                elif name == "cluster":
+                    __import__("cluster").scenario_cluster(args, report, tmp)
             except Exception as e:  # noqa: BLE001 - one broken scenario must not lose the others
                 report["skipped"].append(f"{name}: failed: {type(e).__name__}: {' '.join(str(e).split())[:500]}")
                 log(f"bench: {name} failed: {e}")

@@ -295,12 +295,17 @@ def write_image(path: str | os.PathLike[str], image, *, like: io.Image | None = 
 
 def process_files(work: Work, inputs: Sequence[str], output: str | None = None, *, template: str | None = None,
                   backend: str = "auto", session: Session | None = None, keep_going: bool = False,
-                  skip_existing: bool = False, jobs: int = 2, quiet: bool = True, **io_options) -> int:
+                  skip_existing: bool = False, jobs: int = 2, quiet: bool = True, frames: str | None = None,
+                  shard=None, cluster=None, chunk: int | None = None, **io_options) -> int:
     """Run a job on files through the CLI's pipeline: ``inputs[0]`` → ``output``, or every input → ``template``.
 
     ``work`` is a :mod:`pyramid_cli.work` value (``Filter``, ``Blur``, …); ``io_options``
-    are :class:`~pyramid_cli.pipeline.ReadOptions` and ``WriteOptions`` fields. Returns the
-    batch's exit code (0 when every file was written); a single file's failure raises.
+    are :class:`~pyramid_cli.pipeline.ReadOptions` and ``WriteOptions`` fields. Inputs may
+    be frame sequences (``plate.####.exr``; ``frames="1001-1240x2"`` selects); ``shard``
+    (``"K/N"`` or ``"auto"``) keeps one chunk of the jobs; ``cluster`` (a Dask address,
+    ``"local:N"`` or a ``distributed.Client``) runs them on a Dask cluster in tasks of
+    ``chunk`` jobs. Returns the batch's exit code (0 when every file was written); a
+    single file's failure raises.
     """
     from .pipeline import ReadOptions, Reporter, WriteOptions, process
 
@@ -308,8 +313,15 @@ def process_files(work: Work, inputs: Sequence[str], output: str | None = None, 
     ro = ReadOptions(**{k: v for k, v in io_options.items() if k in read_keys})
     wo = WriteOptions(**{k: v for k, v in io_options.items() if k not in read_keys})
     paths = [*inputs, output] if template is None else list(inputs)
-    report = process(paths, template, work, _session(session, backend), read=ro, write=wo,
-                     reporter=Reporter(quiet=quiet), keep_going=keep_going, skip_existing=skip_existing, jobs=jobs)
+    if cluster is not None and session is None:
+        from .cluster import SessionSpec
+
+        runner = SessionSpec(backend)
+    else:
+        runner = _session(session, backend)
+    report = process(paths, template, work, runner, read=ro, write=wo, reporter=Reporter(quiet=quiet),
+                     keep_going=keep_going, skip_existing=skip_existing, jobs=jobs, frames=frames, shard=shard,
+                     cluster=cluster, chunk=chunk)
     return report.exit_code
 
 

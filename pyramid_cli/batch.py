@@ -58,8 +58,12 @@ def output_for(template: str, path: str) -> str:
         raise UsageError(f"bad output template {template!r}: use {{stem}} {{name}} {{ext}} {{dir}} ({e})") from None
 
 
-def plan_jobs(paths: list[str], output: str | None) -> list[Job]:
-    """``IN OUT`` (two paths, no -o) or ``IN... -o TEMPLATE``."""
+def plan_jobs(paths: list[str], output: str | None, frames: str | None = None) -> list[Job]:
+    """``IN OUT`` (two paths, no -o) or ``IN... -o TEMPLATE``; frame sequences go to :mod:`.sequence`."""
+    from . import sequence
+
+    if frames is not None or any(sequence.is_sequence(p) for p in (paths if output else paths[:1])):
+        return sequence.plan_jobs(paths, output, frames)
     if output is None:
         if len(paths) != 2 or _GLOB & set(paths[0]):
             raise UsageError("give INPUT OUTPUT, or several inputs with -o/--output TEMPLATE "

@@ -198,10 +198,27 @@ def batch_options(f):
         click.option("--skip-existing", is_flag=True, help="Skip inputs whose output is newer (like make)."),
         click.option("-j", "--jobs", type=click.IntRange(1, 64), default=2, show_default=True,
                      help="Threads decoding/encoding images while the executor works on another."),
+        *sequence_options(),
     ]
     for option in reversed(options):
         f = option(f)
     return f
+
+
+def sequence_options() -> list:
+    """--frames, --shard, --cluster, --chunk (frame sequences, array jobs, a Dask cluster)."""
+    return [
+        click.option("--frames", metavar="RANGE", help="Frames of sequence inputs (plate.####.exr, plate.%04d.exr, "
+                     "plate.1001-1240#.exr, tex.<UDIM>.exr) to process, e.g. 1001-1240x2 (default: the pattern's "
+                     "range, else every frame on disk). Output templates take #### or {frame}."),
+        click.option("--shard", metavar="K/N|auto", help="Process only the K-th (from 1) of N contiguous chunks of "
+                     "the jobs; auto reads the array task from Slurm, SGE, AWS Batch, Kubernetes, LSF or PBS "
+                     "(auto/N where the scheduler does not publish the count)."),
+        click.option("--cluster", metavar="ADDRESS", help="Run on a Dask cluster: tcp://HOST:8786, or local:N for N "
+                     "worker processes on this machine (needs pip install 'bilinear-pyramid[cluster]')."),
+        click.option("--chunk", type=click.IntRange(1), metavar="N", help="Jobs per cluster task (default: about "
+                     "four tasks per worker, at most 16 jobs)."),
+    ]
 
 
 class _Bar:
@@ -244,10 +261,17 @@ def _process(paths, work, opts: dict, mip_tile: int | None = None) -> None:
 
     reporter = _reporter(opts)
     ro, wo = _read_write(opts)
-    with _session(opts, reporter) as session:
-        report = process(list(paths), opts["template"], work, session, read=ro, write=wo, reporter=reporter,
-                         keep_going=opts["keep_going"], skip_existing=opts["skip_existing"], jobs=opts["jobs"],
-                         mip_tile=mip_tile)
+    batch = {"read": ro, "write": wo, "reporter": reporter, "keep_going": opts["keep_going"],
+             "skip_existing": opts["skip_existing"], "jobs": opts["jobs"], "mip_tile": mip_tile,
+             "frames": opts["frames"], "shard": opts["shard"], "cluster": opts["cluster"], "chunk": opts["chunk"]}
+    if opts["cluster"]:  # every worker opens its own session; none is needed here
+        from .cluster import SessionSpec
+
+        report = process(list(paths), opts["template"], work, SessionSpec(opts["backend"], opts["precision"]),
+                         **batch)
+    else:
+        with _session(opts, reporter) as session:
+            report = process(list(paths), opts["template"], work, session, **batch)
     if report.failed:
         sys.exit(report.exit_code)
 
@@ -266,6 +290,7 @@ def apply(expression, paths, border: str, **opts) -> None:
       pyramid apply 'box4 *v g' render.exr render_half.exr
       pyramid apply --border mirror 'h_Doo-Sabin ⊗↑ g' small.png big.png
       pyramid apply 'quadratic *v g' 'frames/*.exr' -o 'half/{stem}.exr'
+      pyramid apply 'quadratic *v g' 'plate.%04d.exr' -o 'half/plate.%04d.exr' --shard 3/10
     """
     from .work import Filter
 
@@ -298,6 +323,9 @@ def blur(paths, levels: int, analysis: str, synthesis: str, quasi: bool, sigma: 
       pyramid blur --levels 5 render.exr soft.exr
       pyramid blur --analysis box --synthesis doosabin photo.png blocky.png
       pyramid blur --levels 4 'in/*.exr' -o 'out/{stem}_blur.exr' --keep-going
+      pyramid blur 'plate.####.exr' -o 'soft/soft.####.exr' --frames 1001-1240x2
+      pyramid blur 'plate.1001-1240#.exr' -o 'soft.%04d.exr' --shard auto --skip-existing
+      pyramid blur 'plate.####.exr' -o 'soft.####.exr' --cluster local:4
     """
     from .pyramids import lattice_mismatch
     from .work import Blur, SigmaBlur
@@ -402,10 +430,51 @@ def mipmap(paths, analysis, tile, border, **opts) -> None:
     Example:
       pyramid mipmap albedo.exr albedo.tx.exr
       pyramid mipmap --border wrap --analysis cubic 'tex/*.png' -o 'tx/{stem}.tx.exr'
+      pyramid mipmap 'tex/albedo.<UDIM>.exr' -o 'tx/albedo.<UDIM>.tx.exr'
     """
     from .work import Levels
 
     _process(paths, Levels(levels=None, analysis=analysis, border=border), opts, mip_tile=tile)
+
+
+@main.command("farm-template", context_settings={"ignore_unknown_options": True, "allow_interspersed_args": False})
+@click.option("--frames", required=True, metavar="RANGE", help="The job's frames, e.g. 1001-1240 or 1001-1240x2.")
+@click.option("--chunk", type=click.IntRange(1), default=10, show_default=True,
+              help="Frames per task (one process, one warm executor each).")
+@click.option("--target-seconds", type=click.IntRange(1), help="Target task run time, for schedulers that adapt "
+              "the chunk size to it (targetRuntimeSeconds).")
+@click.option("--name", help="Job name (default: the command).")
+@click.option("--executable", default="pyramid", show_default=True, help="The pyramid program on the workers.")
+@click.option("-o", "--output", "out_path", default="-", show_default=True, type=click.Path(dir_okay=False),
+              help="Where to write the template (- for standard output).")
+@click.argument("command", nargs=-1, required=True, type=click.UNPROCESSED, metavar="-- COMMAND ARGS...")
+def farm_template(frames, chunk, target_seconds, name, executable, out_path, command) -> None:
+    """Write an Open Job Description job template (AWS Deadline Cloud's format) running COMMAND over frames.
+
+    Each task runs COMMAND on a contiguous chunk of frames with --frames; the
+    template validates with `openjd check` and runs locally with `openjd run`.
+
+    \b
+    Example:
+      pyramid farm-template --frames 1001-1240 --chunk 20 -o blur.json -- \\
+          blur --levels 4 --skip-existing '/shots/sh010/plate.####.exr' -o '/shots/sh010/soft.####.exr'
+      openjd check blur.json && openjd run blur.json
+      deadline bundle submit ...   # a job bundle holding template.json
+    """
+    from .farm import dumps, job_template
+
+    text = dumps(job_template(list(command), frames, chunk=chunk, name=name, executable=executable,
+                              target_seconds=target_seconds))
+    if out_path == "-":
+        click.echo(text, nl=False)
+        return
+    from .atomic import atomic_path
+    from .pipeline import ensure_folder
+
+    ensure_folder(out_path)
+    with atomic_path(out_path) as tmp, open(tmp, "w", encoding="utf-8") as f:
+        f.write(text)
+    click.echo(f"wrote {out_path}", err=True)
 
 
 def _register() -> None:

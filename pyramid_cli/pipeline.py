@@ -97,10 +97,11 @@ def _read(path: str, ro: ReadOptions, reporter: Reporter, keep_half: bool = Fals
     return image
 
 
-def process(paths: list[str], template: str | None, work: Work, session: Session, *,
+def process(paths: list[str], template: str | None, work: Work, session: Session | None, *,
             read: ReadOptions | None = None, write: WriteOptions | None = None, reporter: Reporter | None = None,
             keep_going: bool = False, skip_existing: bool = False, jobs: int = 2,
-            mip_tile: int | None = None) -> batch.Report:
+            mip_tile: int | None = None, frames: str | None = None, shard=None, cluster=None,
+            chunk: int | None = None) -> batch.Report:
     """Run ``work`` on every input of ``paths`` (``IN OUT``, or inputs with ``template``).
 
     One session for the whole batch; decoding and encoding overlap the work in ``jobs``
@@ -108,10 +109,53 @@ def process(paths: list[str], template: str | None, work: Work, session: Session
     ``mip_tile`` every output of ``work`` goes into one tiled MIP-mapped file. A single
     job's failure is raised; a batch's failures are reported and collected in the
     returned report (its ``exit_code`` is the first failure's).
+
+    Inputs may be frame sequences (``frames`` selects frames; :mod:`pyramid_cli.sequence`);
+    ``shard`` (``"K/N"``, ``"auto"`` or a :class:`pyramid_cli.shard.Shard`) keeps one
+    contiguous chunk of the job list; ``cluster`` (an address, ``"local:N"`` or a
+    ``distributed.Client``) runs the jobs on a Dask cluster in chunks of ``chunk`` jobs,
+    each worker with its own session like ``session`` (``session`` may then be None:
+    ``Session()``'s defaults).
     """
     ro, wo, reporter = read or ReadOptions(), write or WriteOptions(), reporter or Reporter()
-    job_list = batch.plan_jobs(list(paths), template)
+    job_list = batch.plan_jobs(list(paths), template, frames=frames)
     many = len(job_list) > 1
+    if shard is not None:
+        from . import shard as shards
+
+        shard = shards.parse(shard) if isinstance(shard, str) else shard
+        job_list = shards.select(job_list, shard)
+        reporter.detail(f"shard {shard} ({shard.source}): {len(job_list)} job(s)")
+        shards.remove_stale_temps([j.output for j in job_list])
+    if frames is not None or any(getattr(j, "frame", None) is not None for j in job_list):
+        from .sequence import drop_missing
+
+        job_list = drop_missing(job_list, keep_going, reporter.warn)
+    if cluster is not None:
+        from .cluster import run_cluster
+
+        report = run_cluster(job_list, work, cluster, session=session, read=ro, write=wo, reporter=reporter,
+                             keep_going=keep_going, skip_existing=skip_existing, jobs=jobs, mip_tile=mip_tile,
+                             chunk=chunk, many=many)
+    else:
+        report = run_jobs(job_list, work, session, read=ro, write=wo, reporter=reporter, keep_going=keep_going,
+                          skip_existing=skip_existing, jobs=jobs, mip_tile=mip_tile, many=many)
+    if not many and report.failed:
+        raise report.failed[0][1]
+    if many:
+        if not reporter.quiet:
+            reporter.err(f"pyramid: {len(report.done)} written, {len(report.skipped)} up to date, "
+                         f"{len(report.failed)} failed")
+        for _job, err in report.failed:
+            reporter.error(str(err))
+    return report
+
+
+def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: ReadOptions, write: WriteOptions,
+             reporter: Reporter, keep_going: bool = False, skip_existing: bool = False, jobs: int = 2,
+             mip_tile: int | None = None, many: bool = True) -> batch.Report:
+    """Read → run → write every job of ``job_list`` on ``session`` (the body of :func:`process`)."""
+    ro, wo = read, write
 
     def prepare(job):
         shape = io.read_shape(job.input)
@@ -146,19 +190,9 @@ def process(paths: list[str], template: str | None, work: Work, session: Session
                    "prepare": prepare if session.on_gl else None}
     if show_bar:
         with reporter.progress(len(job_list)) as bar:
-            report = batch.run(job_list, read_job, compute, write_job, progress=lambda job: bar.update(1),
-                               **run_options)
-    else:
-        report = batch.run(job_list, read_job, compute, write_job, **run_options)
-    if not many and report.failed:
-        raise report.failed[0][1]
-    if many:
-        if not reporter.quiet:
-            reporter.err(f"pyramid: {len(report.done)} written, {len(report.skipped)} up to date, "
-                         f"{len(report.failed)} failed")
-        for _job, err in report.failed:
-            reporter.error(str(err))
-    return report
+            return batch.run(job_list, read_job, compute, write_job, progress=lambda job: bar.update(1),
+                             **run_options)
+    return batch.run(job_list, read_job, compute, write_job, **run_options)
 
 
 def level_path(pattern: str, level: int) -> str:
@@ -239,5 +273,5 @@ def collapse_files(inputs: list[str], output_path: str, session: Session, *, syn
     return output_path
 
 
-__all__ = ["ReadOptions", "WriteOptions", "Reporter", "process", "write_levels_files", "collapse_files",
+__all__ = ["ReadOptions", "WriteOptions", "Reporter", "process", "run_jobs", "write_levels_files", "collapse_files",
            "level_path", "ensure_folder"]

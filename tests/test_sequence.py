@@ -1,0 +1,191 @@
+"""Frame sequences: every pattern form, output mapping, missing frames, colliding outputs, pairing."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+import pyramid_cli as pyr
+from pyramid_cli import sequence
+from pyramid_cli.cli import main
+from pyramid_cli.errors import InputError, UsageError
+
+
+def touch(folder, *names):
+    for n in names:
+        (folder / n).write_bytes(b"")
+
+
+def frames(pattern, spec=None):
+    return [f for f, _ in sequence.frames_of(str(pattern), spec)]
+
+
+def names(pattern, spec=None):
+    return [os.path.basename(p) for _, p in sequence.frames_of(str(pattern), spec)]
+
+
+@pytest.mark.parametrize("pattern, expected", [
+    ("plate.1001-1003#.exr", ["plate.1001.exr", "plate.1002.exr", "plate.1003.exr"]),   # lone # is 4 digits
+    ("plate.1-3####.exr", ["plate.0001.exr", "plate.0002.exr", "plate.0003.exr"]),      # #### is 4 digits too
+    ("plate.1-3##.exr", ["plate.01.exr", "plate.02.exr", "plate.03.exr"]),
+    ("plate.1-3@@@.exr", ["plate.001.exr", "plate.002.exr", "plate.003.exr"]),
+    ("plate.1-3@.exr", ["plate.1.exr", "plate.2.exr", "plate.3.exr"]),
+    ("plate.98-101%03d.exr", ["plate.098.exr", "plate.099.exr", "plate.100.exr", "plate.101.exr"]),
+    ("plate.9-11$F2.exr", ["plate.09.exr", "plate.10.exr", "plate.11.exr"]),
+    ("plate.1-9x4#.exr", ["plate.0001.exr", "plate.0005.exr", "plate.0009.exr"]),         # steps
+    ("plate.-2-1#.exr", ["plate.-002.exr", "plate.-001.exr", "plate.0000.exr", "plate.0001.exr"]),  # negative
+    ("plate.-3--1@@.exr", ["plate.-3.exr", "plate.-2.exr", "plate.-1.exr"]),
+    ("plate.1-3,7#.exr", ["plate.0001.exr", "plate.0002.exr", "plate.0003.exr", "plate.0007.exr"]),
+    ("tex.1001-1002<UDIM>.exr", ["tex.1001.exr", "tex.1002.exr"]),
+])
+def test_pattern_forms_with_ranges(pattern, expected):
+    assert names(pattern) == expected
+
+
+@pytest.mark.parametrize("pattern", ["plate.####.exr", "plate.%04d.exr", "plate.#.exr", "plate.$F4.exr",
+                                     "plate.@@@@.exr"])
+def test_frames_found_on_disk_in_every_spelling(tmp_path, pattern):
+    touch(tmp_path, "plate.1001.exr", "plate.1002.exr", "plate.1003.exr", "other.1001.exr", "plate.01.exr")
+    assert frames(tmp_path / pattern) == [1001, 1002, 1003]
+
+
+def test_negative_frames_on_disk(tmp_path):
+    touch(tmp_path, "neg.-002.exr", "neg.-001.exr", "neg.0000.exr", "neg.0001.exr")
+    assert frames(tmp_path / "neg.####.exr") == [-2, -1, 0, 1]
+
+
+def test_a_gap_on_disk_is_a_missing_frame(tmp_path):
+    touch(tmp_path, "plate.1001.exr", "plate.1002.exr", "plate.1004.exr")
+    assert frames(tmp_path / "plate.####.exr") == [1001, 1002, 1003, 1004]
+    jobs = sequence.plan_jobs([str(tmp_path / "plate.####.exr")], str(tmp_path / "o.####.exr"))
+    with pytest.raises(InputError, match=r"plate\.1003\.exr: frame 1003 is missing"):
+        sequence.drop_missing(jobs, keep_going=False)
+    warned = []
+    kept = sequence.drop_missing(jobs, keep_going=True, warn=warned.append)
+    assert [j.frame for j in kept] == [1001, 1002, 1004] and "1003" in warned[0]
+
+
+def test_udim_tiles_on_disk_are_not_gaps(tmp_path):
+    touch(tmp_path, "tex.1001.exr", "tex.1002.exr", "tex.1011.exr")
+    assert frames(tmp_path / "tex.<UDIM>.exr") == [1001, 1002, 1011]
+    assert frames(tmp_path / "tex.%(UDIM)d.exr") == [1001, 1002, 1011]
+    jobs = sequence.plan_jobs([str(tmp_path / "tex.<UDIM>.exr")], str(tmp_path / "out" / "tex_soft.<UDIM>.exr"))
+    assert [os.path.basename(j.output) for j in jobs] == ["tex_soft.1001.exr", "tex_soft.1002.exr",
+                                                          "tex_soft.1011.exr"]
+
+
+def test_frames_option_selects_alone_and_within_a_range(tmp_path):
+    assert frames(tmp_path / "plate.####.exr", "1001-1240x2")[:3] == [1001, 1003, 1005]
+    assert len(frames(tmp_path / "plate.####.exr", "1001-1240x2")) == 120
+    assert frames(tmp_path / "plate.1001-1010#.exr", "1005-1020") == [1005, 1006, 1007, 1008, 1009, 1010]
+    with pytest.raises(UsageError, match="selects no frame"):
+        frames(tmp_path / "plate.1001-1010#.exr", "2000-2010")
+    with pytest.raises(UsageError, match="not a frame range"):
+        frames(tmp_path / "plate.####.exr", "ten to twenty")
+
+
+def test_no_frame_on_disk_is_an_input_error(tmp_path):
+    with pytest.raises(InputError, match="no frame of this sequence exists"):
+        frames(tmp_path / "plate.####.exr")
+
+
+def test_plain_names_with_digits_are_not_sequences():
+    assert not sequence.is_sequence("render_v002.exr")
+    assert not sequence.is_sequence("foo@2x.png")
+    assert not sequence.is_sequence("out/{stem}_blur.exr")
+    assert sequence.is_sequence("plate.####.exr") and sequence.is_sequence("tex.<UDIM>.exr")
+
+
+@pytest.mark.parametrize("template, expected", [
+    ("out/soft.####.exr", "out/soft.0007.exr"),
+    ("out/soft.#.exr", "out/soft.0007.exr"),
+    ("out/soft.%06d.exr", "out/soft.000007.exr"),
+    ("out/soft.@.exr", "out/soft.7.exr"),
+    ("out/soft_{frame}.exr", "out/soft_7.exr"),
+    ("out/soft_{frame:05d}.exr", "out/soft_00007.exr"),
+    ("out/{stem}_soft{ext}", "out/plate.0007_soft.exr"),
+])
+def test_output_mapping(template, expected):
+    assert sequence.output_path(template, "in/plate.0007.exr", 7) == expected
+
+
+def test_negative_frames_map_to_negative_outputs():
+    assert sequence.output_path("o.####.exr", "plate.-003.exr", -3) == "o.-003.exr"
+
+
+def test_template_whose_frames_collide_is_a_usage_error(tmp_path):
+    with pytest.raises(UsageError, match=r"gives frame 1 and frame 2 the same output .*out\.exr"):
+        sequence.plan_jobs([str(tmp_path / "plate.1-3#.exr")], str(tmp_path / "out.exr"))
+
+
+def test_frames_option_on_a_plain_file_is_a_usage_error(tmp_path):
+    with pytest.raises(UsageError, match="not one"):
+        sequence.plan_jobs([str(tmp_path / "a.exr")], str(tmp_path / "{stem}.png"), frames="1-3")
+
+
+def test_pair_frames(tmp_path):
+    touch(tmp_path, "a.0001.exr", "a.0002.exr", "b.01.exr", "b.02.exr")
+    pairs = sequence.pair_frames(str(tmp_path / "a.####.exr"), str(tmp_path / "b.%02d.exr"))
+    assert [(f, os.path.basename(a), os.path.basename(b)) for f, a, b in pairs] == [
+        (1, "a.0001.exr", "b.01.exr"), (2, "a.0002.exr", "b.02.exr")]
+    (tmp_path / "b.02.exr").unlink()
+    with pytest.raises(InputError, match=r"b\.02\.exr: frame 2 is missing"):
+        sequence.pair_frames(str(tmp_path / "a.####.exr"), str(tmp_path / "b.%02d.exr"))
+
+
+# --------------------------------------------------------------------------- the command line
+
+def write_sequence(folder, first, last, name="plate.{:04d}.exr", size=(8, 8)):
+    folder.mkdir(parents=True, exist_ok=True)
+    for f in range(first, last + 1):
+        pixels = np.random.default_rng(abs(f)).random((*size, 3)).astype(np.float32)
+        pyr.write_image(str(folder / name.format(f)), pixels)
+
+
+def invoke(*args):
+    return CliRunner().invoke(main, [str(a) for a in args])
+
+
+@pytest.mark.cli
+@pytest.mark.parametrize("command", [["blur", "--levels", "2"], ["apply", "box *v g"], ["mipmap"]])
+def test_every_batch_command_takes_sequences(tmp_path, command):
+    write_sequence(tmp_path / "in", 1, 4)
+    r = invoke(*command, "--backend", "cpu", tmp_path / "in" / "plate.####.exr", "--frames", "2-4",
+               "-o", tmp_path / "out" / "soft.%04d.exr")
+    assert r.exit_code == 0, r.output
+    assert sorted(os.listdir(tmp_path / "out")) == ["soft.0002.exr", "soft.0003.exr", "soft.0004.exr"]
+
+
+@pytest.mark.cli
+def test_sequence_in_sequence_out_without_o(tmp_path):
+    write_sequence(tmp_path / "in", 1001, 1003)
+    r = invoke("blur", "--backend", "cpu", "--levels", "2", tmp_path / "in" / "plate.1001-1003#.exr",
+               tmp_path / "out" / "soft.####.exr")
+    assert r.exit_code == 0, r.output
+    assert sorted(os.listdir(tmp_path / "out")) == ["soft.1001.exr", "soft.1002.exr", "soft.1003.exr"]
+
+
+@pytest.mark.cli
+def test_missing_frame_exits_3_naming_it_or_is_skipped_with_keep_going(tmp_path):
+    write_sequence(tmp_path / "in", 1, 5)
+    (tmp_path / "in" / "plate.0003.exr").unlink()
+    args = ["blur", "--backend", "cpu", "--levels", "2", tmp_path / "in" / "plate.1-5#.exr",
+            "-o", tmp_path / "out" / "soft.####.exr"]
+    r = invoke(*args)
+    assert r.exit_code == 3 and "plate.0003.exr: frame 3 is missing" in r.output
+    assert not (tmp_path / "out").exists()
+    r = invoke(*args, "--keep-going")
+    assert r.exit_code == 0, r.output
+    assert "skipping 1 missing frame(s): 3" in r.output
+    assert sorted(os.listdir(tmp_path / "out")) == ["soft.0001.exr", "soft.0002.exr", "soft.0004.exr",
+                                                    "soft.0005.exr"]
+
+
+@pytest.mark.cli
+def test_colliding_outputs_exit_2(tmp_path):
+    write_sequence(tmp_path / "in", 1, 3)
+    r = invoke("blur", "--backend", "cpu", tmp_path / "in" / "plate.####.exr", "-o", tmp_path / "out.exr")
+    assert r.exit_code == 2 and "the same output" in r.output and "{frame}" in r.output
