@@ -1251,8 +1251,8 @@ def check_write_options(path: str | os.PathLike[str], pixel_type: str | None = N
         _check_choice("pixel type", pixel_type, PIXEL_TYPES)
         allowed = _FORMAT_TYPES.get(fmt)
         if allowed is not None and pixel_type not in allowed:
-            raise UsageError(f"{out_path}: --type {pixel_type} cannot be stored in a {title} file "
-                             f"(it holds {' or '.join(allowed)})")
+            raise UsageError(f"{out_path}: --type {pixel_type} cannot be stored in {title} files "
+                             f"(they hold {' or '.join(allowed)})")
     if compression is None:
         return
     c = str(compression).strip().lower()
@@ -1260,17 +1260,18 @@ def check_write_options(path: str | os.PathLike[str], pixel_type: str | None = N
     if fmt == "png":
         if not (c.isdigit() and 0 <= int(c) <= 9):
             raise UsageError(f"{out_path}: --compression {compression} is not a PNG compression "
-                             "(a zlib level 0-9)")
+                             "(PNG takes a zlib level 0-9)")
     elif fmt == "jpeg":
         q = level if name == "jpeg" else c
         if not (q.isdigit() and 1 <= int(q) <= 100):
             raise UsageError(f"{out_path}: --compression {compression} is not a JPEG compression "
-                             "(a quality 1-100, or jpeg:QUALITY)")
+                             "(JPEG takes a quality 1-100, or jpeg:QUALITY)")
     elif fmt in _COMPRESSIONS:
         ok = name in _COMPRESSIONS[fmt] and (not level or (name in _COMPRESSION_LEVELS and _is_number(level)))
         if not ok:
+            levels = ", ".join(c for c in _COMPRESSIONS[fmt] if c in _COMPRESSION_LEVELS)
             raise UsageError(f"{out_path}: --compression {compression} is not a {title} compression "
-                             f"(one of {', '.join(_COMPRESSIONS[fmt])}; zip, dwaa… take :LEVEL)")
+                             f"({title} takes {', '.join(_COMPRESSIONS[fmt])}; {levels} take :LEVEL)")
     else:
         raise UsageError(f"{out_path}: --compression has no effect on {title} files")
 
