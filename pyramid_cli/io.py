@@ -70,6 +70,8 @@ from .errors import DataError, InputError, OutputError, UsageError
 __all__ = [
     "Image",
     "ImageInfo",
+    "check_pyramid",
+    "check_same_channels",
     "check_size",
     "check_write_options",
     "ensure_output_dir",
@@ -710,6 +712,21 @@ def read_parts(path: str | os.PathLike[str], **options) -> list[Image]:
     parts = [first] + [read_image(path, subimage=k, **options) for k in range(1, count_parts(path))]
     check_same_channels(parts)
     return parts
+
+
+def check_pyramid(images: list[Image]) -> None:
+    """Refuse (InputError, exit 3) levels that cannot be one pyramid (``pyramid collapse``'s bands):
+    different channel counts, or a level whose size is not ⌈n/2⌉ of the one before."""
+    check_same_channels(images)
+    for k in range(1, len(images)):
+        h, w = images[k - 1].pixels.shape[:2]
+        want = (-(-h // 2), -(-w // 2))
+        got = images[k].pixels.shape[:2]
+        if tuple(got) != want:
+            im = images[k]
+            where = im.spec.path if im.spec.path != images[0].spec.path else f"{im.spec.path}: part {k}"
+            raise InputError(f"cannot read {where}: level {k} is {got[1]}x{got[0]}, but the level after a "
+                             f"{w}x{h} one is {want[1]}x{want[0]}")
 
 
 def check_same_channels(images: list[Image]) -> None:

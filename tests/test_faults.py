@@ -24,7 +24,7 @@ import pytest
 
 from pyramid_cli import io as pio
 from pyramid_cli.atomic import atomic_path, atomic_paths
-from pyramid_cli.errors import OutputError
+from pyramid_cli.errors import InputError, OutputError
 
 pytestmark = pytest.mark.cli
 
@@ -466,3 +466,27 @@ def test_explain_plot_refuses_a_format_it_cannot_write(tmp_path):
     assert not (tmp_path / "x.exr").exists()
     code, _, err = run(["explain", "--plot", tmp_path / "x.svg", "box4 *v g"])
     assert code == 0 and (tmp_path / "x.svg").read_bytes().lstrip().startswith(b"<?xml")
+
+
+def test_check_pyramid_refuses_mismatched_levels(tmp_path):
+    def band(h, c, name):
+        info = pio.ImageInfo(path=str(tmp_path / name), format="openexr", pixel_type="half",
+                             channel_names=list("RGBA")[:c], alpha_channel=-1, colorspace="linear", alpha_mode="none")
+        return pio.Image(np.zeros((h, h, c), np.float32), info)
+
+    pio.check_pyramid([band(64, 3, "a"), band(32, 3, "b"), band(16, 3, "c")])
+    with pytest.raises(InputError, match="channels"):
+        pio.check_pyramid([band(64, 3, "a"), band(32, 4, "b")])
+    with pytest.raises(InputError, match="level 1 is 20x20"):
+        pio.check_pyramid([band(64, 3, "a"), band(20, 3, "b")])
+
+
+@needs_hook("check_pyramid", "collapse calls io.check_pyramid on the bands it read")
+def test_collapse_of_files_that_are_not_one_pyramid_exits_3(tmp_path):
+    for name, (h, c) in {"b0.exr": (64, 3), "b1.exr": (32, 4), "c1.exr": (20, 3)}.items():
+        write(tmp_path / name, np.zeros((h, h, c)), "half")
+    for second in ("b1.exr", "c1.exr"):
+        code, _, err = run(["collapse", "--backend", "cpu", tmp_path / "b0.exr", tmp_path / second,
+                            tmp_path / "o.exr"])
+        assert code == 3 and not (tmp_path / "o.exr").exists()
+        one_line_error(err, second)
