@@ -1276,18 +1276,17 @@ def check_write_options(path: str | os.PathLike[str], pixel_type: str | None = N
     name, _, level = c.partition(":")
     if fmt == "png":
         if not (c.isdigit() and 0 <= int(c) <= 9):
-            raise UsageError(f"{out_path}: --compression {compression} is not a PNG compression "
-                             "(PNG takes a zlib level 0-9)")
+            raise UsageError(f"{out_path}: unknown --compression {compression} (PNG takes a zlib level 0-9)")
     elif fmt == "jpeg":
         q = level if name == "jpeg" else c
         if not (q.isdigit() and 1 <= int(q) <= 100):
-            raise UsageError(f"{out_path}: --compression {compression} is not a JPEG compression "
+            raise UsageError(f"{out_path}: unknown --compression {compression} "
                              "(JPEG takes a quality 1-100, or jpeg:QUALITY)")
     elif fmt in _COMPRESSIONS:
         ok = name in _COMPRESSIONS[fmt] and (not level or (name in _COMPRESSION_LEVELS and _is_number(level)))
         if not ok:
             levels = ", ".join(c for c in _COMPRESSIONS[fmt] if c in _COMPRESSION_LEVELS)
-            raise UsageError(f"{out_path}: --compression {compression} is not a {title} compression "
+            raise UsageError(f"{out_path}: unknown --compression {compression} "
                              f"({title} takes {', '.join(_COMPRESSIONS[fmt])}; {levels} take :LEVEL)")
     else:
         raise UsageError(f"{out_path}: --compression has no effect on {title} files")
