@@ -54,7 +54,6 @@ from __future__ import annotations
 import contextlib
 import math
 import os
-import resource
 import stat
 from collections.abc import Iterable
 from dataclasses import dataclass, field
@@ -63,6 +62,11 @@ from typing import Any
 
 import numpy as np
 import OpenImageIO as oiio
+
+try:
+    import resource
+except ImportError:  # not on Windows: no file size limit to respect
+    resource = None
 
 from .atomic import atomic_path, atomic_paths, ensure_output_dir
 from .errors import DataError, InputError, OutputError, UsageError
@@ -1017,6 +1021,8 @@ def _oiio_write_parts(target: str, fmt: str, parts: list[tuple[oiio.ImageSpec, n
 
 def _size_limit() -> int | None:
     """The process's file size limit (ulimit -f) in bytes, None when unlimited."""
+    if resource is None:
+        return None
     soft = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
     return None if soft == resource.RLIM_INFINITY else int(soft)
 

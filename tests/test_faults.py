@@ -246,6 +246,7 @@ def test_a_signal_mid_batch_cleans_up(src, tmp_path, sig, code):
             inp.close()
 
 
+@pytest.mark.slow
 def test_a_signal_during_one_big_write(tmp_path):
     big = tmp_path / "big.exr"
     write(big, noise(1024, 1024, seed=7), "float")
