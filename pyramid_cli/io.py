@@ -618,10 +618,9 @@ def check_input_file(path: str | os.PathLike[str]) -> None:
         raise InputError(f"cannot read {p}: it is a directory")
     if not stat.S_ISREG(st.st_mode):
         # Opening a FIFO or a device could block forever or never end.
-        kind = "a FIFO" if stat.S_ISFIFO(st.st_mode) else "a socket" if stat.S_ISSOCK(st.st_mode) else \
-            "a device" if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode) else "not a regular file"
-        raise InputError(f"cannot read {p}: it is {kind}, not a regular file" if kind.startswith("a ")
-                         else f"cannot read {p}: not a regular file")
+        kind = ("a FIFO, " if stat.S_ISFIFO(st.st_mode) else "a socket, " if stat.S_ISSOCK(st.st_mode)
+                else "a device, " if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode) else "")
+        raise InputError(f"cannot read {p}: it is {kind}not a regular file")
     try:
         fd = os.open(p, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
         os.close(fd)

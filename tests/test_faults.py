@@ -212,7 +212,7 @@ def test_a_vanished_folder(tmp_path):
 
 
 # ---------------------------------------------------------------- signals
-def start_long_batch(src, tmp_path, n=40):
+def start_long_batch(src, tmp_path, n=60):
     ins = tmp_path / "in"
     ins.mkdir()
     for k in range(n):
