@@ -312,21 +312,42 @@ def _polydiv(a: list[Fraction], b: list[Fraction]) -> list[Fraction] | None:
     return q if not any(a) else None
 
 
+# Work bound of the contractivity test: the L-th power of a dilation-M mask has about
+# len(b)·M^(L−1) coefficients; a test that would need more stops there (not shown contractive),
+# as it stops at max_level (a kernel of dilation 64 would otherwise need gigabytes).
+_MAX_POWER_LENGTH = 20_000
+_MAX_POWER_WORK = 2_000_000
+
+
 def _contractive(b: list[Fraction], dilation: int, max_level: int = 8) -> bool:
-    """Is the difference scheme with mask b contractive, ‖S_b^L‖∞ < 1 for some L ≤ max_level?"""
-    power = [Fraction(1)]
+    """Is the difference scheme with mask b contractive, ‖S_b^L‖∞ < 1 for some L ≤ max_level?
+
+    Computed in integers (b = b_int / D, so the L-th power is p_int / D^L); levels whose power
+    would exceed the work bound are not tried (see ``_MAX_POWER_LENGTH``).
+    """
+    den = lcm(*(Fraction(v).denominator for v in b)) if b else 1
+    ints = [int(v * den) for v in b]
+    nonzero = sum(1 for v in ints if v)
+    power = [1]
+    scale = 1
     for level in range(1, max_level + 1):
         spread = dilation ** (level - 1)
-        stretched = [Fraction(0)] * ((len(b) - 1) * spread + 1)
-        for i, v in enumerate(b):
-            stretched[i * spread] = v
-        power = _polymul(power, stretched)
         period = dilation ** level
-        norm = max(sum(abs(v) for v in power[i::period]) for i in range(period))
-        if norm < 1:
-            return True
-        if len(power) > 20000:
+        if (len(power) + (len(ints) - 1) * spread > _MAX_POWER_LENGTH or period > _MAX_POWER_LENGTH
+                or len(power) * nonzero > _MAX_POWER_WORK):
             break
+        out = [0] * (len(power) + (len(ints) - 1) * spread)
+        for j, y in enumerate(ints):
+            if y:
+                off = j * spread
+                for i, x in enumerate(power):
+                    if x:
+                        out[i + off] += x * y
+        power = out
+        scale *= den
+        norm = max(sum(abs(v) for v in power[i::period]) for i in range(period))
+        if norm < scale:
+            return True
     return False
 
 

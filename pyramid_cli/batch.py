@@ -49,13 +49,18 @@ def expand(patterns: list[str]) -> list[str]:
 
 
 def output_for(template: str, path: str) -> str:
-    """Fill an output template: {stem} {name} {ext} {dir} of the input path."""
+    """Fill an output template: {stem} {name} {ext} {dir} of the input path.
+
+    ``{ext}`` includes the dot (``.exr``); ``{name}`` is ``{stem}{ext}``; ``{dir}`` is the input's
+    folder (``.`` when it has none).
+    """
     name = os.path.basename(path)
     stem, ext = os.path.splitext(name)
     try:
         return template.format(stem=stem, name=name, ext=ext, dir=os.path.dirname(path) or ".")
     except (KeyError, IndexError, ValueError) as e:
-        raise UsageError(f"bad output template {template!r}: use {{stem}} {{name}} {{ext}} {{dir}} ({e})") from None
+        raise UsageError(f"bad output template {template!r}: use {{stem}} {{name}} {{ext}} (with its dot) "
+                         f"{{dir}} ({e})") from None
 
 
 def plan_jobs(paths: list[str], output: str | None, frames: str | None = None) -> list[Job]:

@@ -50,9 +50,10 @@ class Group(click.Group):
         except PyramidError as e:
             click.echo(f"pyramid: error: {e}", err=True)
             ctx.exit(e.exit_code)
-        except KeyboardInterrupt:
-            click.echo("pyramid: interrupted", err=True)
-            ctx.exit(130)
+        except KeyboardInterrupt as e:  # Ctrl-C, and SIGTERM/SIGHUP after signals.install()
+            from .signals import describe, exit_code
+            click.echo(f"pyramid: {describe(e)}", err=True)
+            ctx.exit(exit_code(e))
 
 
 @click.group(cls=Group, epilog=EXIT_CODE_HELP,
@@ -487,6 +488,8 @@ _register()
 
 
 def run() -> None:  # console-script entry point
+    from .signals import install
+    install()  # SIGTERM/SIGHUP clean up like Ctrl-C (exit 143/129); SIGXFSZ ignored
     main(prog_name="pyramid")
 
 

@@ -11,12 +11,15 @@ from __future__ import annotations
 EXIT_CODES: dict[str, tuple[int, str]] = {
     "ok": (0, "success"),
     "internal": (1, "internal error (a bug: please report it with the traceback)"),
-    "usage": (2, "bad command line: unknown option, bad expression, bad size"),
+    "usage": (2, "bad command line: unknown option, bad expression, bad size, an option the output "
+                 "format would ignore, work over the cost limits"),
     "input": (3, "an input image cannot be read: missing, unreadable, truncated, "
-                 "unsupported format, zero size"),
-    "output": (4, "an output cannot be written, or would overwrite an input without --force"),
+                 "unsupported format, zero size, not a regular file, several parts"),
+    "output": (4, "an output cannot be written (disk full, quota, size limit, read-only folder), "
+                  "or would overwrite an input without --force"),
     "data": (5, "bad pixel data: NaN/Inf under --nan fail, image too large"),
     "backend": (6, "the requested backend is unavailable (no EGL/OpenGL context)"),
+    "interrupted": (130, "interrupted (Ctrl-C); 143 for SIGTERM, 129 for SIGHUP: no output half-written"),
 }
 
 

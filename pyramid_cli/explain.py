@@ -13,7 +13,14 @@ def _ints(m: list[list[Fraction]], den: int) -> list[list[int]]:
 
 
 def describe(expr: Expr) -> dict:
-    """The ``--json`` object of ``pyramid explain`` (see the README for the fields)."""
+    """The ``--json`` object of ``pyramid explain`` (see the README for the fields).
+
+    Raises :class:`~pyramid_cli.errors.UsageError` at once when the exact kernel is too large to
+    evaluate in seconds (:func:`pyramid_cli.limits.check_kernel_cost`).
+    """
+    from .limits import check_kernel_cost
+
+    check_kernel_cost(expr, to_text(expr, "ascii"))
     k = algebra.kernel(expr)
     shape = algebra.display_shape(k)
     phases = []
@@ -87,7 +94,14 @@ def render(info: dict) -> str:
 
 
 def plot_powers(expr: Expr, path: str, powers: int = 4) -> None:
-    """Draw the 1-D powers (h)ᵐ of an analysis filter, like the paper's Figure 2."""
+    """Draw the 1-D powers (h)ᵐ of an analysis filter, like the paper's Figure 2.
+
+    The format follows ``path``'s extension: .png, .svg or .pdf (anything else: UsageError, exit 2).
+    """
+    fmt = check_plot_path(path)
+    from .limits import check_kernel_cost
+
+    check_kernel_cost(_power(expr, powers), f"({to_text(expr, 'ascii')})^{powers}")
     import matplotlib
 
     matplotlib.use("Agg")
@@ -117,8 +131,24 @@ def plot_powers(expr: Expr, path: str, powers: int = 4) -> None:
     from .atomic import atomic_path
 
     with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png")
+        fig.savefig(tmp, format=fmt)
     plt.close(fig)
+
+
+PLOT_FORMATS = ("png", "svg", "pdf")
+
+
+def check_plot_path(path: str) -> str:
+    """The format ``--plot`` writes for ``path`` (its extension: png, svg or pdf); UsageError otherwise."""
+    import os
+
+    from .errors import UsageError
+
+    ext = os.path.splitext(os.fspath(path))[1].lower().lstrip(".")
+    if ext not in PLOT_FORMATS:
+        raise UsageError(f"--plot {path}: plots are written as {', '.join('.' + f for f in PLOT_FORMATS)}; "
+                         f"not {'.' + ext if ext else 'a file without an extension'}")
+    return ext
 
 
 def _power(expr: Expr, m: int) -> Expr:

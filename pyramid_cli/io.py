@@ -24,11 +24,23 @@ Alpha
     integer RGBA file round-trips bit-exactly except for the colour under
     alpha 0.
 Pixel types
-    The output keeps the input's type unless ``pixel_type`` is given. A format
-    that cannot hold the type gets the nearest one it can: PNG and other
-    8/16-bit formats take ``uint16`` for half/float, 8-bit-only formats (JPEG,
-    GIF, BMP, TGA, WebP, ICO) take ``uint8``, and float-only formats (EXR,
-    HDR) take ``half`` for integers (``float`` for HDR).
+    The output keeps the input's type unless ``pixel_type`` is given. When the
+    output format cannot hold the input's type it gets the nearest one it can:
+    PNG and other 8/16-bit formats take ``uint16`` for half/float, 8-bit-only
+    formats (JPEG, GIF, BMP, TGA, WebP, ICO) take ``uint8``, and float-only
+    formats (EXR, HDR) take ``half`` for integers (``float`` for HDR). A
+    ``pixel_type`` asked for that the format cannot hold is refused
+    (:func:`check_write_options`), as is a ``compression`` it would ignore.
+Tiles
+    A tiled input (EXR, TIFF) is written back tiled with its tile size when
+    the output has the same format; anything else is written as scanlines.
+Writing
+    Every write goes to a hidden temporary beside the output (its folder is
+    created if missing) and is checked before the rename: every OpenImageIO
+    call's result and error state, a non-empty file, PNG's and JPEG's end
+    markers and a header that reads back. A full disk, a quota, a file size
+    limit, a read-only or vanished folder end as :class:`OutputError` naming
+    the output; the previous file is untouched and no temporary is left.
 Metadata
     Attributes are carried to the output when they still apply: attributes
     specific to a file format (``openexr:*``, ``tiff:*``, ``png:*``, ...,
@@ -39,6 +51,7 @@ Metadata
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import stat
@@ -50,14 +63,23 @@ from typing import Any
 import numpy as np
 import OpenImageIO as oiio
 
-from .atomic import atomic_path
+try:
+    import resource
+except ImportError:  # not on Windows: no file size limit to respect
+    resource = None
+
+from .atomic import atomic_path, atomic_paths, ensure_output_dir
 from .errors import DataError, InputError, OutputError, UsageError
 from .geometry import check_size  # noqa: F401  (part of io's API: image size limits)
 
 __all__ = [
     "Image",
     "ImageInfo",
+    "check_pyramid",
+    "check_same_channels",
     "check_size",
+    "check_write_options",
+    "ensure_output_dir",
     "count_nonfinite",
     "describe_rules",
     "linear_to_srgb",
@@ -65,6 +87,8 @@ __all__ = [
     "read_image",
     "srgb_to_linear",
     "write_image",
+    "write_images",
+    "write_levels",
 ]
 
 PIXEL_TYPES = ("uint8", "uint16", "half", "float")
@@ -100,6 +124,24 @@ _ASSOCIATED_CAPABLE = ("openexr", "tiff")
 # Formats that hold no alpha channel at all: alpha is dropped on write, which
 # leaves the premultiplied colour, i.e. the image composited over black.
 _NO_ALPHA_FORMATS = ("jpeg", "hdr")
+
+# --compression values each format honours (OpenImageIO writes anything else as its default
+# without a word, so anything else is refused). ``name:N`` sets a level or quality.
+_COMPRESSIONS: dict[str, tuple[str, ...]] = {
+    "openexr": ("none", "rle", "zips", "zip", "piz", "pxr24", "b44", "b44a", "dwaa", "dwab"),
+    "tiff": ("none", "lzw", "zip", "packbits", "ccittrle"),
+}
+_COMPRESSION_LEVELS = frozenset({"zip", "zips", "dwaa", "dwab", "lzw"})
+
+# Formats whose OpenImageIO writer ends the whole process on a write error (libjpeg's default
+# error handler calls exit()): they are encoded into memory first and copied to the file with
+# os.write, which reports a full disk as an error.
+_ENCODE_IN_MEMORY = frozenset({"jpeg"})
+
+# Formats that can be tiled: a tiled input is written back tiled.
+_TILED_FORMATS = ("openexr", "tiff")
+
+_FORMAT_TITLES = {"openexr": "OpenEXR", "png": "PNG", "jpeg": "JPEG", "tiff": "TIFF", "hdr": "HDR"}
 
 # Attributes that describe the file's layout rather than the image; they are
 # recomputed by OpenImageIO for each file, so copying them could only conflict.
@@ -171,6 +213,9 @@ class ImageInfo:
     display_window : tuple of int or None
         ``(x, y, width, height)`` of the display window when it differs from
         the data window.
+    tile : tuple of int or None
+        ``(tile width, tile height)`` of a tiled file, None for scanlines; a
+        tiled input is written back tiled (EXR, TIFF).
     """
 
     path: str
@@ -187,6 +232,7 @@ class ImageInfo:
     height: int = 0
     origin: tuple[int, int] = (0, 0)
     display_window: tuple[int, int, int, int] | None = None
+    tile: tuple[int, int] | None = None
 
 
 @dataclass
@@ -408,14 +454,20 @@ def output_pixel_type(fmt: str, pixel_type: str) -> str:
 
 
 def read_image(path: str | os.PathLike[str], *, colorspace: str = "auto",
-               alpha: str = "auto", nan: str = "keep", subimage: int = 0,
+               alpha: str = "auto", nan: str = "keep", subimage: int | None = None,
                keep_half: bool = False) -> Image:
     """Read an image into linear, premultiplied float32 pixels.
 
     Parameters
     ----------
     path : str or os.PathLike
-        Any file OpenImageIO can read (the first subimage is used).
+        Any regular file OpenImageIO can read (FIFOs, devices and folders are
+        refused at once; a name that is not valid UTF-8 is read through its
+        open file descriptor).
+    subimage : int, optional
+        Which part of a multi-part file to read. None (the default): the file
+        must hold one image; a multi-part file is refused with an InputError
+        naming its parts (:func:`read_parts` reads them all).
     colorspace : {"auto", "linear", "srgb"}
         Encoding of the stored values; ``"auto"`` decides from the
         ``oiio:ColorSpace`` metadata, then from the pixel type (integer: sRGB,
@@ -451,23 +503,9 @@ def read_image(path: str | os.PathLike[str], *, colorspace: str = "auto",
     _check_choice("nan mode", nan, ("keep", "zero", "fail"))
     p = os.fspath(path)
 
-    if not os.path.lexists(p):
-        raise InputError(f"cannot read {p}: no such file")
-    if os.path.isdir(p):
-        raise InputError(f"cannot read {p}: it is a directory")
-    try:
-        st = os.stat(p)
-        if not stat.S_ISREG(st.st_mode):
-            # Opening a FIFO or device could block or never end.
-            raise InputError(f"cannot read {p}: not a regular file")
-        with open(p, "rb"):
-            pass
-    except OSError as exc:
-        raise InputError(f"cannot read {p}: {exc.strerror or exc}") from None
-    if st.st_size == 0:
-        raise InputError(f"cannot read {p}: the file is empty")
-
-    data, spec, fmt = _read_pixels(p, subimage, keep_half)
+    check_input_file(p)
+    with _readable_name(p) as name:
+        data, spec, fmt = _read_pixels(name, subimage, keep_half, shown=p)
     names = [str(n) for n in spec.channelnames] or _default_names(spec.nchannels)
     pixel_type = _type_name(spec.format)
     alpha_channel = _find_alpha(spec, names)
@@ -528,6 +566,7 @@ def read_image(path: str | os.PathLike[str], *, colorspace: str = "auto",
     if len(set(channel_types)) <= 1:
         channel_types = []
     display = (spec.full_x, spec.full_y, spec.full_width, spec.full_height)
+    tiled = spec.tile_width > 0 and spec.tile_height > 0
     info = ImageInfo(
         path=p,
         format=fmt,
@@ -543,8 +582,66 @@ def read_image(path: str | os.PathLike[str], *, colorspace: str = "auto",
         height=spec.height,
         origin=(spec.x, spec.y),
         display_window=None if display == (spec.x, spec.y, spec.width, spec.height) else display,
+        tile=(int(spec.tile_width), int(spec.tile_height)) if tiled else None,
     )
     return Image(pixels=pixels, spec=info)
+
+
+def check_input_file(path: str | os.PathLike[str]) -> None:
+    """Refuse at once what cannot be an image file: missing, a folder, a FIFO, a device, unreadable, empty.
+
+    Raises
+    ------
+    InputError
+        Exit code 3, one line naming ``path``.
+    """
+    p = os.fspath(path)
+    if not os.path.lexists(p):
+        raise InputError(f"cannot read {p}: no such file")
+    try:
+        st = os.stat(p)
+    except OSError as exc:
+        raise InputError(f"cannot read {p}: {exc.strerror or exc}") from None
+    if stat.S_ISDIR(st.st_mode):
+        raise InputError(f"cannot read {p}: it is a directory")
+    if not stat.S_ISREG(st.st_mode):
+        # Opening a FIFO or a device could block forever or never end.
+        kind = ("a FIFO, " if stat.S_ISFIFO(st.st_mode) else "a socket, " if stat.S_ISSOCK(st.st_mode)
+                else "a device, " if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode) else "")
+        raise InputError(f"cannot read {p}: it is {kind}not a regular file")
+    try:
+        fd = os.open(p, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+        os.close(fd)
+    except OSError as exc:
+        raise InputError(f"cannot read {p}: {exc.strerror or exc}") from None
+    if st.st_size == 0:
+        raise InputError(f"cannot read {p}: the file is empty")
+
+
+def _utf8(name: str) -> bool:
+    try:
+        name.encode("utf-8")
+    except UnicodeEncodeError:
+        return False
+    return True
+
+
+@contextlib.contextmanager
+def _readable_name(p: str):
+    """A name OpenImageIO can open for ``p``: itself, or /proc/self/fd/N when it is not valid UTF-8."""
+    if _utf8(p):
+        yield p
+        return
+    if not os.path.isdir("/proc/self/fd"):
+        raise InputError(f"cannot read {p!r}: the file name is not valid UTF-8")
+    try:
+        fd = os.open(p, os.O_RDONLY)
+    except OSError as exc:
+        raise InputError(f"cannot read {p}: {exc.strerror or exc}") from None
+    try:
+        yield f"/proc/self/fd/{fd}"
+    finally:
+        os.close(fd)
 
 
 def read_shape(path: str | os.PathLike[str]) -> tuple[int, int, int] | None:
@@ -554,6 +651,8 @@ def read_shape(path: str | os.PathLike[str]) -> tuple[int, int, int] | None:
     """
     p = os.fspath(path)
     try:
+        if not stat.S_ISREG(os.stat(p).st_mode) or not _utf8(p):
+            return None  # a FIFO would block here: read_image refuses it
         inp = oiio.ImageInput.open(p)
     except Exception:  # noqa: BLE001 - binding errors: read_image says what they are
         return None
@@ -570,40 +669,98 @@ def read_shape(path: str | os.PathLike[str]) -> tuple[int, int, int] | None:
 def count_parts(path: str | os.PathLike[str]) -> int:
     """How many subimages (EXR parts) a file holds; 1 for ordinary images."""
     p = os.fspath(path)
-    inp = oiio.ImageInput.open(p)
-    if inp is None:
-        raise InputError(f"cannot read {p}: {_one_line(oiio.geterror(), 'open failed')}")
-    try:
-        n = 1
-        while inp.seek_subimage(n, 0):
-            n += 1
-        return n
-    finally:
-        inp.close()
+    check_input_file(p)
+    with _readable_name(p) as name:
+        inp = oiio.ImageInput.open(name)
+        if inp is None:
+            raise InputError(f"cannot read {p}: {_one_line(oiio.geterror(), 'open failed')}")
+        try:
+            return len(_part_names(inp))
+        finally:
+            inp.close()
+
+
+def _part_names(inp) -> list[str]:
+    """The name of every subimage of an open file (``part k`` where it has none); leaves it at subimage 0."""
+    names = []
+    while inp.seek_subimage(len(names), 0):
+        names.append(inp.spec().get_string_attribute("name") or f"part {len(names)}")
+    inp.geterror()  # the last, failed seek's message
+    inp.seek_subimage(0, 0)
+    return names or ["part 0"]
 
 
 def read_parts(path: str | os.PathLike[str], **options) -> list[Image]:
-    """Every subimage of a multi-part file (as :func:`read_image` reads one), in order."""
-    first = read_image(path, **options)
-    return [first] + [read_image(path, subimage=k, **options) for k in range(1, count_parts(path))]
+    """Every subimage of a multi-part file (as :func:`read_image` reads one), in order.
+
+    Raises
+    ------
+    InputError
+        As :func:`read_image`, or when parts differ in channel count (they cannot be one pyramid).
+    """
+    options.pop("subimage", None)
+    first = read_image(path, subimage=0, **options)
+    parts = [first] + [read_image(path, subimage=k, **options) for k in range(1, count_parts(path))]
+    check_same_channels(parts)
+    return parts
 
 
-def _read_pixels(p: str, subimage: int = 0, keep_half: bool = False) -> tuple[np.ndarray, oiio.ImageSpec, str]:
-    """Open and fully read ``p`` (one subimage): integer files as stored (uint8, uint16), float
-    files as float32 (as stored, without a copy), half files as float16 under ``keep_half``."""
+def check_pyramid(images: list[Image]) -> None:
+    """Refuse (InputError, exit 3) levels that cannot be one pyramid (``pyramid collapse``'s bands):
+    different channel counts, or a level whose size is not ⌈n/2⌉ of the one before."""
+    check_same_channels(images)
+    for k in range(1, len(images)):
+        h, w = images[k - 1].pixels.shape[:2]
+        want = (-(-h // 2), -(-w // 2))
+        got = images[k].pixels.shape[:2]
+        if tuple(got) != want:
+            im = images[k]
+            where = im.spec.path if im.spec.path != images[0].spec.path else f"{im.spec.path}: part {k}"
+            raise InputError(f"cannot read {where}: level {k} is {got[1]}x{got[0]}, but the level after a "
+                             f"{w}x{h} one is {want[1]}x{want[0]}")
+
+
+def check_same_channels(images: list[Image]) -> None:
+    """Refuse (InputError, exit 3) images meant to be one pyramid whose channel counts differ."""
+    want = images[0].pixels.shape[2] if images else 0
+    for k, im in enumerate(images):
+        n = im.pixels.shape[2]
+        if n != want:
+            where = im.spec.path if im.spec.path != images[0].spec.path else f"{im.spec.path}: part {k}"
+            raise InputError(f"cannot read {where}: {n} channel{'s' if n != 1 else ''} "
+                             f"({', '.join(im.spec.channel_names)}), where the first has {want} "
+                             f"({', '.join(images[0].spec.channel_names)}); every level needs the same channels")
+
+
+def _read_pixels(name: str, subimage: int | None = None, keep_half: bool = False,
+                 shown: str | None = None) -> tuple[np.ndarray, oiio.ImageSpec, str]:
+    """Open and fully read ``name`` (one subimage): integer files as stored (uint8, uint16), float
+    files as float32 (as stored, without a copy), half files as float16 under ``keep_half``.
+
+    ``subimage`` None refuses a multi-part file; ``shown`` is the path messages name."""
+    p = shown if shown is not None else name
     config = oiio.ImageSpec()
     # Ask for the stored values: without this hint OpenImageIO premultiplies
     # straight-alpha files itself, in the encoded (non-linear) space.
     config.attribute("oiio:UnassociatedAlpha", 1)
     try:
-        inp = oiio.ImageInput.open(p, config)
+        inp = oiio.ImageInput.open(name, config)
     except Exception as exc:  # binding errors become one line
         raise InputError(f"cannot read {p}: {_one_line(str(exc), 'open failed')}") from None
     if inp is None:
-        msg = _one_line(oiio.geterror(), "not an image file OpenImageIO can read")
+        msg = _one_line(oiio.geterror().replace(name, p), "not an image file OpenImageIO can read")
         raise InputError(f"cannot read {p}: {msg}")
     try:
-        if subimage and not inp.seek_subimage(subimage, 0):
+        if subimage is None:
+            if inp.seek_subimage(1, 0):
+                parts = _part_names(inp)
+                raise InputError(f"cannot read {p}: it holds {len(parts)} parts ({', '.join(parts)}) and this "
+                                 "command reads one image (pyramid collapse reads every part; oiiotool "
+                                 "--subimage extracts one)")
+            subimage = 0
+            inp.geterror()  # the failed seek's message: not an error of this file
+            inp.seek_subimage(0, 0)  # a failed seek can leave a reader (TIFF) nowhere
+        elif subimage and not inp.seek_subimage(subimage, 0):
             raise InputError(f"cannot read {p}: it has no part {subimage}")
         spec = inp.spec()
         fmt = str(inp.format_name())
@@ -627,7 +784,7 @@ def _read_pixels(p: str, subimage: int = 0, keep_half: bool = False) -> tuple[np
         else:
             err = inp.geterror() if inp.has_error else ""
         if data is None or err:
-            err = err or oiio.geterror()
+            err = (err or oiio.geterror()).replace(name, p)
             msg = _one_line(err, "read failed")
             raise InputError(f"cannot read {p}: {msg} (truncated or corrupt file?)")
     finally:
@@ -780,23 +937,173 @@ def _encode_integer(values: np.ndarray, out_type: str, dither: bool,
     return v.astype(np.uint8 if out_type == "uint8" else np.uint16)
 
 
-def _oiio_write(path: str, spec: oiio.ImageSpec, pixels: np.ndarray) -> None:
-    """Write ``pixels`` to ``path`` with OpenImageIO; raise OutputError on failure."""
-    out = oiio.ImageOutput.create(path)
+# Messages OpenImageIO's writers leave in their error state on every successful write
+# (OpenImageIO 3.2's TIFF writer, for an image without Exif data); the read-back checks the file.
+_BENIGN_ERRORS = frozenset({"failed TIFFWriteCustomDirectory() of the Exif data"})
+
+
+class _WriteFailed(Exception):
+    """An OpenImageIO call on the output failed; the message is OpenImageIO's."""
+
+
+def _checked(out, ok, what: str) -> None:
+    """Raise _WriteFailed unless ``ok`` and the writer holds no error (PNG and TGA writers report a
+    failed write only through their error state, returning success)."""
+    if ok and not out.has_error:
+        return
+    lines = [ln.strip() for ln in (out.geterror() or oiio.geterror()).splitlines()
+             if ln.strip() and ln.strip() not in _BENIGN_ERRORS]
+    if ok and not lines:
+        return
+    raise _WriteFailed(lines[0] if lines else f"{what} failed")
+
+
+def _write_pixels(out, spec: oiio.ImageSpec, data: np.ndarray) -> None:
+    """Write one (sub)image: scanlines whole, tiled images one row of tiles at a time.
+
+    OpenImageIO's write_image of a tiled OpenEXR hangs for ever when a write fails (its parallel
+    tile writer deadlocks on ENOSPC/EFBIG); a row of tiles per call fails cleanly.
+    """
+    if spec.tile_width > 0 and spec.tile_height > 0:
+        th = spec.tile_height
+        for y0 in range(0, spec.height, th):
+            y1 = min(y0 + th, spec.height)
+            ok = out.write_tiles(spec.x, spec.x + spec.width, spec.y + y0, spec.y + y1, spec.z, spec.z + 1,
+                                 np.ascontiguousarray(data[y0:y1]))
+            _checked(out, ok, "write")
+    else:
+        _checked(out, out.write_image(data), "write")
+
+
+def _oiio_write_parts(target: str, fmt: str, parts: list[tuple[oiio.ImageSpec, np.ndarray]], mode: str) -> None:
+    """Write ``parts`` to ``target`` with OpenImageIO, checking every call; raise _WriteFailed.
+
+    ``mode``: "single" (one image), "mipmap" (MIP levels of one tiled image), "multipart" (subimages).
+    """
+    out = oiio.ImageOutput.create(fmt) if fmt else oiio.ImageOutput.create(target)
     if out is None:
-        raise OutputError(f"cannot write {path}: "
-                          f"{_one_line(oiio.geterror(), 'no writer for this format')}")
+        raise _WriteFailed(_one_line(oiio.geterror(), "no writer for this format"))
+    failure: _WriteFailed | None = None
     try:
-        if not out.open(path, spec):
-            raise OutputError(f"cannot write {path}: "
-                              f"{_one_line(out.geterror(), 'open failed')}")
-        if not out.write_image(pixels):
-            raise OutputError(f"cannot write {path}: "
-                              f"{_one_line(out.geterror(), 'write failed')}")
+        if mode == "multipart":
+            ok = out.open(target, tuple(spec for spec, _ in parts))
+        else:
+            ok = out.open(target, parts[0][0], "Create")
+        _checked(out, ok, "open")
+        for k, (spec, data) in enumerate(parts):
+            if k:
+                _checked(out, out.open(target, spec, "AppendMIPLevel" if mode == "mipmap" else "AppendSubimage"),
+                         "open")
+            _write_pixels(out, spec, data)
+    except _WriteFailed as exc:
+        failure = exc
+    except (RuntimeError, TypeError, ValueError) as exc:  # binding errors
+        failure = _WriteFailed(_one_line(str(exc), "write failed"))
     finally:
         closed = out.close()
-    if not closed:
-        raise OutputError(f"cannot write {path}: {_one_line(out.geterror(), 'close failed')}")
+    if failure is not None:
+        raise failure
+    _checked(out, closed, "close")
+
+
+def _size_limit() -> int | None:
+    """The process's file size limit (ulimit -f) in bytes, None when unlimited."""
+    if resource is None:
+        return None
+    soft = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
+    return None if soft == resource.RLIM_INFINITY else int(soft)
+
+
+def _copy_to(src_fd: int, dst: str) -> None:
+    """Copy the whole of ``src_fd`` into the file ``dst`` with os.write (OSError on ENOSPC/EFBIG/EDQUOT)."""
+    fd = os.open(dst, os.O_WRONLY | os.O_TRUNC)
+    try:
+        offset, size = 0, os.fstat(src_fd).st_size
+        while offset < size:
+            chunk = os.pread(src_fd, min(1 << 23, size - offset), offset)
+            view = memoryview(chunk)
+            while view:
+                n = os.write(fd, view)
+                view = view[n:]
+            offset += len(chunk)
+    finally:
+        os.close(fd)
+
+
+_PNG_END = b"\x00\x00\x00\x00IEND\xaeB`\x82"
+
+
+def _verify(tmp: str, fmt: str, parts: list[tuple[oiio.ImageSpec, np.ndarray]], mode: str) -> None:
+    """Check what was written: not empty, the format's end marker where it has one (PNG, JPEG),
+    and a header that reads back with the size and channels written."""
+    size = os.path.getsize(tmp)
+    if size == 0:
+        raise _WriteFailed("nothing was written (the file is empty)")
+    if fmt in ("png", "jpeg"):
+        with open(tmp, "rb") as f:
+            f.seek(max(0, size - 12))
+            tail = f.read()
+        if not tail.endswith(_PNG_END if fmt == "png" else b"\xff\xd9"):
+            raise _WriteFailed(f"the file is incomplete ({size} bytes, no end marker)")
+    inp = oiio.ImageInput.open(tmp)
+    if inp is None:
+        raise _WriteFailed(f"the file does not read back ({_one_line(oiio.geterror(), 'unreadable')})")
+    try:
+        spec, want = inp.spec(), parts[0][0]
+        if (spec.width, spec.height) != (want.width, want.height):
+            raise _WriteFailed(f"the file reads back as {spec.width}x{spec.height}, not {want.width}x{want.height}")
+        if mode == "multipart" and not inp.seek_subimage(len(parts) - 1, 0):
+            raise _WriteFailed(f"the file reads back with fewer than {len(parts)} parts")
+        if mode == "mipmap" and not inp.seek_subimage(0, len(parts) - 1):
+            raise _WriteFailed(f"the file reads back with fewer than {len(parts)} MIP levels")
+    finally:
+        inp.close()
+        oiio.geterror()  # leave no stale error behind
+
+
+def _write_file(tmp: str, user_path: str, fmt: str, parts: list[tuple[oiio.ImageSpec, np.ndarray]],
+                mode: str = "single") -> None:
+    """Write ``parts`` into the temporary ``tmp`` and check the result; OutputError names ``user_path``."""
+    try:
+        if fmt in _ENCODE_IN_MEMORY and hasattr(os, "memfd_create") and os.path.isdir("/proc/self/fd"):
+            limit = _size_limit()
+            bound = 2 * sum(data.nbytes for _, data in parts) + (1 << 20)
+            if limit is not None and bound > limit:
+                # The encoder would exit the process if the limit stopped it: refuse first.
+                raise _WriteFailed(f"a {_FORMAT_TITLES.get(fmt, fmt)} file of this size may need up to {bound} "
+                                   f"bytes, over the file size limit (ulimit -f) of {limit} bytes")
+            mem = os.memfd_create("pyramid-encode", getattr(os, "MFD_CLOEXEC", 0))
+            try:
+                _oiio_write_parts(f"/proc/self/fd/{mem}", fmt, parts, mode)
+                _copy_to(mem, tmp)
+            finally:
+                os.close(mem)
+        else:
+            _oiio_write_parts(tmp, "", parts, mode)
+        _verify(tmp, fmt, parts, mode)
+    except _WriteFailed as exc:
+        message = str(exc).replace(tmp, user_path)
+        raise OutputError(f"cannot write {user_path}: {message}{_diagnosis(tmp)}") from None
+    except OSError as exc:
+        raise OutputError(f"cannot write {user_path}: {exc.strerror or exc}") from None
+
+
+def _diagnosis(tmp: str) -> str:
+    """Why a write may have failed, when the system says (OpenImageIO's messages do not)."""
+    limit = _size_limit()
+    with contextlib.suppress(OSError):
+        if limit is not None and os.path.getsize(tmp) >= limit:
+            return f" (the file size limit, ulimit -f, is {limit} bytes)"
+    with contextlib.suppress(OSError):
+        st = os.statvfs(os.path.dirname(os.path.abspath(tmp)))
+        if st.f_bavail * st.f_frsize < (1 << 20):
+            return " (the disk is full)"
+    return ""
+
+
+def _oiio_write(path: str, spec: oiio.ImageSpec, pixels: np.ndarray) -> None:
+    """Write ``pixels`` to ``path`` with OpenImageIO (checked, see :func:`_write_file`); OutputError on failure."""
+    _write_file(path, path, _format_from_path(path), [(spec, pixels)])
 
 
 def _is_same_file(a: str, b: str) -> bool:
@@ -858,6 +1165,30 @@ def write_image(path: str | os.PathLike[str], image: Image, *,
     _atomic_write(out_path, os.path.dirname(os.path.abspath(out_path)), spec, data)
 
 
+def write_images(paths: list[str | os.PathLike[str]], images: list[Image], **options) -> None:
+    """Write several files all-or-nothing (``pyramid levels``): every file is written and checked under
+    its temporary name first, then all are renamed; a failure or interruption leaves every previous
+    output untouched and no temporary behind.
+
+    Parameters
+    ----------
+    paths, images
+        One output path per image.
+    options
+        As for :func:`write_image` (pixel_type, colorspace, alpha, dither, compression, force, inputs).
+    """
+    out_paths = [os.fspath(p) for p in paths]
+    if len(out_paths) != len(images):
+        raise ValueError("write_images needs one path per image")
+    for p in out_paths:  # refuse bad names and options before writing anything
+        _check_output_path(p, options.get("force", False), options.get("inputs", ()))
+        check_write_options(p, options.get("pixel_type"), options.get("compression"))
+    with atomic_paths(out_paths) as tmps:
+        for p, tmp, image in zip(out_paths, tmps, images, strict=True):
+            spec, data = _encode(p, image, **options)  # one image's encoded copy at a time
+            _write_file(tmp, p, _format_from_path(p), [(spec, data)])
+
+
 def write_levels(path: str | os.PathLike[str], images: list[Image], *, mode: str = "mipmap",
                  tile: int = 64, **options) -> None:
     """Write several images into one file atomically: MIP levels (tiled) or EXR parts.
@@ -887,22 +1218,78 @@ def write_levels(path: str | os.PathLike[str], images: list[Image], *, mode: str
             spec.attribute("name", f"level{k}")
             # OpenEXR parts share one display window: level 0's
             spec.full_x, spec.full_y, spec.full_width, spec.full_height = 0, 0, full.width, full.height
+    probe = oiio.ImageOutput.create(fmt) if fmt else None
+    feature = "mipmap" if mode == "mipmap" else "multiimage"
+    if probe is None or not probe.supports(feature):
+        oiio.geterror()
+        raise OutputError(f"cannot write {out_path}: the {_FORMAT_TITLES.get(fmt, fmt)} format cannot hold "
+                          f"{'MIP levels' if mode == 'mipmap' else 'several images'}")
     with atomic_path(out_path) as tmp:
-        out = oiio.ImageOutput.create(tmp)
-        feature = "mipmap" if mode == "mipmap" else "multiimage"
-        if out is None or not out.supports(feature):
-            raise OutputError(f"cannot write {out_path}: the {fmt} format cannot hold "
-                              f"{'MIP levels' if mode == 'mipmap' else 'several images'}")
-        ok = out.open(tmp, encoded[0][0], "Create") if mode == "mipmap" else \
-            out.open(tmp, tuple(spec for spec, _ in encoded))
-        for k, (spec, data) in enumerate(encoded):
-            if k:
-                ok = ok and out.open(tmp, spec, "AppendMIPLevel" if mode == "mipmap" else "AppendSubimage")
-            ok = ok and out.write_image(data)
-        ok = out.close() and ok
+        _write_file(tmp, out_path, fmt, encoded, mode)
+
+
+def _check_output_path(out_path: str, force: bool, inputs) -> str:
+    """The output's format, after refusing an unknown extension, a folder, or an input without ``force``."""
+    fmt = _format_from_path(out_path)
+    if not fmt:
+        raise OutputError(f"cannot write {out_path}: unknown image file extension")
+    if os.path.isdir(out_path):
+        raise OutputError(f"cannot write {out_path}: it is a directory")
+    if os.path.lexists(out_path) and not os.path.isfile(out_path) and not os.path.islink(out_path):
+        raise OutputError(f"cannot write {out_path}: it exists and is not a regular file")
+    if not force:
+        for inp in inputs:
+            if _is_same_file(out_path, os.fspath(inp)):
+                raise OutputError(f"refusing to overwrite input {out_path} (use --force)")
+    return fmt
+
+
+def check_write_options(path: str | os.PathLike[str], pixel_type: str | None = None,
+                        compression: str | None = None) -> None:
+    """Refuse (UsageError, exit 2) a --type or --compression the output's format would not honour.
+
+    Without this OpenImageIO stores the nearest type or its default compression without a word.
+    ``None`` means "not asked": the input's type (as the format allows) and compression apply.
+    Cheap: call it before any work.
+    """
+    out_path = os.fspath(path)
+    fmt = _format_from_path(out_path)
+    if not fmt:
+        return  # the write reports the unknown extension
+    title = _FORMAT_TITLES.get(fmt, fmt)
+    if pixel_type is not None:
+        _check_choice("pixel type", pixel_type, PIXEL_TYPES)
+        allowed = _FORMAT_TYPES.get(fmt)
+        if allowed is not None and pixel_type not in allowed:
+            raise UsageError(f"{out_path}: --type {pixel_type} cannot be stored in {title} files "
+                             f"(they hold {' or '.join(allowed)})")
+    if compression is None:
+        return
+    c = str(compression).strip().lower()
+    name, _, level = c.partition(":")
+    if fmt == "png":
+        if not (c.isdigit() and 0 <= int(c) <= 9):
+            raise UsageError(f"{out_path}: unknown --compression {compression} (PNG takes a zlib level 0-9)")
+    elif fmt == "jpeg":
+        q = level if name == "jpeg" else c
+        if not (q.isdigit() and 1 <= int(q) <= 100):
+            raise UsageError(f"{out_path}: unknown --compression {compression} "
+                             "(JPEG takes a quality 1-100, or jpeg:QUALITY)")
+    elif fmt in _COMPRESSIONS:
+        ok = name in _COMPRESSIONS[fmt] and (not level or (name in _COMPRESSION_LEVELS and _is_number(level)))
         if not ok:
-            why = _one_line(out.geterror() or oiio.geterror(), "write failed")
-            raise OutputError(f"cannot write {out_path}: {why}")
+            levels = ", ".join(c for c in _COMPRESSIONS[fmt] if c in _COMPRESSION_LEVELS)
+            raise UsageError(f"{out_path}: unknown --compression {compression} "
+                             f"({title} takes {', '.join(_COMPRESSIONS[fmt])}; {levels} take :LEVEL)")
+    else:
+        raise UsageError(f"{out_path}: --compression has no effect on {title} files")
+
+
+def _is_number(text: str) -> bool:
+    try:
+        return math.isfinite(float(text))
+    except ValueError:
+        return False
 
 
 def _encode(path, image: Image, *, pixel_type=None, colorspace=None, alpha=None, dither=False, compression=None,
@@ -917,18 +1304,8 @@ def _encode(path, image: Image, *, pixel_type=None, colorspace=None, alpha=None,
     if alpha is not None:
         _check_choice("alpha mode", alpha, ALPHA_MODES)
 
-    fmt = _format_from_path(out_path)
-    if not fmt:
-        raise OutputError(f"cannot write {out_path}: unknown image file extension")
-    folder = os.path.dirname(os.path.abspath(out_path))
-    if not os.path.isdir(folder):
-        raise OutputError(f"cannot write {out_path}: folder {folder} does not exist")
-    if os.path.isdir(out_path):
-        raise OutputError(f"cannot write {out_path}: it is a directory")
-    if not force:
-        for inp in inputs:
-            if _is_same_file(out_path, os.fspath(inp)):
-                raise OutputError(f"refusing to overwrite input {out_path} (use --force)")
+    fmt = _check_output_path(out_path, force, inputs)
+    check_write_options(out_path, pixel_type, compression)
 
     pixels = np.asarray(image.pixels)
     if pixels.ndim == 2:
@@ -1038,8 +1415,13 @@ def _output_spec(info: ImageInfo, fmt: str, out_type: str, names: list[str], alp
     if compression is not None:
         if fmt == "png" and compression.isdigit():
             spec.attribute("png:compressionLevel", int(compression))  # zlib level 0-9
+        elif fmt == "jpeg" and compression.strip().isdigit():
+            spec.attribute("compression", f"jpeg:{int(compression)}")  # quality 1-100
         else:
             spec.attribute("compression", compression)
+    if same_format and info.tile is not None and fmt in _TILED_FORMATS:
+        # A tiled input is written back tiled, with its tile size.
+        spec.tile_width, spec.tile_height = info.tile
     return spec
 
 

@@ -27,6 +27,7 @@ from .errors import ExpressionError
 from .expr import Apply, Expr, Filter, Input, Literal, Named, Op
 
 MAX_POWER = 16
+MAX_DIGITS = 12  # digits of a number in a written mask (weights stay exact and fit a float)
 
 _SUPDIGITS = "⁰¹²³⁴⁵⁶⁷⁸⁹"
 _ARROW_SE = {"↘", "\\", "se", "dr"}
@@ -101,6 +102,9 @@ def _op_of(tok: Token) -> Op:
 
 def _int_of_pow(tok: Token, text: str) -> int:
     t = tok.text
+    digits = t if t[0] in _SUPDIGITS else re.sub(r"[\^{}\s-]", "", t)
+    if len(digits.lstrip("0⁰")) > 3:  # far out of range, and int() of thousands of digits is refused
+        raise ExpressionError(f"exponent must be between 1 and {MAX_POWER}", text, tok.pos, len(t))
     if t[0] in _SUPDIGITS:
         n = _sup_to_int(t)
     else:
@@ -309,6 +313,8 @@ class _Parser:
             raise ExpressionError("h_Gauss needs a size: gauss5, gauss7 or h_Gauss^{5×5}", self.text,
                                   span[0], span[1] - span[0])
         if key.startswith("gauss"):
+            if len(key[5:].lstrip("0")) > 3:
+                raise ExpressionError("Gaussian sizes are odd, 3 to 65", self.text, span[0], span[1] - span[0])
             n = int(key[5:])
             if n < 3 or n % 2 == 0 or n > 65:
                 raise ExpressionError(f"Gaussian sizes are odd, 3 to 65, not {n}", self.text,
@@ -365,6 +371,8 @@ class _Parser:
         if self.peek().kind == "SLASH":
             self.take()
             den = self.peek()
+            if den.kind == "NUM":
+                self._check_digits(den)
             if den.kind != "NUM" or int(den.text) == 0:
                 self.fail("expected a non-zero integer after '/'")
             self.take()
@@ -379,10 +387,16 @@ class _Parser:
         mask = tuple(tuple(v * scale for v in r) for r in rows)
         return _Operand(filter=Literal(mask, span), span=span)
 
+    def _check_digits(self, tok: Token) -> None:
+        if len(tok.text.lstrip("0")) > MAX_DIGITS:
+            self.fail(f"a number in a mask has at most {MAX_DIGITS} digits, not {len(tok.text.lstrip('0'))}", tok)
+
     def _fraction(self) -> Fraction:
+        self._check_digits(self.peek())
         num = Fraction(int(self.take().text))
         if self.peek().kind == "SLASH" and self.tokens[self.i + 1].kind == "NUM":
             self.take()
+            self._check_digits(self.peek())
             den = self.take()
             if int(den.text) == 0:
                 self.fail("division by zero", den)

@@ -315,8 +315,10 @@ def test_exr_to_png_and_jpeg_conversions(tmp_path):
     np.testing.assert_array_equal(back[..., 3], np.floor(lin[..., 3] * 65535 + 0.5))
     assert spec.get_string_attribute("studio:note") == "keep me"
 
-    # JPEG: uint8, no alpha (composited over black).
-    pio.write_image(tmp_path / "out.jpg", img, pixel_type="float", compression="jpeg:100")
+    # JPEG: uint8, no alpha (composited over black); a float asked for is refused, not ignored.
+    with pytest.raises(UsageError, match="JPEG"):
+        pio.write_image(tmp_path / "out.jpg", img, pixel_type="float", compression="jpeg:100")
+    pio.write_image(tmp_path / "out.jpg", img, compression="jpeg:100")
     back, spec = read_raw(tmp_path / "out.jpg")
     assert str(spec.format) == "uint8" and spec.nchannels == 3
     expected = np.floor(srgb_oetf(lin[..., :3]) * 255 + 0.5)
@@ -567,8 +569,11 @@ def test_output_errors(tmp_path, written):
     img, _, _ = written
     with pytest.raises(OutputError, match="out.xyz"):
         pio.write_image(tmp_path / "out.xyz", img)
-    with pytest.raises(OutputError, match="nowhere"):
-        pio.write_image(tmp_path / "nowhere" / "out.png", img)
+    pio.write_image(tmp_path / "new" / "folder" / "out.png", img)  # missing folders are created
+    assert (tmp_path / "new" / "folder" / "out.png").is_file()
+    (tmp_path / "afile").write_text("")
+    with pytest.raises(OutputError, match="afile"):
+        pio.write_image(tmp_path / "afile" / "out.png", img)
     (tmp_path / "adir.png").mkdir()
     with pytest.raises(OutputError, match="adir.png"):
         pio.write_image(tmp_path / "adir.png", img)
