@@ -1458,6 +1458,13 @@ def stores_half_unchanged(path: str | os.PathLike[str], info: ImageInfo, *, pixe
     return out_type == "half" and not _converts(fmt, info.alpha_channel, memory_premultiplied, encoding, mode)
 
 
+def write_spec(path: str | os.PathLike[str], spec: oiio.ImageSpec, data: np.ndarray) -> None:
+    """Write ``data`` exactly as ``spec`` says (no colour or alpha rules), atomically and checked like every
+    other write: a failure is an OutputError naming ``path`` and leaves what was there untouched."""
+    out_path = os.fspath(path)
+    _atomic_write(out_path, os.path.dirname(os.path.abspath(out_path)), spec, np.ascontiguousarray(data))
+
+
 def _atomic_write(out_path: str, folder: str, spec: oiio.ImageSpec, data: np.ndarray) -> None:
     with atomic_path(out_path) as tmp:
         try:

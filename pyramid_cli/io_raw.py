@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 import OpenImageIO as oiio
 
-from .errors import InputError, OutputError
+from .errors import InputError
 
 __all__ = ["RawLevel", "count_levels", "image_extensions", "read_level", "write_display_png", "write_float"]
 
@@ -160,17 +160,9 @@ def read_level(path: str, subimage: int = 0, miplevel: int = 0) -> RawLevel:
 
 
 def _write(path: str, spec: oiio.ImageSpec, pixels: np.ndarray) -> None:
-    from .atomic import atomic_path
+    from .io import write_spec  # every write is checked in one place (a lying PNG writer, a full disk)
 
-    with atomic_path(path) as tmp:
-        out = oiio.ImageOutput.create(path)
-        if out is None:
-            raise OutputError(f"cannot write {path}: {_one_line(oiio.geterror(), 'unknown format')}")
-        try:
-            if not out.open(tmp, spec) or not out.write_image(np.ascontiguousarray(pixels)):
-                raise OutputError(f"cannot write {path}: {_one_line(out.geterror(), 'write failed')}")
-        finally:
-            out.close()
+    write_spec(path, spec, pixels)
 
 
 def write_float(path: str, pixels: np.ndarray, channel_names: list[str]) -> None:
