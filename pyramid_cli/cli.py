@@ -103,8 +103,10 @@ def explain(expression, as_json: bool, plot: str | None) -> None:
     weights[i][j]/denominator × input pixel (R − (i − i0), C − (j − j0)),
     R = stride·⌈r/period⌉ (r for ⊗, 2ᵐr for ⊗↓ᵐ, ⌊(r+1)/2⌋ for ⊗↑), anchor = [i0, j0].
     """
-    from .explain import describe, plot_powers, render
+    from .explain import check_plot_path, describe, plot_powers, render
 
+    if plot:
+        check_plot_path(plot)  # refused before any work
     info = describe(expression)
     if plot:
         plot_powers(expression, plot)
@@ -469,12 +471,9 @@ def farm_template(frames, chunk, target_seconds, name, executable, out_path, com
     if out_path == "-":
         click.echo(text, nl=False)
         return
-    from .atomic import atomic_path
-    from .pipeline import ensure_folder
+    from .farm import write
 
-    ensure_folder(out_path)
-    with atomic_path(out_path) as tmp, open(tmp, "w", encoding="utf-8") as f:
-        f.write(text)
+    write(out_path, text)
     click.echo(f"wrote {out_path}", err=True)
 
 

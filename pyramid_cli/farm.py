@@ -125,4 +125,13 @@ def dumps(template: dict) -> str:
     return json.dumps(template, indent=2, ensure_ascii=False) + "\n"
 
 
-__all__ = ["job_template", "openjd_range", "dumps", "SPECIFICATION", "COMMANDS"]
+def write(path: str, text: str) -> None:
+    """Write a template atomically (its folder created), as every output of the tool is written."""
+    from .atomic import atomic_path, ensure_output_dir
+
+    ensure_output_dir(path)
+    with atomic_path(path) as tmp, open(tmp, "w", encoding="utf-8") as f:
+        f.write(text)
+
+
+__all__ = ["write", "job_template", "openjd_range", "dumps", "SPECIFICATION", "COMMANDS"]

@@ -24,6 +24,7 @@ from functools import lru_cache
 
 from .errors import DataError, UsageError
 from .expr import Expr, Op, steps
+from .geometry import mip_levels, reduced
 
 MAX_KERNEL_ENTRIES = 65_536          # weights in all phases of an exact kernel (e.g. 256×256)
 MAX_EVALUATION_WORK = 500_000        # rational multiply-adds to evaluate it exactly (estimated)
@@ -122,7 +123,7 @@ def step_sizes(expr_or_steps, size: tuple[int, int]) -> list[tuple[int, int]]:
     out = [(h, w)]
     for op, _, m in stps:
         if op is Op.DOWN:
-            h, w = -(-h // 2 ** m), -(-w // 2 ** m)
+            h, w = reduced(h, m), reduced(w, m)
         elif op is Op.UP:
             h, w = 2 * h, 2 * w
         out.append((h, w))
@@ -186,11 +187,7 @@ def max_levels(size: tuple[int, int] | None) -> int:
     """Most pyramid levels an image of ``size`` (rows, cols) has: halvings until 1×1 (at most 16)."""
     if size is None:
         return MAX_LEVELS
-    n, (h, w) = 0, size
-    while max(h, w) > 1 and n < MAX_LEVELS:
-        h, w = -(-h // 2), -(-w // 2)
-        n += 1
-    return max(n, 1)
+    return max(1, min(mip_levels(tuple(size)), MAX_LEVELS))
 
 
 def max_sigma(size: tuple[int, int] | None, analysis: str = "box4", synthesis: str = "doosabin") -> float:

@@ -2,9 +2,9 @@
 
 The CLI and the Python API's file helpers call these functions; they hold the
 policies that used to live in command bodies: which inputs become which outputs,
-whether a half file travels as half, NaN warnings, output folders (always created,
-in every command), and what is said on the way (a :class:`Reporter`). Writes are
-atomic (:mod:`pyramid_cli.io`); a batch goes through :mod:`pyramid_cli.batch`.
+whether a half file travels as half, NaN warnings, refusals before work
+(:mod:`pyramid_cli.limits`, options a format would ignore), and what is said on
+the way (a :class:`Reporter`). Writes are atomic (:mod:`pyramid_cli.io`); a batch goes through :mod:`pyramid_cli.batch`.
 """
 
 from __future__ import annotations
@@ -74,18 +74,6 @@ class Reporter:
 
     def error(self, msg: str) -> None:
         self.err(f"pyramid: error: {msg}")
-
-
-def ensure_folder(path: str) -> None:
-    """Create the folder an output goes into (the one rule for every command)."""
-    folder = os.path.dirname(os.fspath(path))
-    if folder:
-        try:
-            os.makedirs(folder, exist_ok=True)
-        except OSError as e:
-            from .errors import OutputError
-
-            raise OutputError(f"cannot create the folder of {path}: {e.strerror or e}") from None
 
 
 def _read(path: str, ro: ReadOptions, reporter: Reporter, keep_half: bool = False) -> io.Image:
@@ -163,7 +151,10 @@ def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: R
             session.prepare(work, [shape[:2]])
 
     def read_job(job):
-        return job, _read(job.input, ro, reporter, keep_half=not mip_tile)
+        io.check_write_options(job.output, wo.pixel_type, wo.compression)  # refused before any work
+        image = _read(job.input, ro, reporter, keep_half=not mip_tile)
+        work.check((image.pixels.shape[:2],), where=job.input)
+        return job, image
 
     def compute(job_image):
         job, image = job_image
@@ -174,7 +165,6 @@ def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: R
         return [io.Image(px, image.spec) for px in (outs if mip_tile else outs[-1:])]
 
     def write_job(job, images):
-        ensure_folder(job.output)
         options = wo.for_inputs([job.input])
         if mip_tile:
             io.write_levels(job.output, images, mode="mipmap", tile=mip_tile, **options)
@@ -214,6 +204,7 @@ def write_levels_files(input_path: str, pattern: str, work: Levels | Laplacian, 
     ro, wo, reporter = read or ReadOptions(), write or WriteOptions(), reporter or Reporter()
     laplacian = isinstance(work, Laplacian)
     image = _read(input_path, ro, reporter)
+    work.check((image.pixels.shape[:2],), where=input_path)
     stack = session.run(work, [image.pixels])
     reporter.detail(f"{io.describe_rules(image.spec)}; executor {session.ran}")
     images = [io.Image(px, image.spec) for px in stack]
@@ -223,14 +214,11 @@ def write_levels_files(input_path: str, pattern: str, work: Levels | Laplacian, 
         for im in images:
             im.spec.attributes["pyramid:synthesis"] = work.synthesis
     if multipart:
-        ensure_folder(pattern)
         io.write_levels(pattern, images, mode="multipart", **options)
         written = [pattern]
     else:
         written = [level_path(pattern, k) for k in range(len(images))]
-        for path, im in zip(written, images, strict=True):
-            ensure_folder(path)
-            io.write_image(path, im, **options)
+        io.write_images(written, images, **options)  # all or nothing
     if sheet:
         from .sheet import contact_sheet
 
@@ -238,7 +226,6 @@ def write_levels_files(input_path: str, pattern: str, work: Levels | Laplacian, 
                                for k, im in enumerate(images)])
         info = io.ImageInfo(path=sheet, format="png", pixel_type="uint8", channel_names=["R", "G", "B"],
                             alpha_channel=-1, colorspace="srgb", alpha_mode="none")
-        ensure_folder(sheet)
         io.write_image(sheet, io.Image(panel, info), pixel_type="uint8")
         written.append(sheet)
     for path in written:
@@ -263,10 +250,10 @@ def collapse_files(inputs: list[str], output_path: str, session: Session, *, syn
         bands = [_read(p, ro, reporter) for p in sorted(paths, key=_level_key)]
     if len(bands) < 2:
         raise UsageError(f"collapse needs at least two levels, {paths[0]} holds {len(bands)}")
+    io.check_pyramid(bands)
     synthesis = synthesis or bands[0].spec.attributes.get("pyramid:synthesis", catalogue.SYNTHESIS_DEFAULT)
     work = Collapse(bands=len(bands), synthesis=synthesis, border=border)
     (out,) = session.run(work, [b.pixels for b in bands])
-    ensure_folder(output_path)
     io.write_image(output_path, io.Image(out, bands[0].spec), **wo.for_inputs(paths))
     h, w = out.shape[:2]
     reporter.result(f"wrote {output_path} ({w}×{h}, {session.ran})")
@@ -274,4 +261,4 @@ def collapse_files(inputs: list[str], output_path: str, session: Session, *, syn
 
 
 __all__ = ["ReadOptions", "WriteOptions", "Reporter", "process", "run_jobs", "write_levels_files", "collapse_files",
-           "level_path", "ensure_folder"]
+           "level_path"]

@@ -49,16 +49,14 @@ def blur_steps(size: tuple[int, int], levels: int, analysis: str = A0, synthesis
 
 
 def sigma_blend(sigma: float, analysis: str = A0, synthesis: str = S0) -> tuple[int, float]:
-    """(m, t): blending (1 − t) × the m-level blur with t × the (m+1)-level one has variance sigma²."""
-    if not sigma > 0:
-        raise UsageError("--sigma must be positive")
-    sig = [0.0]
-    while sig[-1] < sigma:
-        if len(sig) > 16:
-            raise UsageError(f"--sigma {sigma:g} needs more than 16 levels")
-        sig.append(impulse_sigma(len(sig), analysis, synthesis))
-    m = len(sig) - 2
-    return m, (sigma ** 2 - sig[m] ** 2) / (sig[m + 1] ** 2 - sig[m] ** 2)
+    """(m, t): blending (1 − t) × the m-level blur with t × the (m+1)-level one has variance sigma².
+
+    Refuses (exit 2) a sigma that is not positive and finite or needs more than 16 levels;
+    the variances come in closed form (:func:`pyramid_cli.limits.levels_sigma`).
+    """
+    from .limits import sigma_blend as closed_form
+
+    return closed_form(sigma, analysis, synthesis)
 
 
 @lru_cache(maxsize=32)  # batches re-use a plan per image size

@@ -162,6 +162,7 @@ class Session:
         images = list(images) if isinstance(images, (list, tuple)) else [images]
         if len(images) != work.n_inputs:
             raise ValueError(f"{work.label} takes {work.n_inputs} image(s), got {len(images)}")
+        work.check(tuple(im.shape[:2] for im in images))
         kept = [images[0]] if work.keeps_input else []
         if self._executor is None:
             self.ran = "reference"

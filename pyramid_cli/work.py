@@ -41,6 +41,10 @@ class Work:
         """The plan for inputs of ``sizes`` (rows, columns); None when there is nothing to compute."""
         raise NotImplementedError
 
+    def check(self, sizes: tuple[Size, ...], where: str = "") -> None:
+        """Refuse work too large for inputs of ``sizes`` before it starts (:mod:`pyramid_cli.limits`);
+        ``where`` (an input's path) starts the message."""
+
     def reference(self, images: list) -> list:
         """Every output by the float64 oracle (excluding the kept input)."""
         raise NotImplementedError
@@ -58,6 +62,11 @@ class Filter(Work):
 
     def plan(self, sizes, strategy="cost"):
         return plan(self.expr, tuple(sizes[0]), strategy, self.border)
+
+    def check(self, sizes, where=""):
+        from .limits import check_image_cost
+
+        check_image_cost(self.expr, tuple(sizes[0][:2]), where=where)
 
     def reference(self, images):
         from . import reference
@@ -92,6 +101,11 @@ class SigmaBlur(Work):
     analysis: str = catalogue.ANALYSIS_DEFAULT
     synthesis: str = catalogue.SYNTHESIS_DEFAULT
     label = "blur"
+
+    def check(self, sizes, where=""):
+        from .limits import check_sigma
+
+        check_sigma(self.sigma, tuple(sizes[0][:2]), self.analysis, self.synthesis, where=where)
 
     def plan(self, sizes, strategy="cost"):
         return pyramids.blur_plan_sigma(tuple(sizes[0]), self.sigma, self.analysis, self.synthesis, self.border,
@@ -154,6 +168,15 @@ class Collapse(Work):
     @property
     def n_inputs(self) -> int:  # type: ignore[override]
         return self.bands
+
+    def check(self, sizes, where=""):
+        for k in range(1, len(sizes)):
+            want = tuple(geometry.reduced(n) for n in sizes[k - 1][:2])
+            if tuple(sizes[k][:2]) != want:
+                from .errors import InputError
+
+                raise InputError(f"{where + ': ' if where else ''}band {k} is {sizes[k][1]}×{sizes[k][0]}; after "
+                                 f"{sizes[k - 1][1]}×{sizes[k - 1][0]} it must be {want[1]}×{want[0]}")
 
     def plan(self, sizes, strategy="cost"):
         return pyramids.collapse_plan(tuple(tuple(s) for s in sizes), self.synthesis, self.border, strategy)
