@@ -15,8 +15,10 @@ BACKEND_HELP = {
 BORDERS = tuple(BORDER_NAMES)
 PRECISIONS = ("float", "half")
 PIXEL_TYPES = ("uint8", "uint16", "half", "float")
-COLORSPACES = ("auto", "linear", "srgb")
-ALPHA_MODES = ("auto", "straight", "premultiplied", "none")
+ENCODINGS = ("linear", "srgb")                        # how stored values are encoded
+STORED_ALPHA = ("straight", "premultiplied", "none")  # how a file stores alpha
+COLORSPACES = ("auto", *ENCODINGS)                    # --colorspace: auto reads the file's metadata
+ALPHA_MODES = ("auto", *STORED_ALPHA)                 # --alpha: auto follows the file
 NAN_POLICIES = ("keep", "zero", "fail")
 STRATEGIES = ("cost", "paper", "fused")
 
@@ -28,5 +30,6 @@ def check(name: str, value: str, choices) -> str:
     return value
 
 
-__all__ = ["BACKENDS", "BACKEND_HELP", "BORDERS", "PRECISIONS", "PIXEL_TYPES", "COLORSPACES", "ALPHA_MODES",
+__all__ = ["BACKENDS", "BACKEND_HELP", "BORDERS", "PRECISIONS", "PIXEL_TYPES", "ENCODINGS", "STORED_ALPHA",
+           "COLORSPACES", "ALPHA_MODES",
            "NAN_POLICIES", "STRATEGIES", "check"]
