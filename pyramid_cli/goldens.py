@@ -371,6 +371,8 @@ def pair_inputs(a: str, b: str) -> Pairing:
         A folder paired with a file or a pattern with a non-pattern, or a pattern
         that matches nothing.
     """
+    if _frame_sequences(a, b):
+        return _pair_frames(a, b)
     a_dir, b_dir = os.path.isdir(a), os.path.isdir(b)
     a_pat, b_pat = is_pattern(a) and not os.path.exists(a), is_pattern(b) and not os.path.exists(b)
     if not a_dir and not a_pat:
@@ -398,6 +400,31 @@ def pair_inputs(a: str, b: str) -> Pairing:
         used.update(r for r in refs)
         pairs.append((rel, path, refs, os.path.join(b_base, rel)))
     extras = [(grel, gpath) for grel, gpath in golds.items() if gpath not in used]
+    return Pairing(pairs=pairs, extras=extras, many=True)
+
+
+def _frame_sequences(a: str, b: str) -> bool:
+    from . import sequence
+
+    return not (os.path.exists(a) or os.path.exists(b)) and sequence.is_sequence(a) and sequence.is_sequence(b)
+
+
+def _pair_frames(a: str, b: str) -> Pairing:
+    """Two frame sequences (``out/soft.####.exr`` against ``golden/plate.%04d.exr``), paired by frame number
+    (:mod:`pyramid_cli.sequence`, fileseq's conventions): a frame with no golden is missing, a golden frame
+    with no output is extra."""
+    from . import sequence
+
+    outs, golds = dict(sequence.frames_of(a)), dict(sequence.frames_of(b))
+    sa, sb = sequence.parse(a), sequence.parse(b)
+    pairs, extras = [], []
+    for f in sorted(set(outs) | set(golds)):
+        out, gold = outs.get(f) or sa.frame(f), golds.get(f) or sb.frame(f)
+        if not os.path.exists(out):
+            if os.path.exists(gold):
+                extras.append((os.path.basename(gold), gold))
+            continue
+        pairs.append((os.path.basename(out), out, [gold] if os.path.exists(gold) else [], gold))
     return Pairing(pairs=pairs, extras=extras, many=True)
 
 

@@ -426,3 +426,29 @@ def test_flip_missing_names_the_install_command(tmp_path, monkeypatch):
     assert res.exit_code == 2
     assert "pip install 'bilinear-pyramid[flip]'" in res.stderr
     assert len(res.stderr.strip().splitlines()) == 1
+
+
+def test_two_frame_sequences_pair_by_frame_number(tmp_path):
+    """render.####.exr against golden/plate.%04d.exr: names differ, frames pair (fileseq's conventions)."""
+    import OpenImageIO as oiio
+
+    from pyramid_cli.cli import main
+
+    def put(path, value):
+        spec = oiio.ImageSpec(4, 4, 1, "float")
+        out = oiio.ImageOutput.create(str(path))
+        out.open(str(path), spec)
+        out.write_image(np.full((4, 4, 1), value, np.float32))
+        out.close()
+
+    (tmp_path / "golden").mkdir()
+    for f in (1001, 1002, 1003):
+        put(tmp_path / f"render.{f}.exr", 0.5)
+    for f in (1001, 1002, 1004):
+        put(tmp_path / "golden" / f"plate.{f:04d}.exr", 0.5 if f != 1002 else 0.9)
+    r = CliRunner().invoke(main, ["diff", str(tmp_path / "render.####.exr"),
+                                  str(tmp_path / "golden" / "plate.%04d.exr")])
+    lines = r.output + r.stderr
+    assert r.exit_code == 2
+    assert "PASS     render.1001.exr" in lines and "FAIL     render.1002.exr" in lines
+    assert "MISSING  render.1003.exr" in lines and "EXTRA    plate.1004.exr" in lines
