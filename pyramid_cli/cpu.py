@@ -56,7 +56,7 @@ from .shaders import generate
 INSTALL_HINT = "install numba: pip install numba (or pip install -e . in a checkout)"
 CACHE_ENV = "PYRAMID_CACHE_DIR"
 KERNEL_VERSION = 1           # bump when the generated text changes meaning: new files, new cache entries
-SMALL = 1 << 15              # output pixels below which a pass runs on the calling thread
+SMALL = 1 << 20              # output floats below which a pass runs on the calling thread
 OUT_DTYPES = (np.dtype(np.float32), np.dtype(np.float16))
 VARIANTS = (4, 1, 3, None)   # channel counts with an unrolled copy of the strided loops (None: any C)
 
@@ -588,8 +588,8 @@ class CPUExecutor:
         srcs = [a.reshape(a.shape[0], -1) for a in srcs]
         tail = [yoff, xoff] + [v for lo_hi in cols for v in lo_hi] + [v for o in offs for v in o]
         m0, m1 = rows
-        pixels = (m1 - m0) * kern.shape.period[0] * out.shape[1]
-        if not parallel or self.threads == 1 or pixels < SMALL:
+        floats = (m1 - m0) * kern.shape.period[0] * out.shape[1]  # out is (rows, columns·C) here
+        if not parallel or self.threads == 1 or floats < SMALL:
             kern.fn(out, *srcs, *extra, m0, m1, *tail)
             return
         n = min(m1 - m0, self.threads * 2)

@@ -110,7 +110,7 @@ def test_every_channel_count(ex, channels):
 @pytest.mark.parametrize("threads", [1, 3])
 def test_threads_split_rows_without_changing_a_bit(threads):
     """Large enough for the interior to run in bands on the worker threads: identical to one thread."""
-    size = (301, 257)
+    size = (601, 517)  # over cpu.SMALL output floats: the interior runs in bands on the workers
     image = random_image(size, 4, 8)
     with cpu.CPUExecutor(threads=1) as one, cpu.CPUExecutor(threads=threads) as many:
         for text in ["doosabin *^ (box4 *v g)", "bartlett", "fourpoint", "(box4)^3 *v g"]:
