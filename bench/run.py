@@ -782,7 +782,7 @@ t0 = time.perf_counter()
 from pyramid_cli import cpu, pyramids
 t1 = time.perf_counter()
 rows, cols = int(sys.argv[1]), int(sys.argv[2])
-plan = pyramids.blur_plan((rows, cols), 5)
+plan = cpu.blur_plan((rows, cols), 5)
 ex = cpu.CPUExecutor()
 t2 = time.perf_counter()
 ex.prepare(plan)
@@ -852,6 +852,8 @@ def scenario_cpu(args, libs: dict, report: dict, tmp: Path) -> None:
         "source's stored extent, float32 × channels), into a preallocated (warm) buffer",
         "OpenCV: its own filters (5-tap Gaussian pyrDown/pyrUp, area resize); sepFilter2D/filter2D carry the "
         "same binomial/quasi weights with BORDER_REPLICATE (the clamp border)",
+        "CPU executor: cpu.plan / cpu.blur_plan (one fused pass per written step); GL: plan.plan / "
+        "pyramids.blur_plan (its cost model's recipes); where they differ the GL plan also runs on the CPU",
     ]
     log("cpu: compile times (fresh processes) …")
     try:
@@ -900,48 +902,55 @@ def scenario_cpu(args, libs: dict, report: dict, tmp: Path) -> None:
 
     quasi = np.array([[-1, -2, -1], [-2, 36, -2], [-1, -2, -1]], np.float32) / 24
     levels_full = max(math.ceil(math.log2(rows)), math.ceil(math.log2(cols)))
-    cases = [  # name, plan, {peer: fn}, GL too
-        ("blur 5 levels box4/doosabin", blur_plan((rows, cols), 5), {
+    def both(text):  # the GL executor's plan (its cost model's recipes) and the CPU's (one pass per step)
+        return make_plan(parse(text), (rows, cols)), cpu.plan(parse(text), (rows, cols))
+
+    cases = [  # name, (GL plan, CPU plan), {peer: fn}, GL too
+        ("blur 5 levels box4/doosabin", (blur_plan((rows, cols), 5), cpu.blur_plan((rows, cols), 5)), {
             "opencv pyrDown⁵/pyrUp⁵": cv2 and cv_blur, "skimage reduce⁵/expand⁵": ski and ski_blur}, True),
-        ("reduce box ⊗↓", make_plan(parse("box *v g"), (rows, cols)), {
+        ("reduce box ⊗↓", both("box *v g"), {
             "opencv resize INTER_AREA": cv2 and (lambda x: cv2.resize(x, half[::-1], interpolation=cv2.INTER_AREA))},
          True),
-        ("reduce box4 ⊗↓", make_plan(parse("box4 *v g"), (rows, cols)), {
+        ("reduce box4 ⊗↓", both("box4 *v g"), {
             "opencv pyrDown": cv2 and cv2.pyrDown}, True),
-        ("reduce quadratic ⊗↓", make_plan(parse("quadratic *v g"), (rows, cols)), {
+        ("reduce quadratic ⊗↓", both("quadratic *v g"), {
             "opencv pyrDown": cv2 and cv2.pyrDown}, False),
-        ("reduce cubic ⊗↓", make_plan(parse("cubic *v g"), (rows, cols)), {"opencv pyrDown": cv2 and cv2.pyrDown},
+        ("reduce cubic ⊗↓", both("cubic *v g"), {"opencv pyrDown": cv2 and cv2.pyrDown},
          False),
-        (f"pyramid to 1×1 ((box4)^{levels_full})", make_plan(parse(f"(box4)^{levels_full} *v g"), (rows, cols)), {
+        (f"pyramid to 1×1 ((box4)^{levels_full})", both(f"(box4)^{levels_full} *v g"), {
             "opencv pyrDown to 1×1": cv2 and cv_pyramid}, False),
-        ("box ⊗ (2×2)", make_plan(parse("box * g"), (rows, cols)), {
+        ("box ⊗ (2×2)", both("box * g"), {
             "opencv boxFilter 2×2": cv2 and (lambda x: cv2.boxFilter(x, -1, (2, 2), borderType=replicate))}, False),
-        ("bartlett ⊗ (3×3)", make_plan(parse("bartlett * g"), (rows, cols)), {
+        ("bartlett ⊗ (3×3)", both("bartlett * g"), {
             "opencv sepFilter2D [1 2 1]/4": cv2 and cv_sep(3)}, False),
-        ("gauss5 ⊗ (5×5)", make_plan(parse("gauss5 * g"), (rows, cols)), {
+        ("gauss5 ⊗ (5×5)", both("gauss5 * g"), {
             "opencv sepFilter2D binomial 5": cv2 and cv_sep(5)}, False),
-        ("gauss7 ⊗ (7×7)", make_plan(parse("gauss7 * g"), (rows, cols)), {
+        ("gauss7 ⊗ (7×7)", both("gauss7 * g"), {
             "opencv sepFilter2D binomial 7": cv2 and cv_sep(7),
             "opencv GaussianBlur 7×7 σ=√6/2": cv2 and (lambda x: cv2.GaussianBlur(
                 x, (7, 7), SIGMA7, borderType=replicate))}, False),
-        ("quasi ⊗ (3×3)", make_plan(parse("quasi * g"), (rows, cols)), {
+        ("quasi ⊗ (3×3)", both("quasi * g"), {
             "opencv filter2D quasi": cv2 and (lambda x: cv2.filter2D(x, -1, quasi, borderType=replicate))}, False),
     ]
     if args.case:
         cases = [c for c in cases if any(s in c[0] for s in args.case)]
     for channels in (4, 1):
         img = gradient_noise(rows, cols, channels)
-        for name, plan, peer_fns, with_gl in cases:
+        for name, (gl_plan, plan), peer_fns, with_gl in cases:
             pb = cpu_plan_bytes(plan, channels)
             pb_src = np.ones(pb // 4, np.float32)
             pb_dst = np.empty_like(pb_src)
             pb_dst.fill(0)  # warm: the floor is the copy, not page faults
-            fns = _cpu_contenders(ex, runner if with_gl else None, plan, img, peer_fns, (pb_src, pb_dst))
+            fns = _cpu_contenders(ex, runner if with_gl else None, plan, gl_plan, img, peer_fns, (pb_src, pb_dst))
+            if len(gl_plan.passes) != len(plan.passes):  # the GL planner's recipe, run on the CPU, for scale
+                fns["CPU executor, GL cost-model plan"] = lambda gl_plan=gl_plan, img=img: ex.run(gl_plan, img)
             log(f"cpu: {name}, {cols}×{rows}×{channels} …")
             ex.prepare(plan)
+            ex.prepare(gl_plan)
             res = interleaved(fns, reps)
             mine = res["CPU executor"]["median_s"]
             case = {"case": name, "channels": channels, "passes": len(plan.passes), "plan_bytes": pb,
+                    "gl_plan_passes": len(gl_plan.passes),
                     "results": res, "cpu_s": mine,
                     "ratios": {f"CPU / {k}": mine / v["median_s"] for k, v in res.items() if k != "CPU executor"},
                     "skipped_peers": [p for p, fn in peer_fns.items() if not fn]}
@@ -958,13 +967,13 @@ def scenario_cpu(args, libs: dict, report: dict, tmp: Path) -> None:
         runner.close()
 
 
-def _cpu_contenders(ex, runner, plan, img, peer_fns, copy) -> dict:
+def _cpu_contenders(ex, runner, plan, gl_plan, img, peer_fns, copy) -> dict:
     fns = {"CPU executor": lambda: ex.run(plan, img)}
     for pname, fn in peer_fns.items():
         if fn:
             fns[pname] = lambda fn=fn: fn(img)
     if runner is not None:
-        fns["GL llvmpipe upload+run+readback"] = lambda: runner.run_plan(plan, img)
+        fns["GL llvmpipe upload+run+readback"] = lambda: runner.run_plan(gl_plan, img)
     fns["memcpy plan bytes"] = lambda: np.copyto(copy[1], copy[0])
     return fns
 
@@ -1043,7 +1052,7 @@ def print_cpu(report: dict) -> None:
     elif comp:
         p(f"   compile: {comp.get('error')}")
     for case in c["cases"]:
-        p(f"-- {case['case']}, {case['channels']} ch: {case['passes']} passes, "
+        p(f"-- {case['case']}, {case['channels']} ch: {case['passes']} passes (GL plan {case['gl_plan_passes']}), "
           f"plan bytes {case['plan_bytes'] / 1e6:.0f} MB")
         for k, v in case["results"].items():
             r = case["ratios"].get(f"CPU / {k}")

@@ -92,6 +92,52 @@ def default_threads() -> int:
         return max(1, os.cpu_count() or 1)
 
 
+# ------------------------------------------------------------------ planning for the CPU
+FUSED_WHY = "one fused pass: on the CPU every texel is read from memory once per pass, so fewer passes win"
+
+
+def plan(expr, size: tuple[int, int], border: str = "clamp") -> Plan:
+    """``expr`` planned for this executor: every written step as ONE pass from its filter's own mask.
+
+    The paper's decompositions (§3.2–§5.4) save texture fetches on a GPU; on the CPU each
+    pass streams its whole target and sources through memory, and a separable mask is read
+    as one vertical and one horizontal sum anyway (:func:`kernel_source`), so one pass per
+    step is the cheaper plan (measured: ``gauss7 ⊗`` at 4K RGBA in 6 passes takes about 2.5×
+    the time of one). Same numbers as :func:`pyramid_cli.plan.plan` (DESIGN.md §1).
+    """
+    from . import algebra
+    from .expr import steps, to_text
+
+    return plan_steps(steps(expr), tuple(size), text=to_text(expr), paper=algebra.paper_fetches(expr),
+                      border=border)
+
+
+def plan_steps(step_list, size: tuple[int, int], crops: dict[int, tuple[int, int]] | None = None, text: str = "",
+               paper: float | None = None, border: str = "clamp") -> Plan:
+    """:func:`pyramid_cli.plan.plan_steps` with one fused pass per step (see :func:`plan`);
+    ``crops`` maps a step's index to the size its result is cut to (pyramid synthesis)."""
+    from .expr import filter_text
+    from .plan import Builder, direct_recipe
+
+    crops = crops or {}
+    b = Builder(tuple(size), "paper", border)
+    current = 0
+    for index, (op, f, stride) in enumerate(step_list):
+        current = b.add_stages(current, direct_recipe(op, f, stride), f"{filter_text(f, op)} {op.unicode}", FUSED_WHY,
+                               crops.get(index))
+    return b.build(text, paper=paper)
+
+
+def blur_plan(size: tuple[int, int], levels: int, analysis: str = "box4", synthesis: str = "doosabin",
+              quasi: bool = False) -> Plan:
+    """The pyramid blur of :func:`pyramid_cli.pyramids.blur_plan`, planned for the CPU (:func:`plan`)."""
+    from .pyramids import blur_steps
+
+    step_list, crops = blur_steps(tuple(size), levels, analysis, synthesis, quasi)
+    text = f"blur: {levels} level(s), {analysis} ⊗↓ / {synthesis} ⊗↑" + (" + quasi" if quasi else "")
+    return plan_steps(step_list, size, crops, text=text)
+
+
 # ------------------------------------------------------------------ kernel text
 @dataclass(frozen=True)
 class Term:
@@ -227,12 +273,29 @@ def kernel_source(s: generate.PassShape, half: tuple[bool, ...]) -> str:
             out.append(f"{pad}for n in range(np.uint64(n1 - n0)):")
             out.append(f"{pad}    x = (x0 + {unsigned(pc)} * n) * {width}")
             out += [f"{pad}    c{k} = (b{k} + {unsigned(sc)} * n) * {width}" for k in sorted(low)]
-            out.append(f"{pad}    for c in range({width}):")
+            if cc is None:
+                out.append(f"{pad}    for c in range({width}):")
+                for j in phases:
+                    target = "x + c" if j == phases[0] else f"x + {times_c(j - phases[0], cc)} + c"
+                    parts = [weighted(w, _read(arr, f"c{k} + {times_c(dc - low[k], cc)} + c", h))
+                             for arr, k, dc, w, h in hterms[j]]
+                    out.append(f"{pad}        o[{target}] = {' + '.join(parts) or 'ZERO'}")
+                continue
+            # channels unrolled, every load before any store: the arrays may alias as far as LLVM
+            # knows, so a store between loads would keep the SLP vectoriser from packing them
+            names: dict[tuple[str, int, int], int] = {}
             for j in phases:
-                target = "x + c" if j == phases[0] else f"x + {times_c(j - phases[0], cc)} + c"
-                parts = [weighted(w, _read(arr, f"c{k} + {times_c(dc - low[k], cc)} + c", h))
-                         for arr, k, dc, w, h in hterms[j]]
-                out.append(f"{pad}        o[{target}] = {' + '.join(parts) or 'ZERO'}")
+                for arr, k, dc, _, h in hterms[j]:
+                    if (arr, k, dc) not in names:
+                        names[(arr, k, dc)] = n = len(names)
+                        for c in range(cc):
+                            read = _read(arr, f"c{k} + {unsigned((dc - low[k]) * cc + c)}", h)
+                            out.append(f"{pad}    v{n}_{c} = {read}")
+            for j in phases:
+                for c in range(cc):
+                    target = f"x + {unsigned((j - phases[0]) * cc + c)}"
+                    parts = [weighted(w, f"v{names[(arr, k, dc)]}_{c}") for arr, k, dc, w, _ in hterms[j]]
+                    out.append(f"{pad}    o[{target}] = {' + '.join(parts) or 'ZERO'}")
         return out
 
     body = []
@@ -631,5 +694,6 @@ def _inputs(plan: Plan, images) -> list[np.ndarray]:
     return arrays
 
 
-__all__ = ["CPUExecutor", "available", "cache_dir", "default_threads", "kernel_source", "phase_terms",
+__all__ = ["CPUExecutor", "available", "cache_dir", "default_threads", "kernel_source", "phase_terms", "plan",
+           "plan_steps", "blur_plan",
            "Term", "CACHE_ENV", "INSTALL_HINT"]

@@ -266,7 +266,7 @@ def test_kernel_source_is_canonical_and_unrolled():
     assert len(texts) == 2
     _, ds = _planned("doosabin", (8, 8))
     text = cpu.kernel_source(generate.shape(ds.passes[0]), (False,))
-    assert "cache=True" in text and "for c in range(U4):" in text
+    assert "cache=True" in text and "v0_3 = t0[" in text and "if C == 4:" in text  # RGBA unrolled
     assert "np.float32(0.25)" in text and "np.float32(0.75)" in text  # one vertical (¼, ¾) sum per row phase
     assert "lut[" not in text and "lut[" in cpu.kernel_source(generate.shape(ds.passes[0]), (True,))
 
@@ -346,3 +346,28 @@ def test_a_second_process_compiles_nothing(ex, cache_folder):
     shapes = len({generate.shape(ps) for ps in pyramids.blur_plan((40, 50), 3).passes})
     assert runs[0]["compiles"] + runs[0]["cache_loads"] == shapes
     assert runs[1] == {"compiles": 0, "cache_loads": shapes, "value": pytest.approx(1.0, abs=1e-6)}
+
+
+@pytest.mark.parametrize("border", BORDERS)
+def test_cpu_plans_fuse_each_step_and_equal_reference(ex, border):
+    """cpu.plan: one pass per written step (the CPU's cheaper plan), the same numbers at every pixel."""
+    from pyramid_cli.expr import steps
+
+    rng = np.random.default_rng(7)
+    for text in BORDER_CHAINS + ["(doosabin)^2 *^ ((box4)^2 *v g)", "fourpoint *^ (cubic *v g)"]:
+        expr = parse(text)
+        for size in [(1, 1), (6, 9), (17, 13)]:
+            p = cpu.plan(expr, size, border)
+            check(p)
+            assert len(p.passes) == sum(1 for _ in steps(expr))
+            image = rng.standard_normal(size + (2,)).astype(np.float32)
+            np.testing.assert_allclose(ex.run(p, image), reference.run(expr, image, Border(border)), rtol=0,
+                                       atol=1e-5, err_msg=f"{text} {size}")
+
+
+def test_cpu_blur_plan_equals_the_blur_reference(ex):
+    size = (45, 70)
+    image = random_image(size, 4, 13)
+    p = cpu.blur_plan(size, 3)
+    assert len(p.passes) == 6
+    np.testing.assert_allclose(ex.run(p, image), pyramids.blur_reference(image, 3), rtol=0, atol=1e-5)
