@@ -58,7 +58,7 @@ CACHE_ENV = "PYRAMID_CACHE_DIR"
 KERNEL_VERSION = 1           # bump when the generated text changes meaning: new files, new cache entries
 SMALL = 1 << 20              # output floats below which a pass runs on the calling thread
 OUT_DTYPES = (np.dtype(np.float32), np.dtype(np.float16))
-VARIANTS = (4, 1, 3, None)   # channel counts with an unrolled copy of the strided loops (None: any C)
+VARIANTS = (4, 1, None)   # channel counts with an unrolled copy of the strided loops (None: any C)
 
 
 def available() -> tuple[bool, str]:
@@ -218,7 +218,7 @@ def kernel_source(s: generate.PassShape, half: tuple[bool, ...]) -> str:
     filter of the catalogue) are read as one vertical sum over the row span (a contiguous,
     vectorised loop) and then a horizontal one; others are summed texel by texel. Loops
     over columns of stride or period 1 run over the flat row (vectorised for any C); the
-    others have copies for C = 4, 1 and 3 with the channel loop unrolled.
+    others have copies for C = 4 and 1 (:data:`VARIANTS`) with the channel loop unrolled.
     """
     (pr, pc), (sr, sc) = s.period, s.stride
     table = {ph: phase_terms(taps) for ph, taps in s.phases}
@@ -386,6 +386,26 @@ def _signature(n_sources: int, half: tuple[bool, ...], pc: int) -> str:
 
 _LOCK = threading.Lock()
 _MODULES: dict[str, object] = {}   # file digest → compiled dispatcher, shared by executors of a process
+BLAS_PROBE = "scipy.linalg.cython_blas"
+
+
+def _skip_blas_probe() -> None:
+    """Import numba's array math without its BLAS probe, which imports SciPy's linalg (~0.2 s).
+
+    numba checks for BLAS once per process, when its array-math registry loads at the first
+    compile or cache load; with SciPy installed that import costs more than loading every
+    kernel of a plan. The kernels use no BLAS. The probe is skipped only while nothing has
+    imported SciPy's linalg or numba's array math yet; afterwards SciPy imports as usual (and
+    numba's ``np.dot`` family still finds it when first typed).
+    """
+    if "numba.np.arraymath" in sys.modules or "scipy.linalg" in sys.modules or BLAS_PROBE in sys.modules:
+        return
+    sys.modules[BLAS_PROBE] = None  # type: ignore[assignment] - makes the probe's import fail fast
+    try:
+        import numba.np.arraymath  # noqa: F401
+    finally:
+        if BLAS_PROBE in sys.modules and sys.modules[BLAS_PROBE] is None:
+            del sys.modules[BLAS_PROBE]
 
 
 def _load(source: str, folder: Path):
@@ -395,6 +415,7 @@ def _load(source: str, folder: Path):
         hit = _MODULES.get(digest)
         if hit is not None:
             return hit
+        _skip_blas_probe()
         folder.mkdir(parents=True, exist_ok=True)
         path = folder / f"k_{digest}.py"
         if not path.exists() or path.read_text(encoding="utf-8") != source:

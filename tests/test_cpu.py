@@ -99,7 +99,7 @@ def test_every_border_equals_reference(ex, text, border, strategy):
 
 @pytest.mark.parametrize("channels", [None, 1, 3, 4, 6, 2])
 def test_every_channel_count(ex, channels):
-    """C = 4, 1, 3 have unrolled loops; others (2, 6) the generic one: all agree with the reference."""
+    """C = 4 and 1 have unrolled loops; others (2, 3, 6) the generic one: all agree with the reference."""
     size = (23, 31)
     image = random_image(size, channels, 5)
     for text in ["doosabin *^ (box4 *v g)", "fourpoint", "cubic *v g", "quasi"]:
