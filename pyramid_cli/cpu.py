@@ -57,6 +57,7 @@ INSTALL_HINT = "install numba: pip install numba (or pip install -e . in a check
 CACHE_ENV = "PYRAMID_CACHE_DIR"
 KERNEL_VERSION = 1           # bump when the generated text changes meaning: new files, new cache entries
 SMALL = 1 << 20              # output floats below which a pass runs on the calling thread
+TINY = 1 << 14               # output floats up to which a pass runs as one call on one gathered window
 OUT_DTYPES = (np.dtype(np.float32), np.dtype(np.float16))
 VARIANTS = (4, 1, None)   # channel counts with an unrolled copy of the strided loops (None: any C)
 
@@ -639,7 +640,7 @@ class CPUExecutor:
         # the interior covers the same column groups in every phase (the kernel's fused loop)
         c_lo, c_hi = max([c_lo] + [lo for lo, _ in cols]), min([c_hi] + [hi for _, hi in cols])
         inner = [(c_lo, c_hi)] * pc
-        if i_lo >= i_hi or any(lo >= hi for lo, hi in inner):
+        if i_lo >= i_hi or c_lo >= c_hi or out.size <= TINY:  # one window: fewer calls beat fewer copies
             self._window_call(kern, out, srcs, imgs, offs, (m_first, m_last + 1), cols, ps, yoff, xoff)
             return
         self._window_call(kern, out, srcs, imgs, offs, (m_first, i_lo), cols, ps, yoff, xoff)
