@@ -55,7 +55,7 @@ from .shaders import generate
 
 INSTALL_HINT = "install numba: pip install numba (or pip install -e . in a checkout)"
 CACHE_ENV = "PYRAMID_CACHE_DIR"
-KERNEL_VERSION = 2           # bump when the generated text changes meaning: new files, new cache entries
+KERNEL_VERSION = 3           # bump when the generated text changes meaning: new files, new cache entries
 SMALL = 1 << 20              # output floats below which a pass runs on the calling thread
 TINY = 1 << 14               # output floats up to which a pass runs as one call on one gathered window
 OUT_DTYPES = (np.dtype(np.float32), np.dtype(np.float16))
@@ -243,6 +243,14 @@ def kernel_source(s: generate.PassShape, half: tuple[bool, ...]) -> str:
         scaled.add(v)
         return f"D{v}"
 
+    def wsum(pairs: list[tuple[Fraction, str]]) -> str:
+        """Σ w·read with the reads of one weight added first: one multiply per distinct weight."""
+        groups: dict[Fraction, list[str]] = {}
+        for w, read in pairs:
+            groups.setdefault(w, []).append(read)
+        parts = [weighted(w, reads[0] if len(reads) == 1 else f"({' + '.join(reads)})") for w, reads in groups.items()]
+        return " + ".join(parts) or "ZERO"
+
     def weighted(w: Fraction, read: str) -> str:
         if w == 1:
             return read
@@ -259,9 +267,8 @@ def kernel_source(s: generate.PassShape, half: tuple[bool, ...]) -> str:
             out.append(f"{ind}fo = np.uint64((n0 + 1 + xoff) * C)")
             out += [f"{ind}f{k} = np.uint64((n0 + co{k} + {d}) * C)" for k, d in sorted(low.items())]
             out.append(f"{ind}for g in range(np.uint64((n1 - n0) * C)):")
-            parts = [weighted(w, _read(arr, f"f{k} + g + {times_c(dc - low[k], None)}", h))
-                     for arr, k, dc, w, h in hterms[1]]
-            out.append(f"{ind}    o[fo + g] = {' + '.join(parts) or 'ZERO'}")
+            parts = [(w, _read(arr, f"f{k} + g + {times_c(dc - low[k], None)}", h)) for arr, k, dc, w, h in hterms[1]]
+            out.append(f"{ind}    o[fo + g] = {wsum(parts)}")
             return out
         out.append(f"{ind}x0 = np.uint64({pc} * n0 + {phases[0]} + xoff)")
         out += [f"{ind}b{k} = np.uint64({sc} * n0 + co{k} + {d})" for k, d in sorted(low.items())]
@@ -278,9 +285,9 @@ def kernel_source(s: generate.PassShape, half: tuple[bool, ...]) -> str:
                 out.append(f"{pad}    for c in range({width}):")
                 for j in phases:
                     target = "x + c" if j == phases[0] else f"x + {times_c(j - phases[0], cc)} + c"
-                    parts = [weighted(w, _read(arr, f"c{k} + {times_c(dc - low[k], cc)} + c", h))
+                    parts = [(w, _read(arr, f"c{k} + {times_c(dc - low[k], cc)} + c", h))
                              for arr, k, dc, w, h in hterms[j]]
-                    out.append(f"{pad}        o[{target}] = {' + '.join(parts) or 'ZERO'}")
+                    out.append(f"{pad}        o[{target}] = {wsum(parts)}")
                 continue
             # channels unrolled, every load before any store: the arrays may alias as far as LLVM
             # knows, so a store between loads would keep the SLP vectoriser from packing them
@@ -295,8 +302,8 @@ def kernel_source(s: generate.PassShape, half: tuple[bool, ...]) -> str:
             for j in phases:
                 for c in range(cc):
                     target = f"x + {unsigned((j - phases[0]) * cc + c)}"
-                    parts = [weighted(w, f"v{names[(arr, k, dc)]}_{c}") for arr, k, dc, w, _ in hterms[j]]
-                    out.append(f"{pad}    o[{target}] = {' + '.join(parts) or 'ZERO'}")
+                    parts = [(w, f"v{names[(arr, k, dc)]}_{c}") for arr, k, dc, w, _ in hterms[j]]
+                    out.append(f"{pad}    o[{target}] = {wsum(parts)}")
         return out
 
     body = []
@@ -328,8 +335,8 @@ def kernel_source(s: generate.PassShape, half: tuple[bool, ...]) -> str:
                              f"                fa = np.uint64((nA * {sc} + co{k} + {min(dcs)}) * C)",
                              f"                fb = np.uint64(((nB - 1) * {sc} + co{k} + {max(dcs)} + 1) * C)",
                              "                for g in range(fa, fb):",
-                             f"                    t{k}[g] = " + " + ".join(
-                                 weighted(w, _read(_name(k, dr), "g", half[k])) for dr, w in sorted(u.items()))]
+                             f"                    t{k}[g] = " + wsum([
+                                 (w, _read(_name(k, dr), "g", half[k])) for dr, w in sorted(u.items())])]
             for j, v in zip(mats, vs, strict=True):
                 hterms[j] += [(arr, k, dc, w, h) for dc, w in sorted(v.items())]
         body += [f"        y = {pr} * m + {i} + yoff", "        if y >= 0 and y < H:", "            o = out[y]"]
