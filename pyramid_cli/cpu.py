@@ -435,6 +435,24 @@ def _skip_blas_probe() -> None:
             del sys.modules[BLAS_PROBE]
 
 
+def _write_source(folder: Path, digest: str, source: str) -> Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / f"k_{digest}.py"
+    if not path.exists() or path.read_text(encoding="utf-8") != source:
+        tmp = path.with_name(f".{path.name}.{os.getpid()}.{threading.get_ident()}.tmp")
+        tmp.write_text(source, encoding="utf-8")
+        os.replace(tmp, path)  # never a half-written file, even with processes racing
+    return path
+
+
+def _fallback_cache() -> Path:
+    """A per-user folder under the temporary directory, for when the cache folder cannot be written."""
+    import tempfile
+
+    uid = os.getuid() if hasattr(os, "getuid") else "user"
+    return Path(tempfile.gettempdir()) / f"bilinear-pyramid-cpu-{uid}"
+
+
 def _load(source: str, folder: Path):
     """The ``kernel`` of ``source``, written once to ``folder`` (atomically) and imported from there."""
     digest = hashlib.sha256(source.encode()).hexdigest()[:24]
@@ -443,12 +461,10 @@ def _load(source: str, folder: Path):
         if hit is not None:
             return hit
         _skip_blas_probe()
-        folder.mkdir(parents=True, exist_ok=True)
-        path = folder / f"k_{digest}.py"
-        if not path.exists() or path.read_text(encoding="utf-8") != source:
-            tmp = path.with_name(f".{path.name}.{os.getpid()}.{threading.get_ident()}.tmp")
-            tmp.write_text(source, encoding="utf-8")
-            os.replace(tmp, path)  # never a half-written file, even with processes racing
+        try:
+            path = _write_source(folder, digest, source)
+        except OSError:  # a read-only or broken cache folder: compile from a private one
+            path = _write_source(_fallback_cache(), digest, source)
         name = f"_pyramid_cpu_k_{digest}"
         spec = importlib.util.spec_from_file_location(name, path)
         module = importlib.util.module_from_spec(spec)

@@ -371,3 +371,14 @@ def test_cpu_blur_plan_equals_the_blur_reference(ex):
     p = cpu.blur_plan(size, 3)
     assert len(p.passes) == 6
     np.testing.assert_allclose(ex.run(p, image), pyramids.blur_reference(image, 3), rtol=0, atol=1e-5)
+
+
+def test_an_unwritable_cache_folder_falls_back(tmp_path):
+    """A cache path that cannot be a folder (here: a file) still runs, compiling into a private folder."""
+    blocker = tmp_path / "not-a-folder"
+    blocker.write_text("")
+    _, p = _planned("1/5 [1 1 3] * g", (4, 6))  # a shape no other test compiles
+    image = random_image((4, 6), None, 1)
+    with cpu.CPUExecutor(threads=1, cache=blocker / "cache") as odd:
+        np.testing.assert_allclose(odd.run(p, image), emulate.run(p, image), rtol=0, atol=1e-5)
+    assert list(cpu._fallback_cache().glob("k_*.py"))
