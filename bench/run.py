@@ -41,8 +41,8 @@ if str(ROOT) not in sys.path:  # run from a checkout even without the editable i
 
 import numpy as np  # noqa: E402
 
-SCENARIOS = ["filter", "e2e", "batch", "startup", "gpu", "cluster"]  # cluster: bench/cluster.py, on demand
-CPU_SCENARIOS = ["filter", "e2e", "batch", "startup"]  # the default list, plus "gpu" where CUDA is present
+SCENARIOS = ["filter", "e2e", "batch", "startup", "gpu", "cpu", "cluster"]  # cluster: bench/cluster.py, on demand
+CPU_SCENARIOS = ["filter", "e2e", "batch", "startup", "cpu"]  # the default list, plus "gpu" where CUDA is present
 SIGMA7 = math.sqrt(6) / 2  # binomial 7-tap [1 6 15 20 15 6 1]/64 has variance 6/4
 perf = time.perf_counter
 
@@ -623,6 +623,304 @@ def scenario_startup(args, libs: dict, report: dict) -> None:
                                       "notes": ["wall time of a fresh process, median of interleaved runs"]}
 
 
+# ====================================================================== scenario 6: the compiled CPU executor
+CPU_COMPILE_SCRIPT = r"""
+import json, sys, time
+t0 = time.perf_counter()
+from pyramid_cli import cpu, pyramids
+t1 = time.perf_counter()
+rows, cols = int(sys.argv[1]), int(sys.argv[2])
+plan = pyramids.blur_plan((rows, cols), 5, strategy="fused")
+ex = cpu.CPUExecutor()
+t2 = time.perf_counter()
+ex.prepare(plan)
+t3 = time.perf_counter()
+print(json.dumps({"import_s": t1 - t0, "prepare_s": t3 - t2, "compiles": ex.compiles,
+                  "cache_loads": ex.cache_loads, "kernels": len(ex._kernels)}))
+"""
+
+
+def cpu_plan_bytes(plan, channels: int) -> int:
+    """Bytes a plan moves on the CPU: per pass, its target's stored extent written plus each source read,
+    float32 × channels (no power-of-two or RGBA padding)."""
+    total = 0
+    for ps in plan.passes:
+        h, w = plan.images[ps.target].stored
+        total += h * w * 4 * channels
+        for s in ps.sources():
+            h, w = plan.images[s].stored
+            total += h * w * 4 * channels
+    return total
+
+
+def _binomial(n: int) -> np.ndarray:
+    row = np.array([math.comb(n - 1, k) for k in range(n)], dtype=np.float32)
+    return row / row.sum()
+
+
+def _cpu_compile_times(tmp: Path, rows: int, cols: int) -> dict:
+    """Cold compile (empty cache folder, fresh process) and cached load (a second fresh process) of the blur plan."""
+    from pyramid_cli import cpu
+
+    folder = tmp / "cpu-cache-cold"
+    env = dict(os.environ, **{cpu.CACHE_ENV: str(folder)})
+    out = {"cache_dir": "a fresh temporary folder (PYRAMID_CACHE_DIR)"}
+    for name in ("cold", "cached"):
+        t0 = perf()
+        p = subprocess.run([sys.executable, "-c", CPU_COMPILE_SCRIPT, str(rows), str(cols)], capture_output=True,
+                           text=True, env=env, timeout=600)
+        wall = perf() - t0
+        if p.returncode != 0:
+            raise RuntimeError(f"compile child failed: {p.stderr.strip()[-600:]}")
+        out[name] = json.loads(p.stdout.strip().splitlines()[-1]) | {"process_wall_s": wall}
+    return out
+
+
+def scenario_cpu(args, libs: dict, report: dict, tmp: Path) -> None:
+    """The compiled CPU executor (numba) side by side with OpenCV, scikit-image, GL on llvmpipe, memcpy."""
+    from pyramid_cli import cpu
+    from pyramid_cli.parse import parse
+    from pyramid_cli.plan import plan as make_plan
+    from pyramid_cli.pyramids import blur_plan, level_sizes
+
+    sc = report["scenarios"]["cpu"] = {"cases": [], "notes": []}
+    ok, why = cpu.available()
+    if not ok:
+        report["skipped"].append(f"cpu: {why}")
+        return
+    rows, cols = (270, 480) if args.quick else (2160, 3840)
+    reps = args.reps or (2 if args.quick else 7)
+    cv2, ski = libs.get("cv2"), libs.get("skimage")
+    sc.update({"size": [rows, cols], "reps": reps})
+    ex = cpu.CPUExecutor()
+    sc["executor"] = ex.info()
+    sc["notes"] += [
+        f"CPU executor: {ex.info()['renderer']}; kernels compiled before timing (one warm-up run per contender)",
+        "memcpy floor: np.copyto of the bytes the plan moves on the CPU (Σ passes: target stored extent + each "
+        "source's stored extent, float32 × channels), into a preallocated (warm) buffer",
+        "OpenCV: its own filters (5-tap Gaussian pyrDown/pyrUp, area resize); sepFilter2D/filter2D carry the "
+        "same binomial/quasi weights with BORDER_REPLICATE (the clamp border)",
+        "'CPU executor, runs back to back': the same plan run reps times with nothing between (OpenCV's worker "
+        "threads spin after its calls and compete with the executor's two threads in the interleaved runs)",
+        "CPU executor: the planner's 'fused' strategy (one pass per written step); GL: plan.plan / "
+        "pyramids.blur_plan (its cost model's recipes); where they differ the GL plan also runs on the CPU",
+    ]
+    log("cpu: compile times (fresh processes) …")
+    try:
+        sc["compile"] = _cpu_compile_times(tmp, rows, cols)
+    except Exception as e:  # noqa: BLE001 - report, do not lose the timings
+        sc["compile"] = {"error": " ".join(str(e).split())[:400]}
+    runner = None
+    try:
+        from pyramid_cli.session import Session
+
+        runner = Session("gl")
+        sc["gl_renderer"] = runner.name
+    except Exception as e:  # noqa: BLE001
+        sc["notes"].append(f"GL unavailable ({' '.join(str(e).split())[:200]}): no GL contender")
+    sizes5 = level_sizes((rows, cols), 5)
+    half = ((rows + 1) // 2, (cols + 1) // 2)
+    replicate = cv2.BORDER_REPLICATE if cv2 else None
+
+    def cv_blur(x):
+        for _ in range(5):
+            x = cv2.pyrDown(x)
+        for k in range(5, 0, -1):
+            h, w = sizes5[k - 1]
+            x = cv2.pyrUp(x, dstsize=(w, h))
+        return x
+
+    def cv_pyramid(x):
+        out = [x]
+        while out[-1].shape[0] > 1 or out[-1].shape[1] > 1:
+            out.append(cv2.pyrDown(out[-1]))
+        return out
+
+    def cv_sep(n):
+        k = _binomial(n)
+        return lambda x: cv2.sepFilter2D(x, -1, k, k, borderType=replicate)
+
+    def ski_blur(x):
+        from skimage.transform import pyramid_expand, pyramid_reduce
+
+        kw = {"channel_axis": -1 if x.ndim == 3 else None}
+        for _ in range(5):
+            x = pyramid_reduce(x, 2, **kw)
+        for k in range(5, 0, -1):
+            x = pyramid_expand(x, 2, **kw)[:sizes5[k - 1][0], :sizes5[k - 1][1]]
+        return x
+
+    quasi = np.array([[-1, -2, -1], [-2, 36, -2], [-1, -2, -1]], np.float32) / 24
+    levels_full = max(math.ceil(math.log2(rows)), math.ceil(math.log2(cols)))
+    def both(text):  # the GL executor's plan (its cost model's recipes) and the CPU's (one pass per step)
+        return make_plan(parse(text), (rows, cols)), make_plan(parse(text), (rows, cols), "fused")
+
+    cases = [  # name, (GL plan, CPU plan), {peer: fn}, GL too
+        ("blur 5 levels box4/doosabin", (blur_plan((rows, cols), 5), blur_plan((rows, cols), 5, strategy="fused")), {
+            "opencv pyrDown⁵/pyrUp⁵": cv2 and cv_blur, "skimage reduce⁵/expand⁵": ski and ski_blur}, True),
+        ("reduce box ⊗↓", both("box *v g"), {
+            "opencv resize INTER_AREA": cv2 and (lambda x: cv2.resize(x, half[::-1], interpolation=cv2.INTER_AREA))},
+         True),
+        ("reduce box4 ⊗↓", both("box4 *v g"), {
+            "opencv pyrDown": cv2 and cv2.pyrDown}, True),
+        ("reduce quadratic ⊗↓", both("quadratic *v g"), {
+            "opencv pyrDown": cv2 and cv2.pyrDown}, False),
+        ("reduce cubic ⊗↓", both("cubic *v g"), {"opencv pyrDown": cv2 and cv2.pyrDown},
+         False),
+        (f"pyramid to 1×1 ((box4)^{levels_full})", both(f"(box4)^{levels_full} *v g"), {
+            "opencv pyrDown to 1×1": cv2 and cv_pyramid}, False),
+        ("box ⊗ (2×2)", both("box * g"), {
+            "opencv boxFilter 2×2": cv2 and (lambda x: cv2.boxFilter(x, -1, (2, 2), borderType=replicate))}, False),
+        ("bartlett ⊗ (3×3)", both("bartlett * g"), {
+            "opencv sepFilter2D [1 2 1]/4": cv2 and cv_sep(3)}, False),
+        ("gauss5 ⊗ (5×5)", both("gauss5 * g"), {
+            "opencv sepFilter2D binomial 5": cv2 and cv_sep(5)}, False),
+        ("gauss7 ⊗ (7×7)", both("gauss7 * g"), {
+            "opencv sepFilter2D binomial 7": cv2 and cv_sep(7),
+            "opencv GaussianBlur 7×7 σ=√6/2": cv2 and (lambda x: cv2.GaussianBlur(
+                x, (7, 7), SIGMA7, borderType=replicate))}, False),
+        ("quasi ⊗ (3×3)", both("quasi * g"), {
+            "opencv filter2D quasi": cv2 and (lambda x: cv2.filter2D(x, -1, quasi, borderType=replicate))}, False),
+    ]
+    if args.case:
+        cases = [c for c in cases if any(s in c[0] for s in args.case)]
+    for channels in (4, 1):
+        img = gradient_noise(rows, cols, channels)
+        for name, (gl_plan, plan), peer_fns, with_gl in cases:
+            pb = cpu_plan_bytes(plan, channels)
+            pb_src = np.ones(pb // 4, np.float32)
+            pb_dst = np.empty_like(pb_src)
+            pb_dst.fill(0)  # warm: the floor is the copy, not page faults
+            fns = _cpu_contenders(ex, runner if with_gl else None, plan, gl_plan, img, peer_fns, (pb_src, pb_dst))
+            if len(gl_plan.passes) != len(plan.passes):  # the GL planner's recipe, run on the CPU, for scale
+                fns["CPU executor, GL cost-model plan"] = lambda gl_plan=gl_plan, img=img: ex.run(gl_plan, img)
+            log(f"cpu: {name}, {cols}×{rows}×{channels} …")
+            ex.prepare(plan)
+            ex.prepare(gl_plan)
+            res = interleaved(fns, reps)
+            mine = res["CPU executor"]["median_s"]
+            case = {"case": name, "channels": channels, "passes": len(plan.passes), "plan_bytes": pb,
+                    "gl_plan_passes": len(gl_plan.passes),
+                    "results": res, "cpu_s": mine,
+                    "ratios": {f"CPU / {k}": mine / v["median_s"] for k, v in res.items() if k != "CPU executor"},
+                    "skipped_peers": [p for p, fn in peer_fns.items() if not fn]}
+            # the same runs back to back, nothing between them: OpenCV's worker threads keep spinning
+            # for a while after each of its calls, and the executor's thread pool competes with them
+            alone = []
+            for _ in range(reps):
+                t0 = perf()
+                ex.run(plan, img)
+                alone.append(perf() - t0)
+            case["cpu_alone_s"] = statistics.median(alone)
+            if not args.no_profile:
+                case["per_pass_s"] = _cpu_per_pass(ex, plan, img)
+                case["pass_labels"] = [f"{ps.label} → {plan.images[ps.target].stored[1]}×"
+                                       f"{plan.images[ps.target].stored[0]}" for ps in plan.passes]
+            sc["cases"].append(case)
+            del pb_src, pb_dst
+        del img
+    sc["compiles"], sc["cache_loads"] = ex.compiles, ex.cache_loads
+    ex.close()
+    if runner is not None:
+        runner.close()
+
+
+def _cpu_contenders(ex, runner, plan, gl_plan, img, peer_fns, copy) -> dict:
+    fns = {"CPU executor": lambda: ex.run(plan, img)}
+    for pname, fn in peer_fns.items():
+        if fn:
+            fns[pname] = lambda fn=fn: fn(img)
+    if runner is not None:
+        fns["GL llvmpipe upload+run+readback"] = lambda: runner.run_plan(gl_plan, [img])
+    fns["memcpy plan bytes"] = lambda: np.copyto(copy[1], copy[0])
+    return fns
+
+
+def _cpu_per_pass(ex, plan, img, reps: int = 3) -> list[float]:
+    """Seconds of each pass of one CPU run (kernel and border windows; the best of ``reps`` runs)."""
+    real = ex._run_pass
+    times: list[float] = []
+
+    def timed(*a, **k):
+        t0 = perf()
+        real(*a, **k)
+        times.append(perf() - t0)
+
+    best: list[float] | None = None
+    ex._run_pass = timed
+    try:
+        for _ in range(reps):
+            times.clear()
+            ex.run(plan, img)
+            best = list(times) if best is None else [min(a, b) for a, b in zip(best, times, strict=True)]
+    finally:
+        del ex._run_pass  # back to the class's method
+    return best or []
+
+
+def cpu_targets(report: dict, add, args) -> None:
+    """The compiled CPU executor's targets (issue 13), with the per-pass profile of each miss."""
+    c = report["scenarios"].get("cpu")
+    if not c or "cases" not in c:
+        return
+    prof = report["profiles"]
+    size = "4K" if c["size"] == [2160, 3840] else f"{c['size'][1]}×{c['size'][0]}"
+    for case in c["cases"]:
+        if case["channels"] != 4:
+            continue
+        peers = [k for k in case["ratios"] if "opencv" in k]
+        key = f"cpu {case['case']}"
+        missed = False
+        if case["case"].startswith("blur"):
+            missed |= add(f"cpu blur 5 levels, {size} RGBA float32: ≤ 0.7× OpenCV pyrDown⁵/pyrUp⁵",
+                          case["ratios"].get("CPU / opencv pyrDown⁵/pyrUp⁵"), 0.7, "<=", "×", key) is False
+            missed |= add(f"cpu blur 5 levels, {size} RGBA float32: within 2× memcpy of the plan's bytes",
+                          case["ratios"].get("CPU / memcpy plan bytes"), 2.0, "<=", "×", key) is False
+        elif peers:
+            best = min(peers, key=lambda k: case["ratios"][k])
+            missed |= add(f"cpu {case['case']}, {size} RGBA float32: no slower than {best[6:]}",
+                          case["ratios"][best], 1.0, "<=", "×", key) is False
+        if missed and not args.no_profile:
+            prof[key] = {"cpu_s": case["cpu_s"], "per_pass_s": case.get("per_pass_s"),
+                         "pass_labels": case.get("pass_labels"), "plan_bytes": case["plan_bytes"],
+                         "peers_s": {k: v["median_s"] for k, v in case["results"].items()}}
+    comp = c.get("compile", {})
+    if "cold" in comp:
+        add("cpu compile of the blur plan, cold cache, fresh process ≤ 3 s", comp["cold"]["prepare_s"], 3.0, "<=",
+            "s", None)
+        add("cpu kernels of the blur plan from the disk cache, fresh process ≤ 0.2 s", comp["cached"]["prepare_s"],
+            0.2, "<=", "s", None)
+
+
+def print_cpu(report: dict) -> None:
+    c = report["scenarios"].get("cpu")
+    if not c or "cases" not in c:
+        return
+    p = print
+    p(f"\n== cpu (compiled CPU executor, warm, in process), {c['size'][1]}×{c['size'][0]}, {c['reps']} reps")
+    for n in c["notes"]:
+        p(f"   note: {n}")
+    comp = c.get("compile", {})
+    if "cold" in comp:
+        for k in ("cold", "cached"):
+            v = comp[k]
+            p(f"   {k:6s} blur plan: prepare {fmt_s(v['prepare_s']).strip()} ({v['compiles']} compiled, "
+              f"{v['cache_loads']} loaded), import {fmt_s(v['import_s']).strip()}, "
+              f"process {fmt_s(v['process_wall_s']).strip()}")
+    elif comp:
+        p(f"   compile: {comp.get('error')}")
+    for case in c["cases"]:
+        p(f"-- {case['case']}, {case['channels']} ch: {case['passes']} passes (GL plan {case['gl_plan_passes']}), "
+          f"plan bytes {case['plan_bytes'] / 1e6:.0f} MB")
+        for k, v in case["results"].items():
+            r = case["ratios"].get(f"CPU / {k}")
+            p(f"   {k:36s} {fmt_s(v['median_s'])}" + (f"   CPU/it {fmt_x(r):>7s}" if r else ""))
+        if case.get("cpu_alone_s"):
+            p(f"   {'CPU executor, runs back to back':36s} {fmt_s(case['cpu_alone_s'])}   (not interleaved)")
+        if case.get("per_pass_s") and case["case"].startswith("blur"):
+            p("   CPU per pass (ms): " + " ".join(f"{x * 1e3:.1f}" for x in case["per_pass_s"]))
+
+
 # ====================================================================== scenario 5: GPU
 TORCH_HINT = "pip install -e '.[bench,bench-gpu]'"
 EGL_NVIDIA = "__EGL_VENDOR_LIBRARY_FILENAMES=/usr/share/glvnd/egl_vendor.d/10_nvidia.json"
@@ -863,6 +1161,7 @@ def targets(report: dict, args, tmp: Path) -> None:
                            "per_pass_s": half["gl_pass_s"], "pass_labels": half["pass_labels"],
                            "torch_blur_s": half["torch_blur_s"], "copy_s": half["copy_s"],
                            "gl_renderer": half["gl_renderer"], "notes": half["notes"]}
+    cpu_targets(report, add, args)
     s = scs.get("startup")
     if s:
         m = add("pyramid --help < 0.2 s", s["results"]["pyramid --help"]["median_s"], 0.2, "<=", "s", "startup")
@@ -940,6 +1239,7 @@ def print_table(report: dict) -> None:
                     k += " [device]"
                 p(f"   {k:50s} {fmt_s(shown)}")
             p("   " + "; ".join(f"{k} {fmt_x(v)}" for k, v in c["ratios"].items()))
+    print_cpu(report)
     p("\n== targets")
     for t in report["targets"]:
         mark = {True: "MET   ", False: "MISSED", None: "n/a   "}[t["met"]]
@@ -1014,6 +1314,8 @@ def main(argv=None) -> int:
                     scenario_gpu(args, libs, report)
                 elif name == "cluster":
                     __import__("cluster").scenario_cluster(args, report, tmp)
+                elif name == "cpu":
+                    scenario_cpu(args, libs, report, tmp)
             except Exception as e:  # noqa: BLE001 - one broken scenario must not lose the others
                 report["skipped"].append(f"{name}: failed: {type(e).__name__}: {' '.join(str(e).split())[:500]}")
                 log(f"bench: {name} failed: {e}")

@@ -159,6 +159,8 @@ def io_options(f):
     options = [
         click.option("--backend", type=_choice(BACKENDS), default="auto", show_default=True,
                      help="; ".join(f"{name}: {BACKEND_HELP[name]}" for name in BACKENDS) + " (-v says which ran)."),
+        click.option("--threads", type=click.IntRange(1, 1024), default=None, metavar="N",
+                     help="CPU executor threads (default: the cores this process may use)."),
         click.option("--precision", type=_choice(PRECISIONS), default="float", show_default=True,
                      help="GL intermediate textures: RGBA32F, or RGBA16F (faster, ~1e-3 relative, max 65504). "
                           "Half files travel as half either way (upload, read-back), losing nothing."),
@@ -240,14 +242,14 @@ class _Bar:
 def _reporter(opts: dict):
     from .pipeline import Reporter
 
-    return Reporter(quiet=opts["quiet"], verbose=opts["verbose"], out=click.echo,
+    return Reporter(quiet=opts["quiet"], verbose=opts["verbose"], interactive=sys.stderr.isatty(), out=click.echo,
                     err=lambda msg: click.echo(msg, err=True), progress=_Bar if sys.stderr.isatty() else None)
 
 
 def _session(opts: dict, reporter):
     from .session import Session
 
-    session = Session(opts["backend"], opts["precision"], warn=reporter.warn)
+    session = Session(opts["backend"], opts["precision"], threads=opts["threads"], warn=reporter.warn)
     reporter.detail(f"executor {session.name} ({session.why})")
     return session
 
@@ -270,8 +272,8 @@ def _process(paths, work, opts: dict, mip_tile: int | None = None) -> None:
     if opts["cluster"]:  # every worker opens its own session; none is needed here
         from .cluster import SessionSpec
 
-        report = process(list(paths), opts["template"], work, SessionSpec(opts["backend"], opts["precision"]),
-                         **batch)
+        spec = SessionSpec(opts["backend"], opts["precision"], opts["threads"])
+        report = process(list(paths), opts["template"], work, spec, **batch)
     else:
         with _session(opts, reporter) as session:
             report = process(list(paths), opts["template"], work, session, **batch)

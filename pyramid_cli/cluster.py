@@ -52,20 +52,21 @@ class ClusterError(PyramidError):
 
 @dataclass(frozen=True)
 class SessionSpec:
-    """What a worker's session is made of: ``Session(backend, precision)``."""
+    """What a worker's session is made of: ``Session(backend, precision, threads=threads)``."""
 
     backend: str = "auto"
     precision: str = "float"
+    threads: int | None = None
 
     def open(self):
         from .session import Session
 
-        return Session(self.backend, self.precision)
+        return Session(self.backend, self.precision, threads=self.threads)
 
     @property
     def plugin_name(self) -> str:
         """The worker plugin's name: batches with other settings on the same cluster keep their own sessions."""
-        return f"{PLUGIN_NAME}-{self.backend}-{self.precision}"
+        return f"{PLUGIN_NAME}-{self.backend}-{self.precision}-{self.threads or 0}"
 
 
 class SessionPlugin(_WorkerPlugin):

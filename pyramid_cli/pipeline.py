@@ -56,6 +56,7 @@ class Reporter:
 
     quiet: bool = False
     verbose: bool = False
+    interactive: bool = False  # standard error is a terminal: one-time notices (kernel compiles) are shown
     out: Callable[[str], None] = field(default=lambda msg: print(msg))
     err: Callable[[str], None] = field(default=lambda msg: print(msg, file=sys.stderr))
     progress: Callable | None = None
@@ -74,6 +75,21 @@ class Reporter:
 
     def error(self, msg: str) -> None:
         self.err(f"pyramid: error: {msg}")
+
+    def notice(self, msg: str) -> None:
+        """A one-time notice, at a terminal only and never under -q."""
+        if self.interactive and not self.quiet:
+            self.err(f"pyramid: {msg}")
+
+
+def _announce_compiles(session: Session, work: Work, images, reporter: Reporter) -> None:
+    """On a machine's first run the CPU executor compiles its kernels: say so, and for how long."""
+    if not (reporter.interactive and not reporter.quiet):
+        return
+    n = session.uncached(work, images)
+    if n:
+        reporter.notice(f"compiling {n} CPU kernel(s) for this machine, once (about {max(1, round(0.8 * n))} s; "
+                        "later runs load them from the cache in a fraction of a second)")
 
 
 def _read(path: str, ro: ReadOptions, reporter: Reporter, keep_half: bool = False) -> io.Image:
@@ -156,8 +172,13 @@ def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: R
         work.check((image.pixels.shape[:2],), where=job.input)
         return job, image
 
+    announced = []
+
     def compute(job_image):
         job, image = job_image
+        if not announced:
+            announced.append(True)
+            _announce_compiles(session, work, [image.pixels], reporter)
         half = (not mip_tile and image.pixels.dtype == np.float16
                 and io.stores_half_unchanged(job.output, image.spec, pixel_type=wo.pixel_type))
         outs = session.run(work, [image.pixels], np.float16 if half else np.float32)
@@ -205,6 +226,7 @@ def write_levels_files(input_path: str, pattern: str, work: Levels | Laplacian, 
     laplacian = isinstance(work, Laplacian)
     image = _read(input_path, ro, reporter)
     work.check((image.pixels.shape[:2],), where=input_path)
+    _announce_compiles(session, work, [image.pixels], reporter)
     stack = session.run(work, [image.pixels])
     reporter.detail(f"{io.describe_rules(image.spec)}; executor {session.ran}")
     images = [io.Image(px, image.spec) for px in stack]
@@ -253,6 +275,7 @@ def collapse_files(inputs: list[str], output_path: str, session: Session, *, syn
     io.check_pyramid(bands)
     synthesis = synthesis or bands[0].spec.attributes.get("pyramid:synthesis", catalogue.SYNTHESIS_DEFAULT)
     work = Collapse(bands=len(bands), synthesis=synthesis, border=border)
+    _announce_compiles(session, work, [b.pixels for b in bands], reporter)
     (out,) = session.run(work, [b.pixels for b in bands])
     io.write_image(output_path, io.Image(out, bands[0].spec), **wo.for_inputs(paths))
     h, w = out.shape[:2]

@@ -194,6 +194,16 @@ class Session:
         self.ran = _name(self._cpu)
         return outs
 
+    def uncached(self, work: Work, images, dtype=np.float32) -> int:
+        """Kernels the CPU executor must compile before it can run ``work`` on ``images`` (0 elsewhere):
+        a first run on a machine compiles them once, about a second each."""
+        count = getattr(self._executor, "uncached", None)
+        if count is None:
+            return 0
+        p = self.plan(work, [im.shape for im in images])
+        half = any(np.asarray(im).dtype == np.float16 for im in images)
+        return count(p, np.float16 if half else np.float32) if p is not None else 0
+
     def prepare(self, work: Work, sizes) -> None:
         """Get ready to run ``work`` on inputs of ``sizes`` (GL: compile, allocate); never fails."""
         if self._executor is None:
