@@ -45,17 +45,27 @@ class EmulatorExecutor:
 
 
 def _compiled_cpu(threads: int | None):
-    """The compiled CPU executor when it is installed and usable here, else None."""
-    try:
-        from . import cpu  # type: ignore[attr-defined]
-    except ImportError:
-        return None
+    """The compiled CPU executor when numba is usable here, else None."""
+    from . import cpu
+
     ok, _why = cpu.available()
     return cpu.CPUExecutor(threads=threads) if ok else None
 
 
-def _cpu_executor(threads: int | None):
-    return _compiled_cpu(threads) or EmulatorExecutor()
+def _cpu_executor(threads: int | None, warn=None, required: bool = False):
+    """The compiled CPU executor; without numba, BackendError when ``required`` (``--backend cpu``), else the
+    numpy plan emulator with a warning (``auto`` on a machine with neither GL nor numba)."""
+    compiled = _compiled_cpu(threads)
+    if compiled is not None:
+        return compiled
+    from . import cpu
+
+    why = cpu.available()[1]
+    if required:
+        raise BackendError(why)
+    if warn is not None:
+        warn(f"{why}; running the numpy plan emulator (slow, exact)")
+    return EmulatorExecutor()
 
 
 def is_software_renderer(renderer: str) -> bool:
@@ -106,7 +116,7 @@ class Session:
             self.why = "asked for: the float64 oracle of the paper's formulas"
             return
         if self.backend == "cpu":
-            self._executor = self._cpu = _cpu_executor(self.threads)
+            self._executor = self._cpu = _cpu_executor(self.threads, required=True)
             self.why = "asked for"
             return
         from . import gl
@@ -117,7 +127,7 @@ class Session:
         except BackendError as e:
             if self.backend == "gl":
                 raise
-            self._executor = self._cpu = _cpu_executor(self.threads)
+            self._executor = self._cpu = _cpu_executor(self.threads, self._warn)
             self.why = f"auto: no GL here ({e.message})"
             self._warn(f"{e.message}; running on the CPU")
             return
@@ -187,7 +197,7 @@ class Session:
                 raise
             self._warn(f"{e.message}; running this image on the CPU")
         if self._cpu is None:
-            self._cpu = _cpu_executor(self.threads)
+            self._cpu = _cpu_executor(self.threads, self._warn)
         if getattr(self._cpu, "strategy", "cost") != getattr(self._executor, "strategy", "cost") and work is not None:
             p = self.plan(work, [im.shape for im in images], self._cpu)
         outs = self._cpu.run_outputs(p, images, dtype)
