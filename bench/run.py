@@ -120,6 +120,17 @@ def cmd_time(argv: list[str], env=None) -> float:
     return dt
 
 
+def cmd_peak_rss(argv: list[str]) -> float:
+    """Peak resident memory (MB) of one subprocess, from its own rusage (``os.wait4``)."""
+    p = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    _, status, usage = os.wait4(p.pid, 0)
+    p.returncode = os.waitstatus_to_exitcode(status)
+    err = p.stderr.read().decode(errors="replace") if p.stderr else ""
+    if p.returncode:
+        raise RuntimeError(f"{' '.join(argv[:4])} … exited {p.returncode}: {err.strip()[-600:]}")
+    return usage.ru_maxrss / 1024
+
+
 def pyramid_cmd() -> list[str]:
     exe = Path(sys.executable).parent / "pyramid"
     return [str(exe)] if exe.exists() else [sys.executable, "-m", "pyramid_cli.cli"]
@@ -492,23 +503,34 @@ def scenario_e2e(args, libs: dict, report: dict, tmp: Path) -> None:
     sc["opencv_exr_io"] = cv_mode
     for label, path in files.items():
         ext = path.suffix
-        fns = {
-            "pyramid blur --levels 5": lambda p=path, e=ext: cmd_time(
-                [*pyr, "blur", "--levels", "5", "--backend", "gl", "-q", "--force", str(p), str(folder / f"o_pyr{e}")]),
-            "OIIO read+write (python)": lambda p=path, e=ext: cmd_time(
-                [sys.executable, str(SCRIPTS / "io_floor.py"), str(p), str(folder / f"o_io{e}")]),
+        commands = {
+            "pyramid blur --levels 5": [*pyr, "blur", "--levels", "5", "--backend", "gl", "-q", "--force", str(path),
+                                        str(folder / f"o_pyr{ext}")],
+            "pyramid blur --levels 5 --backend cpu": [*pyr, "blur", "--levels", "5", "--backend", "cpu", "-q",
+                                                      "--force", str(path), str(folder / f"o_cpu{ext}")],
+            "OIIO read+write (python)": [sys.executable, str(SCRIPTS / "io_floor.py"), str(path),
+                                         str(folder / f"o_io{ext}")],
         }
+        fns = {name: lambda argv=argv: cmd_time(argv) for name, argv in commands.items()}
         if "cv2" in libs:
             fns["OpenCV script"] = lambda p=path, e=ext: cmd_time(
                 [sys.executable, str(SCRIPTS / "opencv_blur.py"), cv_mode, str(p), str(folder / f"o_cv{e}")])
         log(f"e2e: {label} …")
         res = interleaved(fns, reps)
         case = {"case": label, "file_bytes": path.stat().st_size,
-                "results": res, "ratios": {}}
+                "results": res, "ratios": {},
+                "peak_rss_mb": {name: cmd_peak_rss(argv) for name, argv in commands.items()}}
         base = res["pyramid blur --levels 5"]["median_s"]
         for k, v in res.items():
             if k != "pyramid blur --levels 5":
                 case["ratios"][f"pyramid / {k}"] = base / v["median_s"]
+        cpu_t = res["pyramid blur --levels 5 --backend cpu"]["median_s"]
+        for k, v in res.items():
+            if not k.startswith("pyramid"):
+                case["ratios"][f"pyramid cpu / {k}"] = cpu_t / v["median_s"]
+        rss = case["peak_rss_mb"]
+        case["ratios"]["peak RSS pyramid cpu / OIIO read+write"] = (
+            rss["pyramid blur --levels 5 --backend cpu"] / rss["OIIO read+write (python)"])
         sc["cases"].append(case)
     sc["files"] = {k: str(v) for k, v in files.items()}
 
@@ -1114,6 +1136,10 @@ def targets(report: dict, args, tmp: Path) -> None:
                      c["ratios"].get("pyramid / OIIO read+write (python)"), 1.15, "<=", "×", "e2e")
             m2 = add(f"e2e {c['case']}: pyramid blur ahead of the OpenCV script (< 1.0×)",
                      c["ratios"].get("pyramid / OpenCV script"), 1.0, "<=", "×", "e2e")
+            add(f"e2e {c['case']}: pyramid blur --backend cpu ≤ 1.15× OIIO read+write",
+                c["ratios"].get("pyramid cpu / OIIO read+write (python)"), 1.15, "<=", "×", "e2e")
+            add(f"e2e {c['case']}: pyramid blur --backend cpu peak memory ≤ 1.5× OIIO read+write's",
+                c["ratios"].get("peak RSS pyramid cpu / OIIO read+write"), 1.5, "<=", "×", "e2e")
             if (m1 is False or m2 is False) and not args.no_profile:
                 pe = prof.setdefault("e2e", {})
                 if c["case"] not in pe:
@@ -1200,7 +1226,9 @@ def print_table(report: dict) -> None:
             p(f"-- {c['case']} ({c['file_bytes'] / 1e6:.1f} MB)")
             for k, v in c["results"].items():
                 r = c["ratios"].get(f"pyramid / {k}")
-                p(f"   {k:30s} {fmt_s(v['median_s'])}" + (f"   pyramid/it {fmt_x(r)}" if r else ""))
+                mb = c.get("peak_rss_mb", {}).get(k)
+                p(f"   {k:38s} {fmt_s(v['median_s'])}" + (f"  peak {mb:.0f} MB" if mb else "")
+                  + (f"   pyramid/it {fmt_x(r)}" if r else ""))
     if "batch" in scs:
         b = scs["batch"]
         p(f"\n== batch, {b['image']}, {b['reps']} reps")
