@@ -121,14 +121,15 @@ def cmd_time(argv: list[str], env=None) -> float:
 
 
 def cmd_peak_rss(argv: list[str]) -> float:
-    """Peak resident memory (MB) of one subprocess, from its own rusage (``os.wait4``)."""
-    p = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    _, status, usage = os.wait4(p.pid, 0)
-    p.returncode = os.waitstatus_to_exitcode(status)
-    err = p.stderr.read().decode(errors="replace") if p.stderr else ""
+    """Peak resident memory (MB) of one command, measured by ``bench/scripts/peak_rss.py``.
+
+    A child forked from this (large) process would inherit its high-water mark across exec, so
+    a small launcher forks the command from its own fresh address space and reports its rusage.
+    """
+    p = subprocess.run([sys.executable, "-S", str(SCRIPTS / "peak_rss.py"), *argv], capture_output=True, text=True)
     if p.returncode:
-        raise RuntimeError(f"{' '.join(argv[:4])} … exited {p.returncode}: {err.strip()[-600:]}")
-    return usage.ru_maxrss / 1024
+        raise RuntimeError(f"{' '.join(argv[:4])} … exited {p.returncode}: {p.stderr.strip()[-600:]}")
+    return float(p.stdout.split()[-1])
 
 
 def pyramid_cmd() -> list[str]:
@@ -170,9 +171,10 @@ def machine_info() -> dict:
             versions[mod] = None
     info["versions"] = versions
     try:
-        from pyramid_cli import gl
+        from pyramid_cli.gl import GLExecutor
 
-        gl_info = gl.info()
+        with GLExecutor() as ex:
+            gl_info = ex.info()
         info["gl_renderer"] = gl_info.get("renderer")
         info["gl_version"] = gl_info.get("version")
     except Exception as e:  # noqa: BLE001 - say why, do not crash
