@@ -34,10 +34,12 @@ def test_cpu_backend_runs_plans_on_the_cpu():
 
 @pytest.mark.gl
 def test_auto_moves_an_image_gl_cannot_hold_to_the_cpu_with_one_warning(gl_executor, monkeypatch):
+    from pyramid_cli import session
+
+    monkeypatch.setattr(session, "is_software_renderer", lambda renderer: False)  # auto keeps GL, as on a GPU
     warnings = []
     with Session("auto", warn=warnings.append) as s:
-        if not s.on_gl:
-            pytest.skip("auto chose the CPU here")
+        assert s.on_gl
 
         def too_big(*a, **k):
             raise DataError("image 0 needs a 16384x16384 texture")
@@ -71,3 +73,12 @@ def test_unknown_names_are_refused():
         Session("vulkan")
     with pytest.raises(ValueError, match="precision must be one of"):
         Session("cpu", "double")
+
+
+@pytest.mark.gl
+def test_auto_prefers_the_compiled_cpu_executor_over_a_software_gl(gl_executor):
+    with Session("auto") as s:
+        if "llvmpipe" not in gl_executor.renderer and "softpipe" not in gl_executor.renderer:
+            assert s.on_gl  # a hardware GPU keeps GL
+        else:
+            assert s.name.startswith("cpu (numba") and "software renderer" in s.why
