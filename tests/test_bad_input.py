@@ -103,6 +103,7 @@ def test_unknown_output_extension_exits_4(files, tmp_path):
     assert r.exit_code == 4 and "o.nope" in r.output
 
 
+@pytest.mark.slow
 def test_a_killed_write_leaves_the_previous_output_intact(tmp_path):
     """SIGKILL a real process at many moments of a large write: the output is always the old
     file or the complete new one, never a truncated mix."""

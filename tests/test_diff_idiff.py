@@ -35,7 +35,7 @@ def _idiff() -> str | None:
 
 
 IDIFF = _idiff()
-pytestmark = [pytest.mark.cli,
+pytestmark = [pytest.mark.cli, pytest.mark.slow,
               pytest.mark.skipif(IDIFF is None, reason="OpenImageIO's idiff binary is not installed")]
 
 

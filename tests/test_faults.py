@@ -26,7 +26,7 @@ from pyramid_cli import io as pio
 from pyramid_cli.atomic import atomic_path, atomic_paths
 from pyramid_cli.errors import InputError, OutputError
 
-pytestmark = pytest.mark.cli
+pytestmark = [pytest.mark.cli, pytest.mark.slow]  # real processes, signals and full disks: seconds each
 
 CLI = [sys.executable, "-m", "pyramid_cli.cli"]
 TIMEOUT = 60  # a hang fails the test instead of the whole run
