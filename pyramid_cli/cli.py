@@ -14,7 +14,7 @@ import click
 
 from . import catalogue
 from .errors import EXIT_CODES, ExpressionError, PyramidError, UsageError
-from .options import STRATEGIES
+from .options import BORDERS, STRATEGIES
 
 
 def _choice(values) -> click.Choice:
@@ -395,7 +395,8 @@ def levels(input_path, pattern, levels, analysis, laplacian, synthesis, multipar
 @click.argument("output_path", metavar="OUTPUT")
 @click.option("--synthesis", default=None, help="Expansion the bands were made with (default: as recorded, "
               f"else {catalogue.SYNTHESIS_DEFAULT}).")
-@border_option
+@click.option("--border", type=_choice(BORDERS), default=None,
+              help="The border the bands were made with (default: as recorded, else clamp).")
 @io_options
 def collapse(inputs, output_path, synthesis, border, **opts) -> None:
     """Sum Laplacian bands back to the image: G_k = L_k + expand(G_k+1).

@@ -220,7 +220,8 @@ def write_levels_files(input_path: str, pattern: str, work: Levels | Laplacian, 
     """Every level of a pyramid (or the Laplacian bands) of one image, one file each or one multipart EXR.
 
     Returns the paths written. Laplacian bands are stored as float and record the
-    synthesis filter (``pyramid:synthesis``) so that :func:`collapse_files` can undo them.
+    synthesis filter and border (``pyramid:synthesis``, ``pyramid:border``) so that :func:`collapse_files`
+    can undo them.
     """
     ro, wo, reporter = read or ReadOptions(), write or WriteOptions(), reporter or Reporter()
     laplacian = isinstance(work, Laplacian)
@@ -235,6 +236,7 @@ def write_levels_files(input_path: str, pattern: str, work: Levels | Laplacian, 
         options["pixel_type"] = wo.pixel_type or "float"
         for im in images:
             im.spec.attributes["pyramid:synthesis"] = work.synthesis
+            im.spec.attributes["pyramid:border"] = work.border
     if multipart:
         io.write_levels(pattern, images, mode="multipart", **options)
         written = [pattern]
@@ -260,10 +262,34 @@ def _level_key(path: str):
     return (int(digits[-1]) if digits else 0, path)
 
 
+def _as_recorded(band: io.Image, path: str, what: str, asked: str | None, default: str) -> str:
+    """``asked`` when it agrees with what the bands record (``pyramid:<what>``), the record when not asked."""
+    recorded = band.spec.attributes.get(f"pyramid:{what}")
+    if asked is None:
+        return recorded or default
+    if recorded is not None and _canonical(what, asked) != _canonical(what, recorded):
+        raise UsageError(f"{path}: the bands were made with --{what} {recorded} (recorded in the file); "
+                         f"collapsing with --{what} {asked} would not give the image back")
+    return asked
+
+
+def _canonical(what: str, value: str):
+    if what == "synthesis":
+        from .expr import Op, steps
+        from .pyramids import _one_step
+
+        return steps(_one_step(value, Op.UP))
+    return value
+
+
 def collapse_files(inputs: list[str], output_path: str, session: Session, *, synthesis: str | None = None,
-                   border: str = "clamp", read: ReadOptions | None = None, write: WriteOptions | None = None,
+                   border: str | None = None, read: ReadOptions | None = None, write: WriteOptions | None = None,
                    reporter: Reporter | None = None) -> str:
-    """Sum Laplacian bands back to the image: a multipart EXR, or band files L_0 … L_m−1, G_m in order."""
+    """Sum Laplacian bands back to the image: a multipart EXR, or band files L_0 … L_m−1, G_m in order.
+
+    ``synthesis`` and ``border`` default to what the bands record (``pyramid levels --laplacian`` writes
+    both); one that contradicts the record is refused, since it would not give the image back.
+    """
     ro, wo, reporter = read or ReadOptions(), write or WriteOptions(), reporter or Reporter()
     paths = batch.expand(list(inputs))
     if len(paths) == 1:
@@ -273,7 +299,8 @@ def collapse_files(inputs: list[str], output_path: str, session: Session, *, syn
     if len(bands) < 2:
         raise UsageError(f"collapse needs at least two levels, {paths[0]} holds {len(bands)}")
     io.check_pyramid(bands)
-    synthesis = synthesis or bands[0].spec.attributes.get("pyramid:synthesis", catalogue.SYNTHESIS_DEFAULT)
+    synthesis = _as_recorded(bands[0], paths[0], "synthesis", synthesis, catalogue.SYNTHESIS_DEFAULT)
+    border = _as_recorded(bands[0], paths[0], "border", border, "clamp")
     work = Collapse(bands=len(bands), synthesis=synthesis, border=border)
     _announce_compiles(session, work, [b.pixels for b in bands], reporter)
     (out,) = session.run(work, [b.pixels for b in bands])

@@ -266,3 +266,21 @@ def test_every_backend_runs_every_command(tmp_path, backend):
     r = invoke("collapse", "--backend", backend, "-q", str(tmp_path / "b.exr"), str(tmp_path / "back.exr"))
     assert r.exit_code == 0, r.output
     np.testing.assert_allclose(read(tmp_path / "back.exr")[0], read(src)[0], rtol=0, atol=2e-3)
+
+
+def test_collapse_follows_the_recorded_synthesis_and_border_and_refuses_a_contradiction(tmp_path):
+    src, bands = tmp_path / "in.exr", tmp_path / "bands.exr"
+    g = np.random.default_rng(9).random((19, 23, 3))
+    write_exr(src, g)
+    r = invoke("levels", "-q", "--laplacian", "--multipart", "--synthesis", "chaikin", "--border", "wrap",
+               "--backend", "cpu", str(src), str(bands))
+    assert r.exit_code == 0, r.output
+    r = invoke("collapse", "-q", "--backend", "cpu", str(bands), str(tmp_path / "back.exr"))
+    assert r.exit_code == 0, r.output
+    np.testing.assert_allclose(read(tmp_path / "back.exr")[0], g.astype(np.float32), rtol=0, atol=1e-5)
+    for option in (["--synthesis", "cubic"], ["--border", "clamp"]):
+        r = invoke("collapse", "-q", *option, str(bands), str(tmp_path / "wrong.exr"))
+        assert r.exit_code == 2 and "would not give the image back" in r.stderr
+        assert not (tmp_path / "wrong.exr").exists()
+    r = invoke("collapse", "-q", "--synthesis", "doosabin", str(bands), str(tmp_path / "alias.exr"))  # chaikin's name
+    assert r.exit_code == 0, r.output
