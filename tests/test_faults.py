@@ -240,9 +240,12 @@ def test_a_signal_during_one_big_write(tmp_path):
         time.sleep(delay)
         p.send_signal(signal.SIGTERM)
         _, err = p.communicate(timeout=TIMEOUT)
-        assert p.returncode in (0, 143), err.decode()
-        assert not leftovers(tmp_path)
         data = out.read_bytes()
+        # -15: the signal came before the handlers were installed (interpreter start, imports) or during
+        # interpreter shutdown after the work (Python restores the default handlers while finalising; seen
+        # in /proc/PID/status). Either way the output is the old file or the complete new one (checked below).
+        assert p.returncode in (0, 143, -signal.SIGTERM), err.decode()
+        assert not leftovers(tmp_path)
         if data != old:  # or the complete new file: the signal came after the rename
             inp = oiio.ImageInput.open(str(out))
             assert inp is not None and inp.read_image("float").shape == (1024, 1024, 3)
