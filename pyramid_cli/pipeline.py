@@ -188,7 +188,12 @@ def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: R
     def write_job(job, images):
         options = wo.for_inputs([job.input])
         if mip_tile:
-            io.write_levels(job.output, images, mode="mipmap", tile=mip_tile, **options)
+            from .mip import hash_extra, texture_metadata
+
+            border, analysis = getattr(work, "border", "clamp"), getattr(work, "analysis", "")
+            meta = texture_metadata(border, analysis, io.source_sha1(job.input, hash_extra(border, analysis)),
+                                    io.oiio_version())
+            io.write_levels(job.output, images, mode="mipmap", tile=mip_tile, meta=meta, **options)
         else:
             io.write_image(job.output, images[0], **options)
         if not show_bar:
