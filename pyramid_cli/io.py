@@ -1059,8 +1059,7 @@ def _mip_metadata(spec: oiio.ImageSpec, data: np.ndarray, meta: dict[str, str], 
     desc = spec.get_string_attribute("ImageDescription")
     for key in ("oiio:ConstantColor", "oiio:AverageColor", "oiio:SHA-1"):  # never the input's stale values
         spec.erase_attribute(key)
-        if key + "=" in desc:
-            desc = desc[:desc.index(key + "=")].rstrip()
+        desc = " ".join(word for word in desc.split(" ") if not word.startswith(key + "="))
     for name, value in values.items():
         if name == "Exif:ImageHistory" and history:
             value = history.rstrip("\n") + "\n" + value

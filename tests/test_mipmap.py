@@ -6,6 +6,7 @@ Real clients check the files: OpenImageIO's TextureSystem (the lookup renderers 
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -261,3 +262,36 @@ def test_a_full_disk_writing_a_tx_exits_4_and_leaves_nothing(tmp_path):
     assert p.returncode == 4, p.stderr
     assert f"cannot write {dst}" in p.stderr
     assert not dst.exists() and [f for f in os.listdir(tmp_path)] == ["big.png"]
+
+
+def test_a_tx_input_gets_fresh_metadata(tmp_path, png8):
+    first, second = tmp_path / "first.tx", tmp_path / "second.tx"
+    maketx(png8, first, "--wrap", "periodic")
+    mipmap("--analysis", "box", first, second)  # a .tx source: maketx's SHA-1 must not survive
+    a = attributes(second)
+    assert a["oiio:SHA-1"] == pio.source_sha1(first, hash_extra("clamp", "box")) != attributes(first)["oiio:SHA-1"]
+    assert a["wrapmodes"] == "clamp,clamp"
+
+
+def test_a_description_keeps_its_words_and_loses_stale_hashes(tmp_path):
+    src, dst = tmp_path / "in.png", tmp_path / "out.tx"
+    spec = oiio.ImageSpec(8, 8, 3, "uint8")
+    spec.attribute("ImageDescription", "painted by hand oiio:SHA-1=DEADBEEF for show")
+    out = oiio.ImageOutput.create(str(src))
+    assert out.open(str(src), spec) and out.write_image(np.arange(192, dtype=np.uint8).reshape(8, 8, 3))
+    out.close()
+    mipmap(src, dst)
+    a = attributes(dst)
+    assert a["ImageDescription"].strip() == "painted by hand for show"  # the reader leaves a space
+    assert a["oiio:SHA-1"] == pio.source_sha1(src, hash_extra("clamp", "quadratic"))
+
+
+def test_bench_maketx_runs_and_reports(tmp_path):
+    out = tmp_path / "bench.json"
+    bench = Path(__file__).resolve().parent.parent / "bench" / "maketx.py"
+    p = subprocess.run([sys.executable, str(bench), "--size", "64", "--reps", "1", "--backend", "cpu",
+                        "--json", str(out)], capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stderr[-2000:]
+    report = json.loads(out.read_text())
+    assert set(report["median_s"]) == {"pyramid mipmap", "maketx"}
+    assert report["pyramid"]["levels"] == report["maketx"]["levels"] and report["keys_only_in_maketx"] == []
