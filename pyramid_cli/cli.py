@@ -429,18 +429,20 @@ def collapse(inputs, output_path, synthesis, border, **opts) -> None:
                    "and the file's wrapmodes. Sets --border (black=zero, periodic=wrap).")
 @click.option("--swrap", metavar="MODE", help="The s (horizontal) wrap mode; must equal t's.")
 @click.option("--twrap", metavar="MODE", help="The t (vertical) wrap mode; must equal s's.")
+@click.option("--constant-color-detect", "constant_detect", is_flag=True,
+              help="A constant-colour image becomes one tile of that colour, as maketx's flag does.")
 @border_option
 @io_options
 @batch_options
 @click.pass_context
-def mipmap(ctx: click.Context, paths, analysis, tile, wrap, swrap, twrap, border, **opts) -> None:
+def mipmap(ctx: click.Context, paths, analysis, tile, wrap, swrap, twrap, constant_detect, border, **opts) -> None:
     """Write a tiled MIP-mapped texture down to 1×1 (what maketx makes, with better filters).
 
     OpenEXR (.exr) holds the levels as its own MIP levels, TIFF (.tx, .tif) as
     subimages marked "Plain Texture", as maketx writes them; both read as MIP-mapped
     in OpenImageIO's TextureSystem. Filtering is in linear light on premultiplied
     alpha; the output keeps the source's type and encoding where the format can
-    (8-bit sRGB PNG → 8-bit sRGB .tx; EXR takes half), --type overrides. Level 0
+    (8-bit sRGB PNG → 8-bit sRGB .tx; in EXR 8-bit becomes half), --type overrides. Level 0
     carries maketx's metadata: oiio:AverageColor, oiio:ConstantColor (constant
     images), oiio:SHA-1 of the source pixels, wrapmodes, textureformat.
 
@@ -452,10 +454,10 @@ def mipmap(ctx: click.Context, paths, analysis, tile, wrap, swrap, twrap, border
       pyramid mipmap albedo.exr albedo.tx.exr
       pyramid mipmap albedo.png albedo.tx                       # 8-bit sRGB .tx, like maketx
       pyramid mipmap --wrap periodic --analysis cubic 'tex/*.png' -o 'tx/{stem}.tx'
+      pyramid mipmap --constant-color-detect --tile 64 'tex/*.exr' -o 'tx/{stem}.tx.exr'
       pyramid mipmap 'tex/albedo.<UDIM>.exr' -o 'tx/albedo.<UDIM>.tx.exr'
     """
-    from .mip import border_for_wrap, parse_wrap
-    from .work import Levels
+    from .mip import TextureLevels, border_for_wrap, parse_wrap
 
     modes = parse_wrap(wrap, swrap, twrap)
     if modes is not None:
@@ -468,7 +470,8 @@ def mipmap(ctx: click.Context, paths, analysis, tile, wrap, swrap, twrap, border
     output = opts.get("template") or (paths[-1] if len(paths) > 1 else "")
     if tile % 16 and output.lower().endswith((".tx", ".tif", ".tiff")):
         raise UsageError(f"--tile {tile}: TIFF tiles must be a multiple of 16 ({output})")
-    _process(paths, Levels(levels=None, analysis=analysis, border=border), opts, mip_tile=tile)
+    work = TextureLevels(levels=None, analysis=analysis, border=border, constant_detect=constant_detect)
+    _process(paths, work, opts, mip_tile=tile)
 
 
 @main.command("farm-template", context_settings={"ignore_unknown_options": True, "allow_interspersed_args": False})

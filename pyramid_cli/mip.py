@@ -9,10 +9,12 @@ constant colour, the SHA-1 of the source pixels), computed the way OpenImageIO's
 from __future__ import annotations
 
 import hashlib
+from dataclasses import dataclass
 
 import numpy as np
 
 from .errors import UsageError
+from .work import Levels
 
 # maketx's wrap modes and the Plan's border that reads past the edges the same way.
 WRAP_TO_BORDER: dict[str, str] = {"black": "zero", "clamp": "clamp", "periodic": "wrap", "mirror": "mirror"}
@@ -21,6 +23,29 @@ WRAP_NAMES = tuple(WRAP_TO_BORDER)
 
 # computePixelHashSHA1's block height in maketx (scanlines per block digest).
 SHA1_BLOCK = 256
+
+
+@dataclass(frozen=True, kw_only=True)
+class TextureLevels(Levels):
+    """A MIP chain down to 1×1 (:class:`pyramid_cli.work.Levels`) with maketx's ``--constant-color-detect``.
+
+    ``constant_detect``: an image whose pixels are all the same becomes one tile of that colour before
+    the levels are made (:func:`shrink_constant`).
+    """
+
+    constant_detect: bool = False
+
+
+def shrink_constant(pixels: np.ndarray, tile: int) -> np.ndarray | None:
+    """maketx's ``--constant-color-detect``: a constant image as ``min(tile, h) × min(tile, w)`` of its colour.
+
+    None when the pixels are not all the same (compared exactly, as maketx compares min and max).
+    """
+    flat = pixels.reshape(-1, pixels.shape[-1])
+    if not np.all(flat == flat[0]):
+        return None
+    h, w = min(tile, pixels.shape[0]), min(tile, pixels.shape[1])
+    return np.ascontiguousarray(np.broadcast_to(flat[0], (h, w, pixels.shape[-1])))
 
 
 def parse_wrap(wrap: str | None, swrap: str | None = None, twrap: str | None = None) -> tuple[str, str] | None:

@@ -169,6 +169,13 @@ def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: R
     def read_job(job):
         io.check_write_options(job.output, wo.pixel_type, wo.compression)  # refused before any work
         image = _read(job.input, ro, reporter, keep_half=not mip_tile)
+        if mip_tile and getattr(work, "constant_detect", False):
+            from .mip import shrink_constant
+
+            small = shrink_constant(image.pixels, mip_tile)
+            if small is not None and small.shape != image.pixels.shape:
+                reporter.detail(f"{job.input}: constant colour, made from one {small.shape[1]}×{small.shape[0]} tile")
+                image = io.Image(small, image.spec)
         work.check((image.pixels.shape[:2],), where=job.input)
         return job, image
 

@@ -295,3 +295,25 @@ def test_bench_maketx_runs_and_reports(tmp_path):
     report = json.loads(out.read_text())
     assert set(report["median_s"]) == {"pyramid mipmap", "maketx"}
     assert report["pyramid"]["levels"] == report["maketx"]["levels"] and report["keys_only_in_maketx"] == []
+
+
+@pytest.mark.parametrize("ext", ["tx", "exr"])
+def test_constant_color_detect_makes_one_tile_like_maketx(tmp_path, ext):
+    src, ours, theirs = tmp_path / "flat.png", tmp_path / f"ours.{ext}", tmp_path / f"theirs.{ext}"
+    write(src, np.full((100, 300, 4), (10, 200, 77, 255), np.uint8), "uint8")
+    mipmap("--constant-color-detect", "--tile", "16", src, ours)
+    maketx(src, theirs, "--constant-color-detect", "--tile", "16", "16")
+    ours_levels, theirs_levels = levels_of(ours), levels_of(theirs)
+    assert [x.shape for x in ours_levels] == [x.shape for x in theirs_levels]
+    assert ours_levels[0].shape[:2] == (16, 16)
+    for level in ours_levels:
+        np.testing.assert_allclose(level, np.broadcast_to(ours_levels[0][0, 0], level.shape), atol=1e-3)
+    if ext == "tx":  # the same stored colour
+        np.testing.assert_allclose(ours_levels[-1], theirs_levels[-1], atol=1e-6)
+    assert "oiio:ConstantColor" in attributes(ours)
+
+
+def test_constant_color_detect_leaves_a_varied_image_alone(tmp_path, png8):
+    dst = tmp_path / "out.tx"
+    mipmap("--constant-color-detect", png8, dst)
+    assert levels_of(dst)[0].shape[:2] == (64, 48)
