@@ -431,11 +431,15 @@ def collapse(inputs, output_path, synthesis, border, **opts) -> None:
 @click.option("--twrap", metavar="MODE", help="The t (vertical) wrap mode; must equal s's.")
 @click.option("--constant-color-detect", "constant_detect", is_flag=True,
               help="A constant-colour image becomes one tile of that colour, as maketx's flag does.")
+@click.option("--round", "rounding", type=click.Choice(["up", "down"]), default="up", show_default=True,
+              help="Level sizes: up ⌈n/2⌉ by the --analysis filter; down ⌊n/2⌋ (maketx's) by area resampling "
+                   "that covers the whole level above (no --analysis).")
 @border_option
 @io_options
 @batch_options
 @click.pass_context
-def mipmap(ctx: click.Context, paths, analysis, tile, wrap, swrap, twrap, constant_detect, border, **opts) -> None:
+def mipmap(ctx: click.Context, paths, analysis, tile, wrap, swrap, twrap, constant_detect, rounding, border,
+           **opts) -> None:
     """Write a tiled MIP-mapped texture down to 1×1 (what maketx makes, with better filters).
 
     OpenEXR (.exr) holds the levels as its own MIP levels, TIFF (.tx, .tif) as
@@ -446,7 +450,8 @@ def mipmap(ctx: click.Context, paths, analysis, tile, wrap, swrap, twrap, consta
     carries maketx's metadata: oiio:AverageColor, oiio:ConstantColor (constant
     images), oiio:SHA-1 of the source pixels, wrapmodes, textureformat.
 
-    Level sizes are ⌈n/2⌉ (OpenEXR's round-up mode), as ⊗↓ gives. --wrap (maketx's
+    Level sizes are ⌈n/2⌉ (OpenEXR's round-up mode), as ⊗↓ gives; --round down
+    gives maketx's ⌊n/2⌋ by area resampling that covers the whole domain. --wrap (maketx's
     names) and --border (ours) say the same thing; different s and t modes are refused.
 
     \b
@@ -470,7 +475,11 @@ def mipmap(ctx: click.Context, paths, analysis, tile, wrap, swrap, twrap, consta
     output = opts.get("template") or (paths[-1] if len(paths) > 1 else "")
     if tile % 16 and output.lower().endswith((".tx", ".tif", ".tiff")):
         raise UsageError(f"--tile {tile}: TIFF tiles must be a multiple of 16 ({output})")
-    work = TextureLevels(levels=None, analysis=analysis, border=border, constant_detect=constant_detect)
+    if rounding == "down" and ctx.get_parameter_source("analysis") is click.core.ParameterSource.COMMANDLINE:
+        raise UsageError("--round down resamples by area (each texel covers its share of the level above); "
+                         "--analysis applies to --round up only")
+    work = TextureLevels(levels=None, analysis=analysis, border=border, constant_detect=constant_detect,
+                         round_down=rounding == "down")
     _process(paths, work, opts, mip_tile=tile)
 
 

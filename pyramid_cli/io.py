@@ -1095,12 +1095,20 @@ def write_levels(path: str | os.PathLike[str], images: list[Image], *, mode: str
     fmt = _format_from_path(out_path)
     full = encoded[0][0]
     if mode == "mipmap":
+        sizes = [(spec.width, spec.height) for spec, _ in encoded]
+        pairs = list(zip(sizes[:-1], sizes[1:], strict=True))
+        round_up = all(b == ((a[0] + 1) // 2, (a[1] + 1) // 2) for a, b in pairs)
+        round_down = all(b == (max(1, a[0] // 2), max(1, a[1] // 2)) for a, b in pairs)
+        if fmt == "openexr" and not (round_up or round_down):
+            raise OutputError(f"cannot write {out_path}: OpenEXR MIP levels halve each size rounding up or down; "
+                              f"these are {' '.join(f'{w}x{h}' for w, h in sizes)}")
         for spec, _ in encoded:
             spec.tile_width = spec.tile_height = tile
             spec.attribute("textureformat", "Plain Texture")
             if fmt == "openexr":
-                spec.attribute("openexr:levelmode", 1)     # MIPMAP_LEVELS
-                spec.attribute("openexr:roundingmode", 1)  # ROUND_UP: level sizes ⌈n/2⌉, as ⊗↓ gives
+                spec.attribute("openexr:levelmode", 1)  # MIPMAP_LEVELS
+                # ROUND_UP: sizes ⌈n/2⌉, as ⊗↓ gives; ROUND_DOWN: ⌊n/2⌋ (--round down, maketx's)
+                spec.attribute("openexr:roundingmode", int(round_up))
             if fmt == "tiff":
                 spec.attribute("planarconfig", "contig")
                 if options.get("compression") is None:

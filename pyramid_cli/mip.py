@@ -34,6 +34,36 @@ class TextureLevels(Levels):
     """
 
     constant_detect: bool = False
+    round_down: bool = False  # maketx's level sizes ⌊n/2⌋, by area resampling (:func:`area_levels`)
+
+    @property
+    def filter_name(self) -> str:
+        """The filter that makes the levels: ``"area"`` when rounding down, else ``analysis``."""
+        return "area" if self.round_down else self.analysis
+
+
+def area_weights(n: int, m: int) -> np.ndarray:
+    """The (m, n) matrix resampling n samples to m by area: output j averages input over [j·n/m, (j+1)·n/m)."""
+    scale = n / m
+    lo = np.arange(m)[:, None] * scale
+    i = np.arange(n)[None, :]
+    overlap = np.clip(np.minimum(lo + scale, i + 1) - np.maximum(lo, i), 0, None)
+    return overlap / scale
+
+
+def area_levels(pixels: np.ndarray) -> list[np.ndarray]:
+    """MIP levels 1.. down to 1×1 with maketx's sizes ``max(1, ⌊n/2⌋)``, each the area average of the one above.
+
+    Every output texel covers its exact share of the level above (no sample of the domain is dropped
+    or counted twice for odd sizes), so every level keeps the image's mean. Computed in float64.
+    """
+    levels, x = [], pixels.astype(np.float64)
+    while x.shape[0] > 1 or x.shape[1] > 1:
+        h, w = x.shape[:2]
+        x = np.einsum("ji,ikc->jkc", area_weights(h, max(1, h // 2)), x)
+        x = np.einsum("lk,jkc->jlc", area_weights(w, max(1, w // 2)), x)
+        levels.append(x.astype(np.float32))
+    return levels
 
 
 def shrink_constant(pixels: np.ndarray, tile: int) -> np.ndarray | None:
@@ -151,7 +181,8 @@ def texture_metadata(border: str, analysis: str, sha1: str | None = None, oiio_v
     tool = f"pyramid mipmap (bilinear-pyramid {__version__})"
     meta = {"wrapmodes": wrapmodes(border),
             "Software": f"OpenImageIO {oiio_version} : {tool}" if oiio_version else tool,
-            "Exif:ImageHistory": f"pyramid mipmap --analysis {analysis} --wrap {BORDER_TO_WRAP[border]}"}
+            "Exif:ImageHistory": f"pyramid mipmap {'--round down' if analysis == 'area' else '--analysis ' + analysis}"
+                                 f" --wrap {BORDER_TO_WRAP[border]}"}
     if sha1:
         meta["oiio:SHA-1"] = sha1
     return meta

@@ -317,3 +317,75 @@ def test_constant_color_detect_leaves_a_varied_image_alone(tmp_path, png8):
     dst = tmp_path / "out.tx"
     mipmap("--constant-color-detect", png8, dst)
     assert levels_of(dst)[0].shape[:2] == (64, 48)
+
+
+# ------------------------------------------------------------------------------------ --round down
+
+
+def maketx_sizes(path: Path) -> list[tuple[int, int]]:
+    return [x.shape[:2] for x in levels_of(path)]
+
+
+@pytest.mark.parametrize("shape", [(37, 50), (64, 48), (1, 9), (5, 3)])
+def test_round_down_gives_maketx_level_sizes_and_keeps_the_mean(tmp_path, shape):
+    src, ours, theirs = tmp_path / "in.exr", tmp_path / "ours.exr", tmp_path / "theirs.exr"
+    g = np.random.default_rng(6).random(shape + (3,)).astype(np.float32)
+    write(src, g)
+    mipmap("--round", "down", "--type", "float", src, ours)
+    maketx(src, theirs)
+    assert maketx_sizes(ours) == maketx_sizes(theirs)
+    mean = g.astype(np.float64).mean(axis=(0, 1))
+    for level in levels_of(ours):  # every texel covers its share: no part of the domain dropped or doubled
+        np.testing.assert_allclose(level.mean(axis=(0, 1)), mean, atol=1e-5)
+    average = [float(v) for v in attributes(ours)["oiio:AverageColor"].split(",")]
+    np.testing.assert_allclose(levels_of(ours)[-1][0, 0], average, atol=1e-5)
+
+
+def test_round_down_of_even_sizes_is_the_box_filter(tmp_path):
+    src, down, box = tmp_path / "in.exr", tmp_path / "down.exr", tmp_path / "box.exr"
+    write(src, np.random.default_rng(7).random((32, 16, 4)).astype(np.float32))
+    mipmap("--round", "down", "--type", "float", src, down)
+    mipmap("--analysis", "box", "--type", "float", src, box)
+    for a, b in zip(levels_of(down), levels_of(box), strict=True):
+        np.testing.assert_allclose(a, b, atol=1e-6)
+
+
+def test_round_down_tx_reads_in_the_texture_system(tmp_path, png8):
+    src = tmp_path / "odd.png"
+    write(src, (np.random.default_rng(9).random((37, 50, 3)) * 255).astype(np.uint8), "uint8")
+    dst = tmp_path / "odd.tx"
+    mipmap("--round", "down", "--tile", "16", src, dst)
+    levels = levels_of(dst)
+    assert [x.shape[:2] for x in levels] == [(37, 50), (18, 25), (9, 12), (4, 6), (2, 3), (1, 1)]
+    ts = oiio.TextureSystem(shared=False)
+    opt = oiio.TextureOpt()
+    opt.interpmode, opt.mipmode = oiio.InterpMode.Closest, oiio.MipMode.OneLevel
+    for level in levels:
+        lh, lw = level.shape[:2]
+        got = ts.texture(str(dst), opt, 0.5 / lw, 0.5 / lh, 1 / lw, 0, 0, 1 / lh, 3)
+        np.testing.assert_allclose(got, level[0, 0], atol=1e-6)
+    assert "--round down" in attributes(tmp_path / "odd.tx").get("Exif:ImageHistory", "--round down")
+
+
+def test_round_down_refuses_an_analysis(tmp_path):
+    src = tmp_path / "in.exr"
+    write(src, np.zeros((8, 8, 3), np.float32))
+    r = CliRunner().invoke(main, ["mipmap", *CPU, "--round", "down", "--analysis", "cubic", str(src),
+                                  str(tmp_path / "o.exr")])
+    assert r.exit_code == 2 and "--analysis applies to --round up only" in r.output, r.output
+
+
+def test_exr_levels_that_halve_neither_way_are_refused(tmp_path):
+    from pyramid_cli.errors import OutputError
+
+    info = pio.read_image(_flat(tmp_path)).spec
+    images = [pio.Image(np.zeros((h, w, 3), np.float32), info) for h, w in [(6, 5), (3, 3), (1, 1)]]
+    with pytest.raises(OutputError, match="halve each size rounding up or down; these are 5x6 3x3 1x1"):
+        pio.write_levels(tmp_path / "bad.exr", images, tile=16)
+    assert not (tmp_path / "bad.exr").exists()
+
+
+def _flat(tmp_path: Path) -> Path:
+    src = tmp_path / "flat.exr"
+    write(src, np.zeros((4, 4, 3), np.float32))
+    return src
