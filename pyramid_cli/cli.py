@@ -422,25 +422,65 @@ def collapse(inputs, output_path, synthesis, border, **opts) -> None:
 @click.argument("paths", metavar="INPUT OUTPUT | INPUT... -o TEMPLATE", nargs=-1, required=True)
 @click.option("--analysis", default=catalogue.MIP_ANALYSIS_DEFAULT, show_default=True,
               help=f"{', '.join(catalogue.ANALYSIS_FILTERS)} or a ⊗↓ expression.")
-@click.option("--tile", type=click.IntRange(8, 4096), default=64, show_default=True, help="Tile size.")
+@click.option("--tile", type=click.IntRange(8, 4096), default=64, show_default=True,
+              help="Tile size (TIFF/.tx tiles must be a multiple of 16).")
+@click.option("--wrap", metavar="MODE[,MODE]",
+              help="maketx's wrap modes, black|clamp|periodic|mirror (s,t): how the filters read past the edges "
+                   "and the file's wrapmodes. Sets --border (black=zero, periodic=wrap).")
+@click.option("--swrap", metavar="MODE", help="The s (horizontal) wrap mode; must equal t's.")
+@click.option("--twrap", metavar="MODE", help="The t (vertical) wrap mode; must equal s's.")
+@click.option("--constant-color-detect", "constant_detect", is_flag=True,
+              help="A constant-colour image becomes one tile of that colour, as maketx's flag does.")
+@click.option("--round", "rounding", type=click.Choice(["up", "down"]), default="up", show_default=True,
+              help="Level sizes: up ⌈n/2⌉ by the --analysis filter; down ⌊n/2⌋ (maketx's) by area resampling "
+                   "that covers the whole level above (no --analysis).")
 @border_option
 @io_options
 @batch_options
-def mipmap(paths, analysis, tile, border, **opts) -> None:
-    """Write a tiled MIP-mapped OpenEXR down to 1×1 (what maketx makes, with better filters).
+@click.pass_context
+def mipmap(ctx: click.Context, paths, analysis, tile, wrap, swrap, twrap, constant_detect, rounding, border,
+           **opts) -> None:
+    """Write a tiled MIP-mapped texture down to 1×1 (what maketx makes, with better filters).
 
-    Level sizes are ⌈n/2⌉ (OpenEXR's round-up mode), as ⊗↓ gives. OpenImageIO 3.2
-    cannot write MIP-mapped TIFF; a .tif output exits 4 saying so.
+    OpenEXR (.exr) holds the levels as its own MIP levels, TIFF (.tx, .tif) as
+    subimages marked "Plain Texture", as maketx writes them; both read as MIP-mapped
+    in OpenImageIO's TextureSystem. Filtering is in linear light on premultiplied
+    alpha; the output keeps the source's type and encoding where the format can
+    (8-bit sRGB PNG → 8-bit sRGB .tx; in EXR 8-bit becomes half), --type overrides. Level 0
+    carries maketx's metadata: oiio:AverageColor, oiio:ConstantColor (constant
+    images), oiio:SHA-1 of the source pixels, wrapmodes, textureformat.
+
+    Level sizes are ⌈n/2⌉ (OpenEXR's round-up mode), as ⊗↓ gives; --round down
+    gives maketx's ⌊n/2⌋ by area resampling that covers the whole domain. --wrap (maketx's
+    names) and --border (ours) say the same thing; different s and t modes are refused.
 
     \b
     Example:
       pyramid mipmap albedo.exr albedo.tx.exr
-      pyramid mipmap --border wrap --analysis cubic 'tex/*.png' -o 'tx/{stem}.tx.exr'
+      pyramid mipmap albedo.png albedo.tx                       # 8-bit sRGB .tx, like maketx
+      pyramid mipmap --wrap periodic --analysis cubic 'tex/*.png' -o 'tx/{stem}.tx'
+      pyramid mipmap --constant-color-detect --tile 64 'tex/*.exr' -o 'tx/{stem}.tx.exr'
       pyramid mipmap 'tex/albedo.<UDIM>.exr' -o 'tx/albedo.<UDIM>.tx.exr'
     """
-    from .work import Levels
+    from .mip import TextureLevels, border_for_wrap, parse_wrap
 
-    _process(paths, Levels(levels=None, analysis=analysis, border=border), opts, mip_tile=tile)
+    modes = parse_wrap(wrap, swrap, twrap)
+    if modes is not None:
+        wanted = border_for_wrap(*modes)
+        explicit = ctx.get_parameter_source("border") is click.core.ParameterSource.COMMANDLINE
+        if explicit and border != wanted:
+            raise UsageError(f"--border {border} contradicts --wrap {','.join(modes)} (which reads as --border "
+                             f"{wanted}); give one of them")
+        border = wanted
+    output = opts.get("template") or (paths[-1] if len(paths) > 1 else "")
+    if tile % 16 and output.lower().endswith((".tx", ".tif", ".tiff")):
+        raise UsageError(f"--tile {tile}: TIFF tiles must be a multiple of 16 ({output})")
+    if rounding == "down" and ctx.get_parameter_source("analysis") is click.core.ParameterSource.COMMANDLINE:
+        raise UsageError("--round down resamples by area (each texel covers its share of the level above); "
+                         "--analysis applies to --round up only")
+    work = TextureLevels(levels=None, analysis=analysis, border=border, constant_detect=constant_detect,
+                         round_down=rounding == "down")
+    _process(paths, work, opts, mip_tile=tile)
 
 
 @main.command("farm-template", context_settings={"ignore_unknown_options": True, "allow_interspersed_args": False})

@@ -816,8 +816,10 @@ def _oiio_write_parts(target: str, fmt: str, parts: list[tuple[oiio.ImageSpec, n
         _checked(out, ok, "open")
         for k, (spec, data) in enumerate(parts):
             if k:
-                _checked(out, out.open(target, spec, "AppendMIPLevel" if mode == "mipmap" else "AppendSubimage"),
-                         "open")
+                # A format without MIP levels of its own (TIFF) holds them as subimages, which its reader
+                # presents as MIP levels when the file says "textureformat" (maketx does the same).
+                append = "AppendMIPLevel" if mode == "mipmap" and out.supports("mipmap") else "AppendSubimage"
+                _checked(out, out.open(target, spec, append), "open")
             _write_pixels(out, spec, data)
     except _WriteFailed as exc:
         failure = exc
@@ -1013,16 +1015,78 @@ def write_images(paths: list[str | os.PathLike[str]], images: list[Image], **opt
             _write_file(tmp, p, _format_from_path(p), [(spec, data)])
 
 
+def oiio_version() -> str:
+    """The OpenImageIO version writing the files, e.g. ``"3.2.2.0"``."""
+    return str(oiio.__version__)
+
+
+def source_sha1(path: str | os.PathLike[str], extra: str = "") -> str:
+    """maketx's ``oiio:SHA-1`` of a source file: its stored values as float32, hashed in 256-row blocks.
+
+    See :func:`pyramid_cli.mip.pixel_sha1`; ``extra`` is what maketx appends (its filter name and a space).
+    """
+    from .mip import pixel_sha1
+
+    p = os.fspath(path)
+    inp = oiio.ImageInput.open(p)
+    if inp is None:
+        raise InputError(f"cannot read {p}: {_one_line(oiio.geterror(), 'unreadable')}")
+    try:
+        spec = inp.spec()
+        data = inp.read_image("float")
+    finally:
+        inp.close()
+    if data is None:
+        raise InputError(f"cannot read {p}: {_one_line(oiio.geterror(), 'read failed')}")
+    return pixel_sha1(np.asarray(data, dtype=np.float32).reshape(spec.height, spec.width, spec.nchannels), extra)
+
+
+def _mip_metadata(spec: oiio.ImageSpec, data: np.ndarray, meta: dict[str, str], arbitrary: bool) -> None:
+    """maketx's metadata on level 0: average (and constant) colour of the stored values, plus ``meta``.
+
+    A format without arbitrary metadata (TIFF) gets the ``oiio:`` values in its ImageDescription as
+    ``oiio:SHA-1=… oiio:AverageColor=…``, which is where maketx puts them and OpenImageIO's reader finds them.
+    """
+    from .mip import average_color, constant_color, format_floats
+
+    spec.attribute("fovcot", float(spec.full_width) / float(spec.full_height))  # maketx's: the aspect ratio
+    values = dict(meta)
+    values["oiio:AverageColor"] = format_floats(average_color(data))
+    constant = constant_color(data)
+    if constant is not None:
+        values["oiio:ConstantColor"] = format_floats(constant)
+    history = spec.get_string_attribute("Exif:ImageHistory")
+    desc = spec.get_string_attribute("ImageDescription")
+    for key in ("oiio:ConstantColor", "oiio:AverageColor", "oiio:SHA-1"):  # never the input's stale values
+        spec.erase_attribute(key)
+        desc = " ".join(word for word in desc.split(" ") if not word.startswith(key + "="))
+    for name, value in values.items():
+        if name == "Exif:ImageHistory" and history:
+            value = history.rstrip("\n") + "\n" + value
+        if name.startswith("oiio:") and not arbitrary:
+            desc = f"{desc} {name}={value}" if desc else f"{name}={value}"
+        else:
+            spec.attribute(name, value)
+    if desc:
+        spec.attribute("ImageDescription", desc)
+
+
 def write_levels(path: str | os.PathLike[str], images: list[Image], *, mode: str = "mipmap",
-                 tile: int = 64, **options) -> None:
+                 tile: int = 64, meta: dict[str, str] | None = None, **options) -> None:
     """Write several images into one file atomically: MIP levels (tiled) or EXR parts.
 
     Parameters
     ----------
     mode : {"mipmap", "multipart"}
         ``mipmap``: level 0 first, each a MIP level of a tiled file that
-        OpenImageIO's ImageInput and TextureSystem read as MIP-mapped (EXR, TIFF).
+        OpenImageIO's ImageInput and TextureSystem read as MIP-mapped: OpenEXR's
+        own MIP levels, or TIFF (``.tx``, ``.tif``) subimages marked as a texture
+        the way maketx writes them. Level 0 gets maketx's ``oiio:AverageColor``
+        (and ``oiio:ConstantColor`` when every pixel is the same) of the stored values.
         ``multipart``: one subimage per image (multi-part OpenEXR), named ``level{k}``.
+    meta : dict, optional
+        More attributes for level 0 (``mipmap``): ``wrapmodes``, ``oiio:SHA-1``,
+        ``Software``; ``Exif:ImageHistory`` is appended to the input's history.
     options
         As for :func:`write_image` (pixel_type, colorspace, alpha, dither, compression, force, inputs).
     """
@@ -1031,23 +1095,41 @@ def write_levels(path: str | os.PathLike[str], images: list[Image], *, mode: str
     fmt = _format_from_path(out_path)
     full = encoded[0][0]
     if mode == "mipmap":
+        sizes = [(spec.width, spec.height) for spec, _ in encoded]
+        pairs = list(zip(sizes[:-1], sizes[1:], strict=True))
+        round_up = all(b == ((a[0] + 1) // 2, (a[1] + 1) // 2) for a, b in pairs)
+        round_down = all(b == (max(1, a[0] // 2), max(1, a[1] // 2)) for a, b in pairs)
+        if fmt == "openexr" and not (round_up or round_down):
+            raise OutputError(f"cannot write {out_path}: OpenEXR MIP levels halve each size rounding up or down; "
+                              f"these are {' '.join(f'{w}x{h}' for w, h in sizes)}")
         for spec, _ in encoded:
             spec.tile_width = spec.tile_height = tile
             spec.attribute("textureformat", "Plain Texture")
             if fmt == "openexr":
-                spec.attribute("openexr:levelmode", 1)     # MIPMAP_LEVELS
-                spec.attribute("openexr:roundingmode", 1)  # ROUND_UP: level sizes ⌈n/2⌉, as ⊗↓ gives
+                spec.attribute("openexr:levelmode", 1)  # MIPMAP_LEVELS
+                # ROUND_UP: sizes ⌈n/2⌉, as ⊗↓ gives; ROUND_DOWN: ⌊n/2⌋ (--round down, maketx's)
+                spec.attribute("openexr:roundingmode", int(round_up))
+            if fmt == "tiff":
+                spec.attribute("planarconfig", "contig")
+                if options.get("compression") is None:
+                    spec.attribute("compression", "zip")  # maketx's default
     else:
         for k, (spec, _) in enumerate(encoded):
             spec.attribute("name", f"level{k}")
             # OpenEXR parts share one display window: level 0's
             spec.full_x, spec.full_y, spec.full_width, spec.full_height = 0, 0, full.width, full.height
     probe = oiio.ImageOutput.create(fmt) if fmt else None
-    feature = "mipmap" if mode == "mipmap" else "multiimage"
-    if probe is None or not probe.supports(feature):
+    if mode == "mipmap":  # MIP levels of its own, or tiled subimages (TIFF: maketx's .tx)
+        able = probe is not None and (probe.supports("mipmap")
+                                      or (probe.supports("multiimage") and probe.supports("tiles")))
+    else:
+        able = probe is not None and probe.supports("multiimage")
+    if not able:
         oiio.geterror()
         raise OutputError(f"cannot write {out_path}: the {_FORMAT_TITLES.get(fmt, fmt)} format cannot hold "
                           f"{'MIP levels' if mode == 'mipmap' else 'several images'}")
+    if mode == "mipmap":
+        _mip_metadata(encoded[0][0], encoded[0][1], meta or {}, bool(probe.supports("arbitrary_metadata")))
     with atomic_path(out_path) as tmp:
         _write_file(tmp, out_path, fmt, encoded, mode)
 

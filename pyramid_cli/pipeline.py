@@ -169,6 +169,13 @@ def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: R
     def read_job(job):
         io.check_write_options(job.output, wo.pixel_type, wo.compression)  # refused before any work
         image = _read(job.input, ro, reporter, keep_half=not mip_tile)
+        if mip_tile and getattr(work, "constant_detect", False):
+            from .mip import shrink_constant
+
+            small = shrink_constant(image.pixels, mip_tile)
+            if small is not None and small.shape != image.pixels.shape:
+                reporter.detail(f"{job.input}: constant colour, made from one {small.shape[1]}×{small.shape[0]} tile")
+                image = io.Image(small, image.spec)
         work.check((image.pixels.shape[:2],), where=job.input)
         return job, image
 
@@ -176,6 +183,11 @@ def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: R
 
     def compute(job_image):
         job, image = job_image
+        if mip_tile and getattr(work, "round_down", False):  # maketx's sizes: area resampling in numpy
+            from .mip import area_levels
+
+            pixels = image.pixels.astype(np.float32)
+            return [io.Image(px, image.spec) for px in [pixels, *area_levels(pixels)]]
         if not announced:
             announced.append(True)
             _announce_compiles(session, work, [image.pixels], reporter)
@@ -188,13 +200,20 @@ def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: R
     def write_job(job, images):
         options = wo.for_inputs([job.input])
         if mip_tile:
-            io.write_levels(job.output, images, mode="mipmap", tile=mip_tile, **options)
+            from .mip import hash_extra, texture_metadata
+
+            border = getattr(work, "border", "clamp")
+            analysis = getattr(work, "filter_name", getattr(work, "analysis", ""))
+            meta = texture_metadata(border, analysis, io.source_sha1(job.input, hash_extra(border, analysis)),
+                                    io.oiio_version())
+            io.write_levels(job.output, images, mode="mipmap", tile=mip_tile, meta=meta, **options)
         else:
             io.write_image(job.output, images[0], **options)
         if not show_bar:
             h, w = images[0].pixels.shape[:2]
             levels = f", {len(images)} MIP levels" if mip_tile else ""
-            reporter.result(f"wrote {job.output} ({w}×{h}{levels}, {session.ran})")
+            ran = "numpy" if getattr(work, "round_down", False) else session.ran
+            reporter.result(f"wrote {job.output} ({w}×{h}{levels}, {ran})")
 
     show_bar = many and not reporter.quiet and reporter.progress is not None
     run_options = {"keep_going": keep_going, "skip_existing": skip_existing, "workers": jobs,
