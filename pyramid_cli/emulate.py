@@ -50,6 +50,34 @@ def _folded_sample(src: np.ndarray, q: np.ndarray, p: np.ndarray, border: Border
             + a * (1 - b) * padded[np.ix_(rows[1], cols[0])] + a * b * padded[np.ix_(rows[1], cols[1])])
 
 
+def plan_inputs(plan: Plan, images) -> list[np.ndarray]:
+    """The executors' check of a plan's inputs: one array per ``plan.inputs``, each (H, W) or (H, W, C) of
+    the input image's size, one channel layout; float32 and float16 arrays are kept, others made float32.
+
+    Raises
+    ------
+    ValueError
+        A wrong count, shape, size or channel layout (the executors' callers turn these into messages).
+    """
+    keep = (np.dtype(np.float32), np.dtype(np.float16))
+    arrays = [a if isinstance(a, np.ndarray) and a.dtype in keep else np.asarray(a, dtype=np.float32)
+              for a in (images if isinstance(images, (list, tuple)) else [images])]
+    if len(arrays) != len(plan.inputs):
+        raise ValueError(f"plan takes {len(plan.inputs)} input image(s), got {len(arrays)}")
+    for k, a in zip(plan.inputs, arrays, strict=True):
+        im = plan.images[k]
+        if a.ndim not in (2, 3) or 0 in a.shape:
+            raise ValueError(f"an image must be (H, W) or (H, W, C) with nonzero sizes, not {a.shape}")
+        if tuple(a.shape[:2]) != tuple(im.size):
+            raise ValueError(f"plan input {k} is {im.size[0]}x{im.size[1]} (rows x columns), image is "
+                             f"{a.shape[0]}x{a.shape[1]}")
+        if any(im.guard):
+            raise ValueError(f"plan input {k} has a guard band {im.guard}: inputs are read as given")
+        if a.shape[2:] != arrays[0].shape[2:]:
+            raise ValueError(f"all inputs must have one channel layout: {arrays[0].shape} and {a.shape}")
+    return arrays
+
+
 def run(plan: Plan, image: np.ndarray) -> np.ndarray:
     """Execute ``plan`` on ``image`` (H, W) or (H, W, C); returns the output's logical pixels, float64."""
     return _logical(plan, _execute(plan, image), plan.outputs[-1])

@@ -398,22 +398,9 @@ class GLExecutor:
 
     @staticmethod
     def _inputs(plan: Plan, images) -> list[np.ndarray]:
-        arrays = [a if isinstance(a, np.ndarray) and a.dtype in READ_DTYPES else np.asarray(a, dtype=np.float32)
-                  for a in (images if isinstance(images, (list, tuple)) else [images])]
-        if len(arrays) != len(plan.inputs):
-            raise ValueError(f"plan takes {len(plan.inputs)} input image(s), got {len(arrays)}")
-        for k, a in zip(plan.inputs, arrays, strict=True):
-            im = plan.images[k]
-            if a.ndim not in (2, 3) or 0 in a.shape:
-                raise ValueError(f"an image must be (H, W) or (H, W, C) with nonzero sizes, not {a.shape}")
-            if tuple(a.shape[:2]) != tuple(im.size):
-                raise ValueError(f"plan input {k} is {im.size[0]}x{im.size[1]} (rows x columns), image is "
-                                 f"{a.shape[0]}x{a.shape[1]}")
-            if any(im.guard):
-                raise ValueError(f"plan input {k} has a guard band {im.guard}: inputs are uploaded as given")
-            if a.shape[2:] != arrays[0].shape[2:]:
-                raise ValueError(f"all inputs must have one channel layout: {arrays[0].shape} and {a.shape}")
-        return arrays
+        from .emulate import plan_inputs
+
+        return plan_inputs(plan, images)
 
     def _upload(self, img: np.ndarray) -> _Target:
         """The input in an RGBA32F texture, its edge repeated into the spare row and column.
