@@ -242,6 +242,40 @@ class GLSplit:
                 "passes": t["passes"] if self.per_pass else []}
 
 
+def _ski_kw(x) -> dict:
+    return {"channel_axis": -1 if x.ndim == 3 else None}
+
+
+def peer_blurs(cv2, sizes5):
+    """The peers' 5-level blur and pyramid: OpenCV pyrDown⁵/pyrUp⁵ (with ``dstsize``, so odd sizes match),
+    pyrDown to 1×1, and scikit-image pyramid_reduce⁵/pyramid_expand⁵ cropped to each level's size."""
+
+    def cv_blur(x):
+        for _ in range(5):
+            x = cv2.pyrDown(x)
+        for k in range(5, 0, -1):
+            h, w = sizes5[k - 1]
+            x = cv2.pyrUp(x, dstsize=(w, h))
+        return x
+
+    def cv_pyramid(x):
+        out = [x]
+        while out[-1].shape[0] > 1 or out[-1].shape[1] > 1:
+            out.append(cv2.pyrDown(out[-1]))
+        return out
+
+    def ski_blur(x):
+        from skimage.transform import pyramid_expand, pyramid_reduce
+
+        for _ in range(5):
+            x = pyramid_reduce(x, 2, **_ski_kw(x))
+        for k in range(5, 0, -1):
+            x = pyramid_expand(x, 2, **_ski_kw(x))[:sizes5[k - 1][0], :sizes5[k - 1][1]]
+        return x
+
+    return cv_blur, cv_pyramid, ski_blur
+
+
 def _filter_contenders(session, split, plan, img, peer_fns, copy_in, copy_plan) -> dict:
     fns = {"GL upload+run+readback": lambda: session.run_plan(plan, [img])}
     if split.available:
@@ -283,31 +317,9 @@ def scenario_filter(args, libs: dict, report: dict) -> None:
     levels_full = max(math.ceil(math.log2(rows)), math.ceil(math.log2(cols)))
     sizes5 = level_sizes((rows, cols), 5)
 
-    def cv_blur(x):
-        for _ in range(5):
-            x = cv2.pyrDown(x)
-        for k in range(5, 0, -1):
-            h, w = sizes5[k - 1]
-            x = cv2.pyrUp(x, dstsize=(w, h))
-        return x
+    cv_blur, cv_pyramid, ski_blur = peer_blurs(cv2, sizes5)
 
-    def cv_pyramid(x):
-        out = [x]
-        while out[-1].shape[0] > 1 or out[-1].shape[1] > 1:
-            out.append(cv2.pyrDown(out[-1]))
-        return out
-
-    def ski_kw(x):
-        return {"channel_axis": -1 if x.ndim == 3 else None}
-
-    def ski_blur(x):
-        from skimage.transform import pyramid_expand, pyramid_reduce
-
-        for _ in range(5):
-            x = pyramid_reduce(x, 2, **ski_kw(x))
-        for k in range(5, 0, -1):
-            x = pyramid_expand(x, 2, **ski_kw(x))[:sizes5[k - 1][0], :sizes5[k - 1][1]]
-        return x
+    ski_kw = _ski_kw
 
     half = ((rows + 1) // 2, (cols + 1) // 2)
     cases = [
@@ -746,33 +758,12 @@ def scenario_cpu(args, libs: dict, report: dict, tmp: Path) -> None:
     half = ((rows + 1) // 2, (cols + 1) // 2)
     replicate = cv2.BORDER_REPLICATE if cv2 else None
 
-    def cv_blur(x):
-        for _ in range(5):
-            x = cv2.pyrDown(x)
-        for k in range(5, 0, -1):
-            h, w = sizes5[k - 1]
-            x = cv2.pyrUp(x, dstsize=(w, h))
-        return x
-
-    def cv_pyramid(x):
-        out = [x]
-        while out[-1].shape[0] > 1 or out[-1].shape[1] > 1:
-            out.append(cv2.pyrDown(out[-1]))
-        return out
+    cv_blur, cv_pyramid, ski_blur = peer_blurs(cv2, sizes5)
 
     def cv_sep(n):
         k = _binomial(n)
         return lambda x: cv2.sepFilter2D(x, -1, k, k, borderType=replicate)
 
-    def ski_blur(x):
-        from skimage.transform import pyramid_expand, pyramid_reduce
-
-        kw = {"channel_axis": -1 if x.ndim == 3 else None}
-        for _ in range(5):
-            x = pyramid_reduce(x, 2, **kw)
-        for k in range(5, 0, -1):
-            x = pyramid_expand(x, 2, **kw)[:sizes5[k - 1][0], :sizes5[k - 1][1]]
-        return x
 
     quasi = np.array([[-1, -2, -1], [-2, 36, -2], [-1, -2, -1]], np.float32) / 24
     levels_full = max(math.ceil(math.log2(rows)), math.ceil(math.log2(cols)))
