@@ -50,7 +50,8 @@ def ensure_output_dir(path: str | os.PathLike[str]) -> None:
         raise OutputError(f"cannot write {os.fspath(path)}: cannot create folder {folder}: {_reason(exc)}") from None
 
 
-def _is_utf8(name: str) -> bool:
+def is_utf8(name: str) -> bool:
+    """Can ``name`` be encoded as UTF-8 (what OpenImageIO needs of a file name)?"""
     try:
         name.encode("utf-8")
     except UnicodeEncodeError:
@@ -64,9 +65,9 @@ def _make_temp(path: str) -> str:
     folder = os.path.dirname(os.path.abspath(path))
     base = os.path.basename(path)
     ext = os.path.splitext(base)[1]
-    if not _is_utf8(base):
+    if not is_utf8(base):
         # Image libraries take UTF-8 names; the temporary gets one, the rename gives the real name.
-        base, ext = "pyramid-output", ext if _is_utf8(ext) else ""
+        base, ext = "pyramid-output", ext if is_utf8(ext) else ""
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{base}.tmp-", suffix=ext, dir=folder)
     except OSError as exc:

@@ -176,16 +176,17 @@ class DiffResult:
         d["percent_warn"] = self.percent(self.n_warn)
         d["percent_fail"] = self.percent(self.n_fail)
         d["exit_code"] = self.exit_code
-        return _json_safe(d)
+        return json_safe(d)
 
 
-def _json_safe(value: Any) -> Any:
+def json_safe(value: Any) -> Any:
+    """``value`` with non-finite floats as ``None`` (JSON has no infinity), through dicts, lists and tuples."""
     if isinstance(value, float):
         return value if math.isfinite(value) else None
     if isinstance(value, dict):
-        return {k: _json_safe(v) for k, v in value.items()}
+        return {k: json_safe(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
-        return [_json_safe(v) for v in value]
+        return [json_safe(v) for v in value]
     return value
 
 

@@ -322,7 +322,9 @@ def diff(ctx: click.Context, path_a: str, path_b: str, fail: float, warn: float,
         if update:
             obj["updated"] = [{"output": s, "golden": d} for s, d in updated]
             obj["dry_run"] = dry_run
-        click.echo(json.dumps(goldens_json_safe(obj), allow_nan=False))
+        from .diff import json_safe
+
+        click.echo(json.dumps(json_safe(obj), allow_nan=False))
     elif not quiet:
         text = _text(results, pairing.many, verbose, path_a, path_b)
         if text:
@@ -340,17 +342,6 @@ def diff(ctx: click.Context, path_a: str, path_b: str, fail: float, warn: float,
         if not updated:
             click.echo("no golden to update", err=quiet)
     ctx.exit(code)
-
-
-def goldens_json_safe(obj: Any) -> Any:
-    """Non-finite floats become ``None`` (JSON has no infinity)."""
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    if isinstance(obj, dict):
-        return {k: goldens_json_safe(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [goldens_json_safe(v) for v in obj]
-    return obj
 
 
 def _text(results: Sequence[Any], many: bool, verbose: bool, path_a: str, path_b: str) -> str:

@@ -68,7 +68,7 @@ except ImportError:  # not on Windows: no file size limit to respect
     resource = None
 
 from . import options
-from .atomic import atomic_path, atomic_paths, ensure_output_dir
+from .atomic import atomic_path, atomic_paths, ensure_output_dir, is_utf8
 from .colour import (  # noqa: F401  (_srgb8_tables, _integer_levels: io's tested internals)
     _colour_mask,
     _decode_integer,
@@ -535,18 +535,10 @@ def check_input_file(path: str | os.PathLike[str]) -> None:
         raise InputError(f"cannot read {p}: the file is empty")
 
 
-def _utf8(name: str) -> bool:
-    try:
-        name.encode("utf-8")
-    except UnicodeEncodeError:
-        return False
-    return True
-
-
 @contextlib.contextmanager
 def _readable_name(p: str):
     """A name OpenImageIO can open for ``p``: itself, or /proc/self/fd/N when it is not valid UTF-8."""
-    if _utf8(p):
+    if is_utf8(p):
         yield p
         return
     if not os.path.isdir("/proc/self/fd"):
@@ -568,7 +560,7 @@ def read_shape(path: str | os.PathLike[str]) -> tuple[int, int, int] | None:
     """
     p = os.fspath(path)
     try:
-        if not stat.S_ISREG(os.stat(p).st_mode) or not _utf8(p):
+        if not stat.S_ISREG(os.stat(p).st_mode) or not is_utf8(p):
             return None  # a FIFO would block here: read_image refuses it
         inp = oiio.ImageInput.open(p)
     except Exception:  # noqa: BLE001 - binding errors: read_image says what they are

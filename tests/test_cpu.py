@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from cases import CHAINS as WRITTEN
-from cases import NAMED
+from cases import GRID_CHANNELS, GRID_SIZES, NAMED, several_inputs_and_outputs, step
 from pyramid_cli import emulate, pyramids, reference
 from pyramid_cli.border import Border
 from pyramid_cli.errors import BackendError
@@ -31,8 +31,8 @@ pytest.importorskip("numba")
 from pyramid_cli import cpu  # noqa: E402
 
 CHAINS = NAMED + [c for c in WRITTEN if c not in NAMED] + ["box *v (midpoint *^ g)", "g"]
-SIZES = [(1, 1), (1, 7), (2, 2), (5, 3), (17, 13), (64, 64), (129, 67), (7, 1), (3, 5), (67, 129)]
-CHANNELS = [None, 3, 4, 6, 1]  # None: a 2-D (H, W) image
+SIZES = GRID_SIZES
+CHANNELS = GRID_CHANNELS
 BORDERS = ["clamp", "mirror", "wrap", "zero"]
 BORDER_SIZES = [(1, 1), (1, 7), (7, 1), (5, 3), (17, 13), (40, 33), (90, 77)]  # the last: interior + strips
 BORDER_CHAINS = NAMED + ["doosabin *^ (box4 *v g)", "box\\ *v bartlett", "(box4)^2 *v g",
@@ -164,25 +164,12 @@ def test_blur_levels_collapse_and_mip(ex):
         np.testing.assert_allclose(o, w, rtol=0, atol=1e-5)
 
 
-def _step(builder, source, text, crop=None):
-    from pyramid_cli.expr import steps
-
-    ((op, f, stride),) = steps(parse(text))
-    return builder.step(source, op, f, stride, crop)
-
 
 @pytest.mark.parametrize("channels", [None, 4, 6])
 def test_several_inputs_and_outputs(ex, channels):
     """Two inputs, intermediates read back (and read again later), the input itself read back."""
     size = (17, 13)
-    b = Builder(size)
-    other = b.add_input(size)
-    coarse = _step(b, 0, "box4 *v g")
-    coarser = _step(b, coarse, "box *v g")
-    up = _step(b, coarse, "doosabin *^ g", crop=size)
-    band = b.combine([(0, 1), (up, -1)], "band")
-    final = b.combine([(band, 1), (other, Fraction(2))], "sum")
-    p = b.build("job", outputs=[0, coarse, band, coarser, final])
+    p = several_inputs_and_outputs(size)
     images = [random_image(size, channels, 20), random_image(size, channels, 21)]
     outs = ex.run_outputs(p, images)
     want = emulate.run_outputs(p, images)
@@ -217,7 +204,7 @@ def test_half_input_read_back_and_borders(ex):
                                rtol=0, atol=1e-5)
     _, ident = _planned("g", size)
     b = Builder(size)
-    done = _step(b, 0, "box *v g")
+    done = step(b, 0, "box *v g")
     both = b.build("x", outputs=[0, done])
     first, _ = ex.run_outputs(both, [image], dtype=np.float16)
     np.testing.assert_array_equal(first, image)

@@ -5,6 +5,7 @@ from functools import cache
 import numpy as np
 import pytest
 
+from cases import GRID_CHANNELS, GRID_SIZES, several_inputs_and_outputs
 from pyramid_cli import emulate, reference
 from pyramid_cli.errors import BackendError, DataError
 from pyramid_cli.parse import parse
@@ -19,8 +20,8 @@ CHAINS = [
     "1/8 [1 2 1; 0 2 0; 1 0 1] *v g", "[1 -1] * g", "(doosabin)^2 *^ ((box4)^2 *v g)",
     "fourpoint *^ (cubic *v g)", "box *v (midpoint *^ g)",
 ]
-SIZES = [(1, 1), (1, 7), (2, 2), (5, 3), (17, 13), (64, 64), (129, 67), (7, 1), (3, 5), (67, 129)]
-CHANNELS = [None, 3, 4, 6, 1]  # None: a 2-D (H, W) image
+SIZES = GRID_SIZES
+CHANNELS = GRID_CHANNELS
 
 gl_mark = pytest.mark.gl
 
@@ -49,28 +50,13 @@ def test_gl_equals_reference(gl, text, size):
     np.testing.assert_allclose(out, emulate.run(p, image), rtol=0, atol=1e-5)
 
 
-def _step(builder, source, text, crop=None):
-    from pyramid_cli.expr import steps
-
-    ((op, f, stride),) = steps(parse(text))
-    return builder.step(source, op, f, stride, crop)
-
 
 @gl_mark
 @pytest.mark.parametrize("channels", [None, 4, 6])
 def test_several_inputs_and_outputs(gl, channels):
     """A Laplacian-style job: two inputs, intermediate levels read back (and reused), the input itself read back."""
-    from pyramid_cli.plan import Builder
-
     size = (17, 13)
-    b = Builder(size)
-    other = b.add_input(size)
-    coarse = _step(b, 0, "box4 *v g")
-    coarser = _step(b, coarse, "box *v g")
-    up = _step(b, coarse, "doosabin *^ g", crop=size)
-    band = b.combine([(0, 1), (up, -1)], "band")
-    final = b.combine([(band, 1), (other, 2)], "sum")
-    p = b.build("job", outputs=[0, coarse, band, coarser, final])
+    p = several_inputs_and_outputs(size)
     images = [random_image(size, channels, 20), random_image(size, channels, 21)]
     outs = gl.run_outputs(p, images)
     expected = emulate.run_outputs(p, images)
