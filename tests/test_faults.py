@@ -400,11 +400,11 @@ def test_huge_numbers_in_a_mask_exit_2_with_a_caret(digits):
 
 
 def test_costly_kernels_are_refused_at_once():
-    t0 = time.monotonic()
+    """Refused by the cost check (its message names the limit), not computed; the timeout only turns a hang
+    into a failure."""
     for text in ("(box)^16 *v g", "(cubic)^6 *^ g", "(box4)^8 *v g"):
         code, _, err = run(["explain", text], timeout=30)
         assert code == 2 and "limit" in one_line_error(err), err
-    assert time.monotonic() - t0 < 30  # refused, not computed (a generous bound, not a timing test)
 
 
 @pytest.mark.parametrize("sigma", ["1000", "1e6", "inf"])
