@@ -52,7 +52,8 @@ def _folded_sample(src: np.ndarray, q: np.ndarray, p: np.ndarray, border: Border
 
 def plan_inputs(plan: Plan, images) -> list[np.ndarray]:
     """The executors' check of a plan's inputs: one array per ``plan.inputs``, each (H, W) or (H, W, C) of
-    the input image's size, one channel layout; float32 and float16 arrays are kept, others made float32.
+    the input image's size (its stored extent where it has a guard band: a tile's window), one channel layout;
+    float32 and float16 arrays are kept, others made float32.
 
     Raises
     ------
@@ -68,11 +69,13 @@ def plan_inputs(plan: Plan, images) -> list[np.ndarray]:
         im = plan.images[k]
         if a.ndim not in (2, 3) or 0 in a.shape:
             raise ValueError(f"an image must be (H, W) or (H, W, C) with nonzero sizes, not {a.shape}")
-        if tuple(a.shape[:2]) != tuple(im.size):
+        if any(im.guard):  # a window of a larger image (pyramid_cli.tiles): its stored extent, guard included
+            if tuple(a.shape[:2]) != tuple(im.stored):
+                raise ValueError(f"plan input {k} stores {im.stored[0]}x{im.stored[1]} (rows x columns, guard "
+                                 f"band {im.guard} included), image is {a.shape[0]}x{a.shape[1]}")
+        elif tuple(a.shape[:2]) != tuple(im.size):
             raise ValueError(f"plan input {k} is {im.size[0]}x{im.size[1]} (rows x columns), image is "
                              f"{a.shape[0]}x{a.shape[1]}")
-        if any(im.guard):
-            raise ValueError(f"plan input {k} has a guard band {im.guard}: inputs are read as given")
         if a.shape[2:] != arrays[0].shape[2:]:
             raise ValueError(f"all inputs must have one channel layout: {arrays[0].shape} and {a.shape}")
     return arrays
@@ -90,7 +93,7 @@ def _execute(plan: Plan, image) -> list[np.ndarray]:
     stored: list[np.ndarray | None] = [None] * len(plan.images)
     for index, px in zip(plan.inputs, images, strict=True):
         stored[index] = np.asarray(px, dtype=np.float64)
-    channels = stored[0].shape[2:]
+    channels = stored[plan.inputs[0]].shape[2:]
     for ps in plan.passes:
         target = plan.images[ps.target]
         h, w = target.stored

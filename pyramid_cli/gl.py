@@ -34,6 +34,11 @@ caller will store half anyway: glReadPixels converts with round-to-nearest-even,
 rounding of numpy and OpenEXR (``test_half_read_back_rounds_like_numpy``). Rendering
 into RGBA16F does not round that way on llvmpipe, which is why targets stay RGBA32F.
 
+Pictures that do not fit (a texture beyond GL_MAX_TEXTURE_SIZE or of 2 GiB) run in tiles
+(:meth:`GLExecutor.run_tiled`, :mod:`pyramid_cli.tiles`): every pass on windows of its
+images, each window's texture padded to powers of two (the tile, not the picture), with
+the same exact coordinates and the same pixels.
+
 Memory is the cost of a cold run (page faults: about 1 s per GB on the 2-core machines
 of DESIGN.md §6), so uploads go through a reused band and read-backs straight into the
 output array instead of full-size staging copies, and :meth:`GLExecutor.prepare` can compile the programs and
@@ -60,6 +65,7 @@ PRECISIONS = {"float": "f4", "half": "f2"}  # intermediate and target texture fo
 READ_DTYPES = {np.dtype(np.float32): "f4", np.dtype(np.float16): "f2"}
 BAND_BYTES = 8 << 20  # upload staging: rows of RGBA32F per texture write
 MAX_TEXTURE_BYTES = 2 << 30  # llvmpipe fails to attach a texture of 2 GiB (8193², 12000×6000: DESIGN.md §6)
+TILE_TEXELS = 1 << 24        # a tile's largest texture, about (256 MiB of RGBA32F), when a plan runs in tiles
 
 
 def _create_context():
@@ -359,6 +365,41 @@ class GLExecutor:
                 raise DataError(f"image {k} of the plan needs a {tw}x{th} RGBA32F texture (power-of-two sides) "
                                 f"of {th * tw * 16 / 2 ** 30:.0f} GiB; GL textures stay under 2 GiB")
 
+    def fits(self, plan: Plan) -> bool:
+        """Whether ``plan`` runs whole: every image's power-of-two texture within GL_MAX_TEXTURE_SIZE and 2 GiB.
+
+        Plans that do not fit run in tiles (:meth:`run_tiled`)."""
+        try:
+            self.check(plan)
+        except DataError:
+            return False
+        return True
+
+    def tile_size(self, plan: Plan, texels: int = TILE_TEXELS) -> tuple[int, int]:
+        """Rows and columns of a tile (in pixels of the largest output) whose textures stay within half the
+        texture limit on a side and about ``texels`` texels (guard bands included)."""
+        anchor = (max(plan.images[k].size[0] for k in plan.outputs), max(plan.images[k].size[1] for k in plan.outputs))
+        side = self.max_texture_size // 2
+        scale = [max(im.size[a] / anchor[a] for im in plan.images) for a in (0, 1)]
+        guard = [max(im.guard[a] + im.guard[a + 2] for im in plan.images) + 64 for a in (0, 1)]
+        width = max(1, int((side - guard[1]) / scale[1]))
+        band = max(1, min(int((side - guard[0]) / scale[0]), int(texels / (width * scale[1]) / scale[0])))
+        return band, width
+
+    def run_tiled(self, plan: Plan, images, dtype=np.float32, tile: tuple[int, int] | None = None) -> list[np.ndarray]:
+        """:meth:`run_outputs` in tiles (:mod:`pyramid_cli.tiles`): each pass runs on windows of its images, so
+        textures are the tile's size padded to powers of two, not the picture's, and images beyond
+        GL_MAX_TEXTURE_SIZE run; the pixels are those of the untiled run. ``tile``: (rows, columns) of the
+        largest output per tile; default :meth:`tile_size`."""
+        from . import tiles
+
+        dtype = np.dtype(dtype)
+        if dtype not in READ_DTYPES:
+            raise ValueError(f"outputs are float32 or float16, not {dtype}")
+        arrays = self._inputs(plan, images)
+        band, width = tile or self.tile_size(plan)
+        return tiles.run_arrays(self, plan, arrays, band=band, width=width, dtype=dtype)
+
     def run(self, plan: Plan, image) -> np.ndarray:
         """Execute ``plan`` on ``image`` (H, W) or (H, W, C); returns the output's logical pixels, float32.
 
@@ -380,6 +421,8 @@ class GLExecutor:
         if dtype not in READ_DTYPES:
             raise ValueError(f"outputs are float32 or float16, not {dtype}")
         arrays = self._inputs(plan, images)
+        if not self.fits(plan):
+            return self.run_tiled(plan, arrays, dtype)
         flat = arrays[0].ndim == 2
         arrays = [a[:, :, None] if flat else a for a in arrays]
         self.check(plan)
@@ -484,7 +527,10 @@ class GLExecutor:
         Nothing is rendered. Called while the image is still being decoded, it moves the
         shader compiles and the page faults of fresh textures off the critical path.
         """
-        self.check(plan)
+        if not self.fits(plan):  # runs in tiles: the programs are all there is to prepare
+            with self.current():
+                self.programs(plan)
+            return
         dtype = PRECISIONS[self.precision]
         with self.current():
             self.programs(plan)

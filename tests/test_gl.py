@@ -184,14 +184,19 @@ def test_executors_and_probes_interleave(gl):
 
 
 @gl_mark
-def test_too_large_for_the_gpu_is_a_data_error(gl):
+def test_too_large_for_one_texture_runs_in_tiles(gl):
+    """Beyond GL_MAX_TEXTURE_SIZE the check refuses the whole picture, and the run goes tile by tile (issue 18)."""
     limit = gl.max_texture_size
     _, wide = planned("box *v g", (1, limit + 1))
     with pytest.raises(DataError, match=f"{limit + 1}x1 exceeds the limit of {limit}x{limit}"):
-        gl.run(wide, np.zeros((1, limit + 1), dtype=np.float32))
+        gl.check(wide)
+    x = random_image((1, limit + 1), None, 2)
+    assert not gl.fits(wide)
+    np.testing.assert_allclose(gl.run(wide, x), emulate.run(wide, x), rtol=0, atol=1e-6)
     _, up = planned("nearest", (limit // 2 + 1, 1))  # the input fits, the output does not
-    with pytest.raises(DataError, match=str(limit)):
-        gl.run(up, np.zeros((limit // 2 + 1, 1), dtype=np.float32))
+    assert not gl.fits(up)
+    x = random_image((limit // 2 + 1, 1), None, 3)
+    np.testing.assert_allclose(gl.run(up, x), emulate.run(up, x), rtol=0, atol=1e-6)
 
 
 @gl_mark

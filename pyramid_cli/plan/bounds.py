@@ -13,8 +13,9 @@ from ..geometry import base_index
 from .model import Image, Pass
 
 
-def _needed(stage_pass: Pass, rows: tuple[int, int], cols: tuple[int, int], src: int):
-    """Source index ranges read by ``rows × cols`` of a pass, for one source."""
+def needed(stage_pass: Pass, rows: tuple[int, int], cols: tuple[int, int], src: int):
+    """Source index ranges (1-based, inclusive) read by ``rows × cols`` (1-based, inclusive) of a pass, for one
+    source; empty (lo > hi) where no phase present in the rectangle reads it."""
     lo_r = lo_c = 10 ** 9
     hi_r = hi_c = -10 ** 9
     (pr, pc), (sr, sc) = stage_pass.period, stage_pass.stride
@@ -55,7 +56,7 @@ def _infer_guards(images: list[Image], passes: list[Pass], first: int) -> None:
         for src in p.sources():
             if src < first:
                 continue  # the filter's input: a boundary, read clamped
-            (lo_r, hi_r), (lo_c, hi_c) = _needed(p, rows, cols, src)
+            (lo_r, hi_r), (lo_c, hi_c) = needed(p, rows, cols, src)
             s = images[src]
             s.guard = [max(s.guard[0], 1 - lo_r), max(s.guard[1], 1 - lo_c),
                        max(s.guard[2], hi_r - s.size[0]), max(s.guard[3], hi_c - s.size[1])]

@@ -25,6 +25,25 @@ its stored extent. For ``clamp`` this is the hardware's clamped bilinear read;
 the other modes only ever apply to images without guard bands: the plan's
 inputs and the results of written operators (the boundaries), since the
 intermediates of a named filter store every pixel later passes read.
+
+Tiling (:mod:`pyramid_cli.tiles`) runs any plan over rectangles of its images in bounded
+memory, identical to the untiled run at every pixel. It needs two things of every pass
+kind, both in 0-based half-open *logical* coordinates (row 0 is logical row 1; guard-band
+rows are negative or ≥ the size):
+
+- ``reads(rows, cols)``: for an output rectangle of the target, the rectangle of each
+  source it reads (the shared pass-kind interface; it may leave the stored extent, where
+  reads fold by the source's border mode);
+- ``tile(rows, cols) -> TileStep``: the hook that makes a kind tileable. It widens the
+  rectangle to one the pass can compute on its own (:class:`Pass`: the start rounded down
+  to a multiple of the period, so phases stay aligned), and returns the pass to run on it
+  with the target's logical pixel (0, 0) at ``(rows[0], cols[0])``, plus for each source
+  the coordinate that becomes its logical (0, 0) in the tile (``S·r₀/P`` for :class:`Pass`:
+  the base index ``R = S·⌈r/P⌉`` is unchanged by the shift). The scheduler hands every
+  executor a one-pass plan whose images are the windows (their guard bands, possibly
+  negative, place each window), so executors need nothing new for a kind they can run.
+  A kind whose weights depend on the absolute position (per-row weight tables) returns a
+  sliced copy of itself.
 """
 
 from __future__ import annotations
@@ -60,6 +79,16 @@ class Image:
         return self.size[0] + t + b, self.size[1] + l + r
 
 
+@dataclass(frozen=True)
+class TileStep:
+    """A pass restricted to a rectangle of its target (see :meth:`Pass.tile`)."""
+
+    rows: tuple[int, int]                       # computed rows of the target (⊇ the ones asked), 0-based
+    cols: tuple[int, int]
+    run: object                                 # the pass to execute over the rectangle
+    origins: dict[int, tuple[int, int]]         # per source: its coordinate at the tile's logical (0, 0)
+
+
 @dataclass
 class Pass:
     label: str
@@ -76,6 +105,26 @@ class Pass:
     def fetches(self) -> float:
         """Texture reads per fragment, the mean over phases (each phase is equally frequent)."""
         return sum(len(t) for t in self.phases.values()) / len(self.phases)
+
+    def reads(self, rows: tuple[int, int], cols: tuple[int, int]) -> dict[int, tuple[tuple[int, int], tuple[int, int]]]:
+        """Source rectangles (0-based half-open logical) read by the output rectangle ``rows × cols``."""
+        from .bounds import needed
+
+        if rows[0] >= rows[1] or cols[0] >= cols[1]:
+            return {}
+        out = {}
+        for src in self.sources():
+            (r0, r1), (c0, c1) = needed(self, (rows[0] + 1, rows[1]), (cols[0] + 1, cols[1]), src)
+            if r0 <= r1 and c0 <= c1:
+                out[src] = ((r0 - 1, r1), (c0 - 1, c1))
+        return out
+
+    def tile(self, rows: tuple[int, int], cols: tuple[int, int]) -> TileStep:
+        """The pass over ``rows × cols`` of its target: starts rounded down to the period (phases stay aligned)."""
+        (pr, pc), (sr, sc) = self.period, self.stride
+        r0, c0 = pr * (rows[0] // pr), pc * (cols[0] // pc)
+        origin = (sr * r0 // pr, sc * c0 // pc)
+        return TileStep((r0, rows[1]), (c0, cols[1]), self, {s: origin for s in self.sources()})
 
 
 @dataclass

@@ -1,0 +1,205 @@
+"""Tiled execution (issue 18): every executor gives the untiled run's pixels, exactly, for any tile."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cases import CHAINS, NAMED, several_inputs_and_outputs
+from pyramid_cli import tiles
+from pyramid_cli.geometry import level_sizes
+from pyramid_cli.parse import parse
+from pyramid_cli.plan import plan
+from pyramid_cli.work import Blur, Collapse, Filter, Laplacian, Levels
+
+SIZE = (19, 13)                      # not a multiple of any tile below
+TILES = [(1, 1), (4, 3), (7, 100), (100, 100)]  # 1×1 output pixels … larger than the image
+BORDERS = ["clamp", "mirror", "wrap", "zero"]
+
+
+def image(size, channels=3, seed=0, dtype=np.float32):
+    rng = np.random.default_rng(seed)
+    return rng.standard_normal(tuple(size) + ((channels,) if channels else ())).astype(dtype)
+
+
+def works():
+    """Every job kind: pyramids of several levels, several inputs and outputs."""
+    sizes = tuple(level_sizes(SIZE, 2))
+    return {"blur3": (Blur(levels=3), (SIZE,)), "blur1": (Blur(levels=1), (SIZE,)),
+            "levels": (Levels(levels=3), (SIZE,)), "levels-all": (Levels(), (SIZE,)),
+            "laplacian": (Laplacian(levels=2), (SIZE,)), "collapse": (Collapse(bands=3), sizes)}
+
+
+def assert_same_tiled(executor, p, inputs, tile, dtype=np.float32):
+    want = executor.run_outputs(p, inputs)
+    got = tiles.run_arrays(executor, p, inputs, band=tile[0], width=tile[1], dtype=dtype)
+    assert len(got) == len(want)
+    for k, (w, g) in enumerate(zip(want, got, strict=True)):
+        assert g.shape == w.shape
+        bad = np.argwhere(w != g)
+        assert not len(bad), f"output {k}: {len(bad)} pixels differ, first at {bad[0].tolist()}"
+
+
+def run_grid(executor, dtype, texts, tiles_, borders):
+    for text in texts:
+        for border in borders:
+            p = plan(parse(text), SIZE, border=border)
+            for tile in tiles_:
+                assert_same_tiled(executor, p, image(SIZE), tile, dtype)
+
+
+# ------------------------------------------------------------------ the emulator
+EMU = tiles.Emulator()
+
+
+@pytest.mark.parametrize("text", NAMED + CHAINS)
+def test_emulator_tiled_equals_untiled_every_filter(text):
+    run_grid(EMU, np.float64, [text], TILES, ["clamp"])
+
+
+@pytest.mark.parametrize("border", BORDERS[1:])
+def test_emulator_tiled_equals_untiled_every_border(border):
+    run_grid(EMU, np.float64, ["gauss5", "bartlett * (bartlett * g)", "doosabin *^ (box4 *v g)", "box *v^2 g",
+                               "fourpoint"], [(1, 1), (4, 3)], [border])
+
+
+@pytest.mark.parametrize("name", list(works()))
+@pytest.mark.parametrize("border", ["clamp", "mirror", "wrap"])
+def test_emulator_tiled_pyramids(name, border):
+    work, sizes = works()[name]
+    work = type(work)(**{**work.__dict__, "border": border})
+    p = work.plan(sizes)
+    inputs = [image(s, 2, seed=k) for k, s in enumerate(sizes)]
+    for tile in TILES:
+        assert_same_tiled(EMU, p, inputs, tile, np.float64)
+
+
+def test_emulator_several_inputs_and_outputs():
+    p = several_inputs_and_outputs(SIZE)
+    for tile in TILES:
+        assert_same_tiled(EMU, p, [image(SIZE, None, 1), image(SIZE, None, 2)], tile, np.float64)
+
+
+def test_the_band_is_bounded():
+    """A tall image in bands of 8 rows keeps a few bands of rows per level, not the picture."""
+    p = Blur(levels=3).plan(((400, 16),))
+    got = []
+    s = tiles.Scheduler(EMU, p, lambda k, r, c: image((400, 16), 1)[r[0]:r[1], c[0]:c[1]].astype(np.float64),
+                        lambda k, r, c, px: got.append(px), band=8, dtype=np.float64)
+    s.run()
+    assert sum(len(g) for g in got) == 400
+    assert s.peak_rows < 400 * 16 / 4, s.peak_rows
+
+
+def test_reads_of_a_pass_include_the_guard_band():
+    p = plan(parse("gauss5"), (9, 9))
+    first = p.passes[0]
+    reads = first.reads((-p.images[first.target].guard[0], 1), (0, 1))
+    assert reads[0][0][0] < 0  # rows above the image: folded by the input's border mode
+    step = p.passes[-1].tile((3, 5), (2, 4))
+    assert step.rows[0] <= 3 and step.run is p.passes[-1]
+
+
+# ------------------------------------------------------------------ the compiled CPU executor
+@pytest.fixture(scope="module")
+def cpu_ex(tmp_path_factory):
+    pytest.importorskip("numba")
+    import os
+
+    from pyramid_cli import cpu
+
+    os.environ.setdefault("PYRAMID_CACHE_DIR", str(tmp_path_factory.getbasetemp() / "kernels"))
+    with cpu.CPUExecutor(threads=2) as ex:
+        yield ex
+
+
+@pytest.mark.parametrize("text", NAMED + CHAINS)
+def test_cpu_tiled_equals_untiled_every_filter(cpu_ex, text):
+    run_grid(cpu_ex, np.float32, [text], [(1, 1), (4, 3), (100, 100)], ["clamp"])
+
+
+@pytest.mark.parametrize("border", BORDERS[1:])
+def test_cpu_tiled_equals_untiled_every_border(cpu_ex, border):
+    run_grid(cpu_ex, np.float32, ["gauss5", "bartlett * (bartlett * g)", "doosabin *^ (box4 *v g)", "box *v^2 g"],
+             [(1, 1), (4, 3)], [border])
+
+
+@pytest.mark.parametrize("name", list(works()))
+def test_cpu_tiled_pyramids(cpu_ex, name):
+    work, sizes = works()[name]
+    p = work.plan(sizes)
+    inputs = [image(s, 4, seed=k) for k, s in enumerate(sizes)]
+    for tile in TILES:
+        assert_same_tiled(cpu_ex, p, inputs, tile)
+
+
+def test_cpu_tiled_half_inputs_and_outputs(cpu_ex):
+    """Half inputs are read as half in every window; half outputs round like the untiled run's."""
+    p = Blur(levels=2).plan((SIZE,))
+    x = image(SIZE, 4, dtype=np.float16)
+    want = cpu_ex.run_outputs(p, [x], np.float16)[0]
+    got = tiles.run_arrays(cpu_ex, p, [x], band=5, width=4, dtype=np.float16)[0]
+    assert got.dtype == np.float16 and np.array_equal(want, got)
+
+
+def test_cpu_tiles_into_a_memmap(cpu_ex, tmp_path):
+    """Arrays larger than RAM: a memory-mapped input read band by band, the result written into a memmap."""
+    size = (40, 24)
+    src = np.lib.format.open_memmap(tmp_path / "in.npy", "w+", np.float32, size + (3,))
+    src[...] = image(size)
+    src.flush()
+    src = np.load(tmp_path / "in.npy", mmap_mode="r")
+    dst = np.lib.format.open_memmap(tmp_path / "out.npy", "w+", np.float32, size + (3,))
+    p = Blur(levels=3).plan((size,))
+    tiles.run_arrays(cpu_ex, p, [src], band=8, out=[dst])
+    dst.flush()
+    assert np.array_equal(np.load(tmp_path / "out.npy"), cpu_ex.run(p, np.asarray(src)))
+
+
+# ------------------------------------------------------------------ GL
+gl_mark = pytest.mark.gl
+
+
+@gl_mark
+@pytest.mark.parametrize("text", ["gauss5", "box4 *v g", "doosabin", "fourpoint", "bartlett * (bartlett * g)",
+                                  "(doosabin)^2 *^ ((box4)^2 *v g)", "box *v^2 g"])
+def test_gl_tiled_equals_untiled(gl, text):
+    run_grid(gl, np.float32, [text], [(1, 1), (4, 3), (100, 100)], ["clamp"])
+
+
+@gl_mark
+@pytest.mark.parametrize("border", BORDERS[1:])
+def test_gl_tiled_equals_untiled_every_border(gl, border):
+    run_grid(gl, np.float32, ["bartlett * (bartlett * g)", "doosabin *^ (box4 *v g)"], [(1, 1), (4, 3)], [border])
+
+
+@gl_mark
+@pytest.mark.parametrize("name", list(works()))
+def test_gl_tiled_pyramids(gl, name):
+    work, sizes = works()[name]
+    p = work.plan(sizes)
+    inputs = [image(s, 4, seed=k) for k, s in enumerate(sizes)]
+    for tile in [(1, 1), (5, 4)]:
+        assert_same_tiled(gl, p, inputs, tile)
+
+
+@gl_mark
+def test_gl_strip_beyond_the_texture_limit(gl):
+    """A 20000×64 strip is wider than llvmpipe's 16384: GL runs it in tiles and matches the reference."""
+    from pyramid_cli import pyramids
+
+    size = (64, 20000)
+    work = Blur(levels=3)
+    p = work.plan((size,))
+    x = image(size, 4, seed=3)
+    assert not gl.fits(p) or gl.max_texture_size > 16384
+    got = gl.run(p, x)
+    ref = pyramids.blur_reference(x.astype(np.float64), 3, work.analysis, work.synthesis, False, "clamp")
+    np.testing.assert_allclose(got, ref, rtol=0, atol=1e-5)
+
+
+@gl_mark
+def test_gl_filter_work_applies_tiled(gl):
+    work = Filter(expr=parse("quadratic *v g"))
+    p = work.plan((SIZE,))
+    assert_same_tiled(gl, p, [image(SIZE, 3)], (3, 3))
