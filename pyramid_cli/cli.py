@@ -261,6 +261,14 @@ def _read_write(opts: dict):
             WriteOptions(opts["pixel_type"], opts["dither"], opts["compression"], opts["force"]))
 
 
+def memory_option(f):
+    """--memory: the working-set budget of a streamed single-image job (pyramid_cli.stream)."""
+    return click.option("--memory", metavar="SIZE", default=None,
+                        help="Working-set budget, e.g. 512M or 2G (default: a quarter of the available memory). "
+                             "A picture whose whole run would not fit streams from file to file in bands of rows "
+                             "chosen from it; -v says which. Work that cannot fit is refused before it starts.")(f)
+
+
 def _process(paths, work, opts: dict, mip_tile: int | None = None) -> None:
     from .pipeline import process
 
@@ -269,6 +277,10 @@ def _process(paths, work, opts: dict, mip_tile: int | None = None) -> None:
     batch = {"read": ro, "write": wo, "reporter": reporter, "keep_going": opts["keep_going"],
              "skip_existing": opts["skip_existing"], "jobs": opts["jobs"], "mip_tile": mip_tile,
              "frames": opts["frames"], "shard": opts["shard"], "cluster": opts["cluster"], "chunk": opts["chunk"]}
+    if opts.get("memory") is not None:
+        from .stream import parse_size
+
+        batch["memory"] = parse_size(opts["memory"])
     if opts["cluster"]:  # every worker opens its own session; none is needed here
         from .cluster import SessionSpec
 
@@ -287,6 +299,7 @@ def _process(paths, work, opts: dict, mip_tile: int | None = None) -> None:
 @border_option
 @io_options
 @batch_options
+@memory_option
 def apply(expression, paths, border: str, **opts) -> None:
     """Apply EXPRESSION to INPUT and write OUTPUT (format from its extension).
 
@@ -296,6 +309,7 @@ def apply(expression, paths, border: str, **opts) -> None:
       pyramid apply --border mirror 'h_Doo-Sabin ⊗↑ g' small.png big.png
       pyramid apply 'quadratic *v g' 'frames/*.exr' -o 'half/{stem}.exr'
       pyramid apply 'quadratic *v g' 'plate.%04d.exr' -o 'half/plate.%04d.exr' --shard 3/10
+      pyramid apply --memory 1G 'gauss7' matte_32k.exr matte_soft.exr
     """
     from .work import Filter
 
@@ -317,6 +331,7 @@ def apply(expression, paths, border: str, **opts) -> None:
 @border_option
 @io_options
 @batch_options
+@memory_option
 def blur(paths, levels: int, analysis: str, synthesis: str, quasi: bool, sigma: float | None,
          allow_mixed_lattice: bool, border: str, **opts) -> None:
     """Pyramidal blur: LEVELS analysis steps, then synthesis back to the input size.
@@ -331,6 +346,7 @@ def blur(paths, levels: int, analysis: str, synthesis: str, quasi: bool, sigma: 
       pyramid blur 'plate.####.exr' -o 'soft/soft.####.exr' --frames 1001-1240x2
       pyramid blur 'plate.1001-1240#.exr' -o 'soft.%04d.exr' --shard auto --skip-existing
       pyramid blur 'plate.####.exr' -o 'soft.####.exr' --cluster local:4
+      pyramid blur --levels 5 --memory 2G -v painting_32k.exr soft_32k.exr
     """
     from .pyramids import lattice_mismatch
     from .work import Blur, SigmaBlur

@@ -102,6 +102,10 @@ __all__ = [
     "write_image",
     "write_images",
     "write_levels",
+    "ImageStream",
+    "open_stream",
+    "stream_writer",
+    "streams_to",
 ]
 
 PIXEL_TYPES = options.PIXEL_TYPES
@@ -423,6 +427,14 @@ def read_image(path: str | os.PathLike[str], *, colorspace: str = "auto",
     check_input_file(p)
     with _readable_name(p) as name:
         data, spec, fmt = _read_pixels(name, subimage, keep_half, shown=p)
+    info = _describe(spec, fmt, p, colorspace, alpha)
+    pixels = _decode(data, info)
+    _apply_nan_policy(pixels, nan, info, p)
+    return Image(pixels=pixels, spec=info)
+
+
+def _describe(spec: oiio.ImageSpec, fmt: str, p: str, colorspace: str, alpha: str) -> ImageInfo:
+    """What :func:`read_image` says of a file from its header (the encoding and alpha mode it decodes by)."""
     names = [str(n) for n in spec.channelnames] or _default_names(spec.nchannels)
     pixel_type = _type_name(spec.format)
     alpha_channel = _find_alpha(spec, names)
@@ -448,8 +460,36 @@ def read_image(path: str | os.PathLike[str], *, colorspace: str = "auto",
     else:
         alpha_mode = alpha
 
-    px = data
-    colour = _colour_mask(px.shape[2], alpha_channel, names)
+    channel_types = [_type_name(t) for t in spec.channelformats]
+    if len(set(channel_types)) <= 1:
+        channel_types = []
+    display = (spec.full_x, spec.full_y, spec.full_width, spec.full_height)
+    tiled = spec.tile_width > 0 and spec.tile_height > 0
+    return ImageInfo(
+        path=p,
+        format=fmt,
+        pixel_type=pixel_type,
+        channel_names=names,
+        alpha_channel=alpha_channel,
+        colorspace=encoding,
+        alpha_mode=alpha_mode,
+        attributes=attributes,
+        attribute_types=attribute_types,
+        channel_pixel_types=channel_types,
+        width=spec.width,
+        height=spec.height,
+        origin=(spec.x, spec.y),
+        display_window=None if display == (spec.x, spec.y, spec.width, spec.height) else display,
+        tile=(int(spec.tile_width), int(spec.tile_height)) if tiled else None,
+    )
+
+
+def _decode(px: np.ndarray, info: ImageInfo) -> np.ndarray:
+    """Stored values (as :func:`_read_pixels` returns them) → linear premultiplied float32 (or kept half).
+
+    Pixel by pixel: a band of rows decodes exactly as the whole image does."""
+    alpha_channel, encoding, alpha_mode = info.alpha_channel, info.colorspace, info.alpha_mode
+    colour = _colour_mask(px.shape[2], alpha_channel, info.channel_names)
     has_alpha = alpha_channel >= 0 and alpha_mode != "none"
     if px.dtype in (np.uint8, np.uint16):
         px = _decode_integer(px, encoding == "srgb", colour, alpha_channel if has_alpha else -1,
@@ -467,41 +507,23 @@ def read_image(path: str | os.PathLike[str], *, colorspace: str = "auto",
                 _premultiply(px, alpha_channel, colour)
         elif has_alpha and alpha_mode == "straight":
             _premultiply(px, alpha_channel, colour)
-    pixels = px if px.dtype == np.float16 else px.astype(np.float32, copy=False)
+    return px if px.dtype == np.float16 else px.astype(np.float32, copy=False)
 
+
+def _apply_nan_policy(pixels: np.ndarray, nan: str, info: ImageInfo, p: str, row: int = 0) -> int:
+    """``nan="fail"``: DataError naming the first non-finite value; ``"zero"``: replaced in place.
+    Returns the count found (``row``: where ``pixels`` starts in the image, for the message)."""
     bad = count_nonfinite(pixels)
     if bad and nan == "fail":
         y, x, c = (int(v) for v in np.argwhere(~np.isfinite(pixels))[0])
+        names = info.channel_names
         raise DataError(
             f"{p}: {bad} non-finite pixel value{'s' if bad != 1 else ''} (NaN/Inf), "
-            f"first at x={x}, y={y}, channel {c} ({names[c] if c < len(names) else c})"
+            f"first at x={x}, y={y + row}, channel {c} ({names[c] if c < len(names) else c})"
         )
     if bad and nan == "zero":
         pixels[~np.isfinite(pixels)] = 0.0
-
-    channel_types = [_type_name(t) for t in spec.channelformats]
-    if len(set(channel_types)) <= 1:
-        channel_types = []
-    display = (spec.full_x, spec.full_y, spec.full_width, spec.full_height)
-    tiled = spec.tile_width > 0 and spec.tile_height > 0
-    info = ImageInfo(
-        path=p,
-        format=fmt,
-        pixel_type=pixel_type,
-        channel_names=names,
-        alpha_channel=alpha_channel,
-        colorspace=encoding,
-        alpha_mode=alpha_mode,
-        attributes=attributes,
-        attribute_types=attribute_types,
-        channel_pixel_types=channel_types,
-        width=spec.width,
-        height=spec.height,
-        origin=(spec.x, spec.y),
-        display_window=None if display == (spec.x, spec.y, spec.width, spec.height) else display,
-        tile=(int(spec.tile_width), int(spec.tile_height)) if tiled else None,
-    )
-    return Image(pixels=pixels, spec=info)
+    return bad
 
 
 def check_input_file(path: str | os.PathLike[str]) -> None:
@@ -641,13 +663,10 @@ def check_same_channels(images: list[Image]) -> None:
                              f"({', '.join(images[0].spec.channel_names)}); every level needs the same channels")
 
 
-def _read_pixels(name: str, subimage: int | None = None, keep_half: bool = False,
-                 shown: str | None = None) -> tuple[np.ndarray, oiio.ImageSpec, str]:
-    """Open and fully read ``name`` (one subimage): integer files as stored (uint8, uint16), float
-    files as float32 (as stored, without a copy), half files as float16 under ``keep_half``.
+def _open_input(name: str, subimage: int | None, p: str):
+    """An open ImageInput positioned on one checked subimage: ``(input, spec, format name, subimage)``.
 
-    ``subimage`` None refuses a multi-part file; ``shown`` is the path messages name."""
-    p = shown if shown is not None else name
+    ``subimage`` None refuses a multi-part file; InputError (naming ``p``) for what cannot be read."""
     config = oiio.ImageSpec()
     # Ask for the stored values: without this hint OpenImageIO premultiplies
     # straight-alpha files itself, in the encoded (non-linear) space.
@@ -681,6 +700,21 @@ def _read_pixels(name: str, subimage: int | None = None, keep_half: bool = False
                 f"({spec.width}x{spec.height}, {spec.nchannels} channels)")
         if spec.depth > 1:
             raise InputError(f"cannot read {p}: volume images are not supported")
+    except BaseException:
+        inp.close()
+        raise
+    return inp, spec, fmt, subimage
+
+
+def _read_pixels(name: str, subimage: int | None = None, keep_half: bool = False,
+                 shown: str | None = None) -> tuple[np.ndarray, oiio.ImageSpec, str]:
+    """Open and fully read ``name`` (one subimage): integer files as stored (uint8, uint16), float
+    files as float32 (as stored, without a copy), half files as float16 under ``keep_half``.
+
+    ``subimage`` None refuses a multi-part file; ``shown`` is the path messages name."""
+    p = shown if shown is not None else name
+    inp, spec, fmt, subimage = _open_input(name, subimage, p)
+    try:
         native = _type_name(spec.format)
         uniform = len({str(t) for t in spec.channelformats}) <= 1
         keep = ("uint8", "uint16", "half") if keep_half else ("uint8", "uint16")
@@ -1278,15 +1312,7 @@ def _output_spec(info: ImageInfo, fmt: str, out_type: str, names: list[str], alp
     if (same_format and pixel_type is None and info.channel_pixel_types
             and len(info.channel_pixel_types) == nch):
         spec.channelformats = tuple(oiio.TypeDesc(t) for t in info.channel_pixel_types)
-    # The data and display windows only still apply at the input's size.
-    same_size = (width, height) == (info.width, info.height)
-    if same_size and (info.origin != (0, 0) or info.display_window is not None):
-        spec.x, spec.y = info.origin
-        if info.display_window is not None:
-            spec.full_x, spec.full_y, spec.full_width, spec.full_height = info.display_window
-        else:
-            spec.full_x, spec.full_y = info.origin
-            spec.full_width, spec.full_height = width, height
+    _set_windows(spec, info, width, height)
 
     same_encoding = encoding == info.colorspace
     for name, value in info.attributes.items():
@@ -1321,6 +1347,18 @@ def _output_spec(info: ImageInfo, fmt: str, out_type: str, names: list[str], alp
         # A tiled input is written back tiled, with its tile size.
         spec.tile_width, spec.tile_height = info.tile
     return spec
+
+
+def _set_windows(spec: oiio.ImageSpec, info: ImageInfo, width: int, height: int) -> None:
+    """The data and display windows of the input, which only still apply at the input's size."""
+    same_size = (width, height) == (info.width, info.height)
+    if same_size and (info.origin != (0, 0) or info.display_window is not None):
+        spec.x, spec.y = info.origin
+        if info.display_window is not None:
+            spec.full_x, spec.full_y, spec.full_width, spec.full_height = info.display_window
+        else:
+            spec.full_x, spec.full_y = info.origin
+            spec.full_width, spec.full_height = width, height
 
 
 def _write_rules(fmt: str, info: ImageInfo, alpha_channel: int, pixel_type: str | None, colorspace: str | None,
@@ -1403,3 +1441,215 @@ def describe_rules(info: ImageInfo) -> str:
         else:
             alpha = f"alpha (channel {name}) treated as an ordinary channel"
     return f"{info.path}: {info.format} {info.pixel_type}, {colour}; {alpha}"
+
+
+# ---------------------------------------------------------------------------
+# Streaming: a band of rows at a time (pyramid_cli.stream)
+
+
+class ImageStream:
+    """An image file read a band of rows at a time, each band decoded exactly as :func:`read_image` decodes
+    the whole picture (the decoding is pixel by pixel). Use :func:`open_stream`; close it (or ``with``).
+
+    Attributes
+    ----------
+    info : ImageInfo
+        What :func:`read_image` would report.
+    shape : tuple
+        (rows, columns, channels).
+    dtype : numpy dtype
+        Of the bands :meth:`read` returns: float32, or float16 for a half file under ``keep_half`` without
+        colour or alpha conversion.
+    nonfinite : int
+        NaN/Inf values seen so far (kept under ``nan="keep"``).
+    """
+
+    def __init__(self, path: str, *, colorspace: str = "auto", alpha: str = "auto", nan: str = "keep",
+                 keep_half: bool = False):
+        _check_choice("colorspace", colorspace, ("auto", *COLORSPACES))
+        _check_choice("alpha mode", alpha, ("auto", *ALPHA_MODES))
+        _check_choice("nan mode", nan, options.NAN_POLICIES)
+        self.path = p = os.fspath(path)
+        check_input_file(p)
+        self._stack = contextlib.ExitStack()
+        name = self._name = self._stack.enter_context(_readable_name(p))
+        self._inp, spec, fmt, self._subimage = _open_input(name, None, p)
+        self._stack.callback(self._inp.close)
+        self._spec = spec
+        self.info = _describe(spec, fmt, p, colorspace, alpha)
+        native = _type_name(spec.format)
+        uniform = len({str(t) for t in spec.channelformats}) <= 1
+        keep = ("uint8", "uint16", "half") if keep_half else ("uint8", "uint16")
+        self._read_type = native if native in keep and uniform else "float"
+        self.nan = nan
+        self.nonfinite = 0
+        self.shape = (spec.height, spec.width, spec.nchannels)
+        probe = {"uint8": np.uint8, "uint16": np.uint16, "half": np.float16}.get(self._read_type, np.float32)
+        self.dtype = _decode(np.zeros((1, 1, spec.nchannels), dtype=probe), self.info).dtype
+        self._block: tuple[int, np.ndarray] | None = None  # a row of tiles, for tiled files
+
+    def __enter__(self) -> ImageStream:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def close(self) -> None:
+        self._stack.close()
+
+    def _stored(self, y0: int, y1: int) -> np.ndarray:
+        spec, inp = self._spec, self._inp
+        if spec.tile_width > 0 and spec.tile_height > 0:  # whole rows of tiles, kept for the next band
+            th = spec.tile_height
+            parts = []
+            y = y0
+            while y < y1:
+                t0 = y // th * th
+                if self._block is None or self._block[0] != t0:
+                    t1 = min(t0 + th, spec.height)
+                    data = inp.read_tiles(self._subimage, 0, spec.x, spec.x + spec.width, spec.y + t0, spec.y + t1,
+                                          spec.z, spec.z + 1, 0, spec.nchannels, self._read_type)
+                    self._check(data)
+                    self._block = (t0, np.asarray(data).reshape(t1 - t0, spec.width, spec.nchannels))
+                t0, block = self._block
+                take = block[y - t0:min(y1, t0 + len(block)) - t0]
+                parts.append(take.copy())  # decoded in place: the kept block stays as stored
+                y += len(take)
+            return parts[0] if len(parts) == 1 else np.concatenate(parts)
+        data = inp.read_scanlines(self._subimage, 0, spec.y + y0, spec.y + y1, spec.z, 0, spec.nchannels,
+                                  self._read_type)
+        self._check(data)
+        return np.asarray(data).reshape(y1 - y0, spec.width, spec.nchannels)
+
+    def _check(self, data) -> None:
+        err = self._inp.geterror() if self._inp.has_error else ""
+        if data is None or err:
+            err = (err or oiio.geterror()).replace(self._name, self.path)
+            raise InputError(f"cannot read {self.path}: {_one_line(err, 'read failed')} (truncated or corrupt file?)")
+
+    def read(self, y0: int, y1: int) -> np.ndarray:
+        """Decoded rows ``y0 .. y1 − 1`` (0 is the top row), (rows, columns, channels)."""
+        data = self._stored(y0, y1)
+        if self._read_type == "half":
+            data = np.asarray(data, dtype=np.float16)
+        elif self._read_type == "float":
+            data = np.asarray(data, dtype=np.float32)
+        px = _decode(data, self.info)
+        self.nonfinite += _apply_nan_policy(px, self.nan, self.info, self.path, y0)
+        return px
+
+
+def open_stream(path: str | os.PathLike[str], **options) -> ImageStream:
+    """An :class:`ImageStream` of ``path`` (options as :func:`read_image`: colorspace, alpha, nan, keep_half)."""
+    return ImageStream(os.fspath(path), **options)
+
+
+def streams_to(path: str | os.PathLike[str]) -> bool:
+    """Can :func:`stream_writer` write ``path`` band by band? (Formats encoded in memory cannot.)"""
+    fmt = _format_from_path(os.fspath(path))
+    return bool(fmt) and fmt not in _ENCODE_IN_MEMORY
+
+
+class BandWriter:
+    """Rows written as they complete into the temporary of :func:`stream_writer` (see there)."""
+
+    def __init__(self, path: str, tmp: str, fmt: str, info: ImageInfo, shape: tuple[int, int, int], options: dict):
+        self.path, self.tmp, self.fmt, self.info, self.options = path, tmp, fmt, info, options
+        self.height, self.width = shape[0], shape[1]
+        self.next = 0
+        self.spec: oiio.ImageSpec | None = None
+        self._out = None
+        self._pending: list[np.ndarray] = []  # rows waiting for a whole row of tiles
+
+    def write(self, y0: int, pixels: np.ndarray) -> None:
+        """Linear pixels of rows ``y0 ..`` (in order: ``y0`` is the first row not written yet), encoded as
+        :func:`write_image` encodes the whole picture. Bands start on multiples of 8 rows when dithering."""
+        if y0 != self.next:
+            raise ValueError(f"rows are written in order: row {self.next} expected, not {y0}")
+        spec, data = _encode(self.path, Image(pixels, self.info), **self.options)
+        try:
+            if self._out is None:
+                self._open(spec)
+            self.next += len(pixels)
+            if self.spec.tile_width > 0 and self.spec.tile_height > 0:
+                self._pending.append(data)
+                self._flush_tiles(final=self.next >= self.height)
+            else:
+                s = self.spec
+                _checked(self._out, self._out.write_scanlines(s.y + y0, s.y + self.next, s.z, data), "write")
+        except _WriteFailed as exc:
+            raise OutputError(f"cannot write {self.path}: {str(exc).replace(self.tmp, self.path)}"
+                              f"{_diagnosis(self.tmp)}") from None
+
+    def _open(self, band_spec: oiio.ImageSpec) -> None:
+        spec = band_spec
+        spec.height = spec.full_height = self.height
+        _set_windows(spec, self.info, spec.width, self.height)
+        out = oiio.ImageOutput.create(self.tmp)
+        if out is None:
+            raise _WriteFailed(_one_line(oiio.geterror(), "no writer for this format"))
+        self._out = out
+        _checked(out, out.open(self.tmp, spec, "Create"), "open")
+        self.spec = spec
+
+    def _flush_tiles(self, final: bool) -> None:
+        s = self.spec
+        th = s.tile_height
+        rows = sum(len(p) for p in self._pending)
+        start = self.next - rows
+        if rows < th and not final:
+            return
+        data = np.concatenate(self._pending) if len(self._pending) > 1 else self._pending[0]
+        whole = len(data) if final else len(data) // th * th
+        for a in range(0, whole, th):
+            b = min(a + th, whole)
+            ok = self._out.write_tiles(s.x, s.x + s.width, s.y + start + a, s.y + start + b, s.z, s.z + 1,
+                                       np.ascontiguousarray(data[a:b]))
+            _checked(self._out, ok, "write")
+        self._pending = [data[whole:]] if whole < len(data) else []
+
+    def finish(self) -> None:
+        """Close the file and check it reads back (OutputError naming the user's path)."""
+        if self.next != self.height:
+            raise ValueError(f"{self.next} of {self.height} rows written")
+        try:
+            out, self._out = self._out, None
+            _checked(out, out.close(), "close")
+            _verify(self.tmp, self.fmt, [(self.spec, None)], "single")
+        except _WriteFailed as exc:
+            raise OutputError(f"cannot write {self.path}: {str(exc).replace(self.tmp, self.path)}"
+                              f"{_diagnosis(self.tmp)}") from None
+
+    def abort(self) -> None:
+        if self._out is not None:
+            with contextlib.suppress(Exception):
+                self._out.close()
+            self._out = None
+
+
+@contextlib.contextmanager
+def stream_writer(path: str | os.PathLike[str], info: ImageInfo, shape: tuple[int, int, int], *,
+                  pixel_type: str | None = None, colorspace: str | None = None, alpha: str | None = None,
+                  dither: bool = False, compression: str | None = None, force: bool = False,
+                  inputs: Iterable[str | os.PathLike[str]] = ()):
+    """Write an image band by band, atomically: a :class:`BandWriter` on a hidden temporary beside ``path``.
+
+    The file is encoded as :func:`write_image` encodes it (same options, same bytes), renamed onto ``path``
+    only when every row is written and the file reads back; any failure or interruption removes the
+    temporary and leaves what was at ``path`` untouched (:func:`pyramid_cli.atomic.atomic_path`).
+    """
+    out_path = os.fspath(path)
+    opts = {"pixel_type": pixel_type, "colorspace": colorspace, "alpha": alpha, "dither": dither,
+            "compression": compression, "force": force, "inputs": tuple(inputs)}
+    fmt = _check_output_path(out_path, force, opts["inputs"])
+    check_write_options(out_path, pixel_type, compression)
+    if not streams_to(out_path):
+        raise OutputError(f"cannot write {out_path} band by band: {_FORMAT_TITLES.get(fmt, fmt)} is encoded whole")
+    with atomic_path(out_path) as tmp:
+        writer = BandWriter(out_path, tmp, fmt, info, shape, opts)
+        try:
+            yield writer
+            writer.finish()
+        except BaseException:
+            writer.abort()
+            raise

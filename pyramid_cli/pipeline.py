@@ -105,7 +105,7 @@ def process(paths: list[str], template: str | None, work: Work, session: Session
             read: ReadOptions | None = None, write: WriteOptions | None = None, reporter: Reporter | None = None,
             keep_going: bool = False, skip_existing: bool = False, jobs: int = 2,
             mip_tile: int | None = None, frames: str | None = None, shard=None, cluster=None,
-            chunk: int | None = None) -> batch.Report:
+            chunk: int | None = None, memory: int | None = None) -> batch.Report:
     """Run ``work`` on every input of ``paths`` (``IN OUT``, or inputs with ``template``).
 
     One session for the whole batch; decoding and encoding overlap the work in ``jobs``
@@ -120,6 +120,10 @@ def process(paths: list[str], template: str | None, work: Work, session: Session
     ``distributed.Client``) runs the jobs on a Dask cluster in chunks of ``chunk`` jobs,
     each worker with its own session like ``session`` (``session`` may then be None:
     ``Session()``'s defaults).
+
+    One input of ``apply`` or ``blur`` whose whole-picture run would not fit ``memory`` bytes
+    (default: a quarter of the available memory) streams from file to file in bands
+    (:mod:`pyramid_cli.stream`); images that fit run whole.
     """
     ro, wo, reporter = read or ReadOptions(), write or WriteOptions(), reporter or Reporter()
     job_list = batch.plan_jobs(list(paths), template, frames=frames)
@@ -135,6 +139,14 @@ def process(paths: list[str], template: str | None, work: Work, session: Session
         from .sequence import drop_missing
 
         job_list = drop_missing(job_list, keep_going, reporter.warn)
+    if (not many and len(job_list) == 1 and cluster is None and not mip_tile and frames is None
+            and not (skip_existing and batch.is_fresh(job_list[0]))):
+        from .stream import run_job
+
+        if run_job(job_list[0], work, session, memory=memory, read=ro, write=wo, reporter=reporter):
+            return batch.Report(done=list(job_list))
+    elif memory is not None:
+        raise UsageError("--memory streams one input at a time (not batches, frame sequences or clusters)")
     if cluster is not None:
         from .cluster import run_cluster
 

@@ -1,0 +1,263 @@
+"""File to file in bounded memory: read a band of rows, run it through every level, write it.
+
+A single-image job (``pyramid apply``, ``pyramid blur``) whose whole-picture run would
+not fit the memory budget streams instead: the input's scanlines (or rows of tiles) are
+read band by band through :mod:`pyramid_cli.io`, the plan runs on the demand-driven
+row-band scheduler of :mod:`pyramid_cli.tiles` (each image of the plan keeps only the
+rows later passes still read: the guard bands, at every level), and the output's rows
+are encoded and written as they complete into the temporary file that is renamed onto
+the output at the end (atomic, as every write). The pixels are those of the untiled run.
+
+The budget is ``--memory SIZE``, or by default a quarter of the memory available when
+the command starts (:func:`default_memory`). The band height is chosen from it and
+from the plan's guard bands (:func:`choose`); work that cannot fit even in the smallest
+band is refused before it starts. Images that fit run whole, as before (fastest).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import DataError, UsageError
+from .plan import Plan
+
+MIN_BAND = 8            # rows: dithering's Bayer pattern and most tile heights are multiples of 8
+COPIES = 3              # a band held, its next rows, and the transient concatenation of both
+_UNITS = {"": 1, "B": 1, "K": 1 << 10, "M": 1 << 20, "G": 1 << 30, "T": 1 << 40}
+
+
+def parse_size(text: str) -> int:
+    """Bytes in ``512M``, ``2G``, ``1.5GiB``, ``800000000`` (binary units; UsageError otherwise)."""
+    m = re.fullmatch(r"\s*(\d+(?:\.\d+)?)\s*([KMGT]?)(?:I?B)?\s*", str(text).upper())
+    if not m:
+        raise UsageError(f"--memory: expected a size such as 512M or 2G, not {text!r}")
+    value = int(float(m.group(1)) * _UNITS[m.group(2)])
+    if value <= 0:
+        raise UsageError(f"--memory: the size must be positive, not {text!r}")
+    return value
+
+
+def format_size(n: float) -> str:
+    for unit in ("B", "KiB", "MiB", "GiB", "TiB"):
+        if abs(n) < 1024 or unit == "TiB":
+            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.1f} {unit}"
+        n /= 1024
+    return f"{n} B"
+
+
+def available_memory() -> int:
+    """Bytes of memory available now (``MemAvailable`` of /proc/meminfo; else physical memory)."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):  # pragma: no cover - not POSIX
+        return 4 << 30
+
+
+def default_memory() -> int:
+    """The working-set budget when ``--memory`` is not given: a quarter of the available memory
+    (other processes and the page cache keep the rest), at least 256 MiB."""
+    return max(256 << 20, available_memory() // 4)
+
+
+@dataclass(frozen=True)
+class Choice:
+    """How a job runs in its budget: whole, or in bands of ``band`` output rows."""
+
+    budget: int
+    whole: int                  # estimated bytes of the whole-picture run
+    band: int | None            # output rows per band; None: runs whole
+    working_set: int            # estimated bytes of the streamed run (at ``band``)
+
+    @property
+    def streams(self) -> bool:
+        return self.band is not None
+
+    def describe(self) -> str:
+        if not self.streams:
+            return (f"runs whole: about {format_size(self.whole)} within the memory budget of "
+                    f"{format_size(self.budget)}")
+        return (f"streams in bands of {self.band} output rows: working set about {format_size(self.working_set)} "
+                f"within the memory budget of {format_size(self.budget)} (the whole picture would take about "
+                f"{format_size(self.whole)})")
+
+    def to_json(self) -> dict:
+        return {"budget": self.budget, "whole": self.whole, "band": self.band, "working_set": self.working_set}
+
+
+def _footprints(plan: Plan) -> dict[int, int]:
+    """Rows of each image read at once by one period of a consumer (its guard reach), plus alignment."""
+    out = {k: 1 for k in range(len(plan.images))}
+    for ps in plan.passes:
+        target = plan.images[ps.target]
+        mid = target.size[0] // 2
+        period = getattr(ps, "period", (1, 1))[0]
+        y = mid - mid % period
+        for s, (rr, _) in ps.reads((y, y + period), (0, 1)).items():
+            out[s] = max(out[s], rr[1] - rr[0] + period)
+    return out
+
+
+def estimate(plan: Plan, channels: int, band: int | None, in_bytes: int = 4, out_bytes: int = 4,
+             work_bytes: int = 4) -> int:
+    """Bytes a run of ``plan`` holds: whole (``band`` None) or streamed in bands of ``band`` output rows.
+
+    Whole: every image of the plan at once (the executors free images no later pass reads, so this
+    is an upper bound), the decoded input and the encoded output. Streamed: per image, its rows per band
+    (its share of the band) plus the rows its consumers' guard bands reach, :data:`COPIES` times."""
+    anchor = max(plan.images[k].size[0] for k in plan.outputs)
+    total = 0
+    feet = _footprints(plan)
+    for k, im in enumerate(plan.images):
+        rows, cols = im.stored
+        item = in_bytes if k in plan.inputs else work_bytes
+        if band is None:
+            total += rows * cols * channels * item
+        else:
+            share = -(-band * im.size[0] // anchor)
+            total += COPIES * min(rows, share + feet[k]) * cols * channels * item
+    out = plan.images[plan.outputs[-1]]
+    if band is None:
+        return total + out.size[0] * out.size[1] * channels * out_bytes
+    return total + 2 * band * out.size[1] * channels * out_bytes
+
+
+def choose(plan: Plan, channels: int, budget: int, *, in_bytes: int = 4, out_bytes: int = 4, work_bytes: int = 4,
+           force: bool = False, where: str = "") -> Choice:
+    """Whole or streamed, and the band: the largest multiple of :data:`MIN_BAND` rows within ``budget``.
+
+    ``force`` streams even when the whole picture fits. DataError when not even the smallest band fits."""
+    kw = {"in_bytes": in_bytes, "out_bytes": out_bytes, "work_bytes": work_bytes}
+    whole = estimate(plan, channels, None, **kw)
+    if whole <= budget and not force:
+        return Choice(budget, whole, None, whole)
+    rows = max(plan.images[k].size[0] for k in plan.outputs)
+    smallest = estimate(plan, channels, MIN_BAND, **kw)
+    if smallest > budget:
+        prefix = f"{where}: " if where else ""
+        raise DataError(f"{prefix}this job needs at least {format_size(smallest)} of memory in bands of {MIN_BAND} "
+                        f"rows (its guard bands at every level), over the budget of {format_size(budget)}; "
+                        "give more with --memory")
+    lo, hi = MIN_BAND, max(MIN_BAND, rows + MIN_BAND)
+    while hi - lo > MIN_BAND:  # estimate grows with the band: bisect on multiples of MIN_BAND
+        mid = (lo + hi) // 2 // MIN_BAND * MIN_BAND
+        if estimate(plan, channels, mid, **kw) <= budget:
+            lo = mid
+        else:
+            hi = mid
+    return Choice(budget, whole, lo, estimate(plan, channels, lo, **kw))
+
+
+def _executor(session):
+    from . import tiles
+    from .session import EmulatorExecutor
+
+    ex = session.executor
+    if ex is None:
+        raise UsageError("--memory needs a plan executor (--backend gl or cpu): the reference backend "
+                         "holds whole pictures")
+    return tiles.Emulator() if isinstance(ex, EmulatorExecutor) else ex
+
+
+def stream_file(in_path: str, out_path: str, work, session, choice: Choice | None = None, *, budget: int,
+                read=None, write=None, reporter=None, stream=None) -> Choice:
+    """Run ``work`` (one input, one output) from ``in_path`` to ``out_path`` band by band (see the module).
+
+    ``stream``: an open :class:`pyramid_cli.io.ImageStream` of ``in_path`` (opened here if None).
+    Returns the :class:`Choice` it ran with."""
+    from . import io, tiles
+    from .pipeline import ReadOptions, WriteOptions
+
+    ro, wo = read or ReadOptions(), write or WriteOptions()
+    executor = _executor(session)
+    owned = stream is None
+    if owned:
+        stream = io.open_stream(in_path, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan, keep_half=True)
+    try:
+        h, w, c = stream.shape
+        work.check(((h, w),), where=in_path)
+        plan = session.plan(work, [(h, w)])
+        half = stream.dtype == np.float16 and io.stores_half_unchanged(out_path, stream.info,
+                                                                      pixel_type=wo.pixel_type)
+        out_dtype = np.float16 if half else np.float32
+        emu = isinstance(executor, tiles.Emulator)
+        if choice is None:
+            choice = choose(plan, c, budget, in_bytes=stream.dtype.itemsize, out_bytes=np.dtype(out_dtype).itemsize,
+                            work_bytes=8 if emu else 4, force=True, where=in_path)
+        band = choice.band or MIN_BAND
+        out = plan.images[plan.outputs[-1]]
+        with io.stream_writer(out_path, stream.info, out.size + (c,), **wo.for_inputs([in_path])) as writer:
+            def source(k, rows, cols):
+                px = stream.read(*rows)
+                px = px[:, cols[0]:cols[1]] if (cols[0], cols[1]) != (0, w) else px
+                return px.astype(np.float64) if emu else px
+
+            def sink(k, r, c0, px):
+                writer.write(r, px.astype(out_dtype, copy=False))
+
+            scheduler = tiles.Scheduler(executor, plan, source, sink, band=band, dtype=np.float64 if emu else
+                                        np.float32)
+            scheduler.run()
+        session.ran = session.name
+        if reporter is not None and stream.nonfinite and ro.nan == "keep":
+            reporter.warn(f"{in_path}: {stream.nonfinite} NaN/Inf value(s) kept; they spread through the filter "
+                          "(--nan zero or --nan fail to change that)")
+        return choice
+    finally:
+        if owned:
+            stream.close()
+
+
+STREAMABLE = ("apply", "blur")  # single-image jobs with one output (Work.label)
+
+
+def run_job(job, work, session, *, memory: int | None, read=None, write=None, reporter=None) -> bool:
+    """Stream ``job`` when its whole-picture run would not fit the budget (``memory``, else
+    :func:`default_memory`); False when it runs whole as before (it fits, or cannot stream: another kind
+    of job, an output format encoded whole, the reference backend without ``memory``)."""
+    from . import io
+    from .pipeline import ReadOptions
+
+    if work.label not in STREAMABLE or work.n_inputs != 1 or work.keeps_input:
+        if memory is not None:
+            raise UsageError(f"--memory: {work.label} runs whole pictures (it streams apply and blur)")
+        return False
+    if session is None or session.executor is None:
+        if memory is not None:
+            _executor(session)  # refuses with the reason
+        return False
+    if not io.streams_to(job.output):
+        return False
+    ro = read or ReadOptions()
+    budget = memory if memory is not None else default_memory()
+    with io.open_stream(job.input, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan, keep_half=True) as st:
+        h, w, c = st.shape
+        work.check(((h, w),), where=job.input)
+        plan = session.plan(work, [(h, w)])
+        if plan is None:
+            return False
+        emu = isinstance(_executor(session), __import__("pyramid_cli.tiles", fromlist=["Emulator"]).Emulator)
+        choice = choose(plan, c, budget, in_bytes=st.dtype.itemsize, out_bytes=st.dtype.itemsize,
+                        work_bytes=8 if emu else 4, where=job.input)
+        if reporter is not None:
+            reporter.detail(f"{job.input}: {choice.describe()}")
+        if not choice.streams:
+            return False
+        stream_file(job.input, job.output, work, session, choice, budget=budget, read=read, write=write,
+                    reporter=reporter, stream=st)
+    if reporter is not None:
+        reporter.result(f"wrote {job.output} ({w}×{h}, {session.ran}, streamed in bands of {choice.band} rows)")
+    return True
+
+
+__all__ = ["Choice", "choose", "estimate", "parse_size", "default_memory", "stream_file", "format_size", "run_job"]
