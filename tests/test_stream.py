@@ -1,0 +1,201 @@
+"""Streaming from file to file in bounded memory (issue 18): same pixels, bounded RSS, atomic writes."""
+
+from __future__ import annotations
+
+import os
+import resource
+import subprocess
+import sys
+
+import numpy as np
+import OpenImageIO as oiio
+import pytest
+
+from pyramid_cli import io, stream
+from pyramid_cli.errors import DataError, UsageError
+from pyramid_cli.parse import parse
+from pyramid_cli.pipeline import ReadOptions, WriteOptions
+from pyramid_cli.session import Session
+from pyramid_cli.work import Blur, Filter
+
+CLI = [sys.executable, "-m", "pyramid_cli.cli"]
+TIMEOUT = 300
+
+
+def write(path, pixels, pixel_type="half", tile=None, **attrs):
+    h, w, c = pixels.shape
+    spec = oiio.ImageSpec(w, h, c, pixel_type)
+    if tile:
+        spec.tile_width = spec.tile_height = tile
+    for k, v in attrs.items():
+        spec.attribute(k, v)
+    out = oiio.ImageOutput.create(str(path))
+    assert out.open(str(path), spec, "Create") and out.write_image(pixels) and out.close()
+
+
+def noise(h, w, c=4, seed=0):
+    return np.random.default_rng(seed).random((h, w, c)).astype(np.float32)
+
+
+# ------------------------------------------------------------------ io: bands in, bands out
+@pytest.mark.parametrize("fmt, pixel_type, tile, attrs", [
+    ("exr", "half", None, {}), ("exr", "float", 16, {}), ("tif", "uint8", None, {}),
+    ("png", "uint16", None, {}), ("tif", "uint8", None, {"oiio:UnassociatedAlpha": 1})])
+def test_bands_read_and_write_like_whole_pictures(tmp_path, fmt, pixel_type, tile, attrs):
+    src = tmp_path / f"in.{fmt}"
+    write(src, noise(45, 37), pixel_type, tile, **attrs)
+    whole = io.read_image(src, keep_half=True)
+    with io.open_stream(src, keep_half=True) as st:
+        assert st.shape == whole.pixels.shape and st.dtype == whole.pixels.dtype
+        bands = [st.read(y, min(45, y + 8)) for y in range(0, 45, 8)]
+    pixels = np.concatenate(bands)
+    assert np.array_equal(pixels, whole.pixels)
+    dither = pixel_type == "uint8"
+    io.write_image(tmp_path / f"whole.{fmt}", whole, dither=dither)
+    with io.stream_writer(tmp_path / f"bands.{fmt}", whole.spec, pixels.shape, dither=dither) as w:
+        for y in range(0, 45, 8):
+            w.write(y, pixels[y:y + 8])
+    a, b = (io.read_image(tmp_path / f"{n}.{fmt}", keep_half=True) for n in ("whole", "bands"))
+    assert np.array_equal(a.pixels, b.pixels)
+    assert a.spec.tile == b.spec.tile and a.spec.pixel_type == b.spec.pixel_type
+
+
+def test_an_interrupted_stream_leaves_the_previous_output(tmp_path):
+    out = tmp_path / "out.exr"
+    out.write_bytes(b"previous")
+    info = io.info_for_array(out, 4)
+    with pytest.raises(KeyboardInterrupt), io.stream_writer(out, info, (32, 16, 4)) as w:
+        w.write(0, noise(8, 16))
+        raise KeyboardInterrupt
+    assert out.read_bytes() == b"previous"
+    assert sorted(os.listdir(tmp_path)) == ["out.exr"]  # no temporary left behind
+
+
+def test_a_short_stream_is_not_committed(tmp_path):
+    out = tmp_path / "out.exr"
+    info = io.info_for_array(out, 4)
+    with pytest.raises(ValueError, match="8 of 32 rows"), io.stream_writer(out, info, (32, 16, 4)) as w:
+        w.write(0, noise(8, 16))
+    assert not os.listdir(tmp_path)
+
+
+def test_non_finite_values_follow_the_policy_per_band(tmp_path):
+    px = noise(20, 6)
+    px[13, 2, 1] = np.nan
+    write(tmp_path / "nan.exr", px, "float")
+    with pytest.raises(DataError, match="x=2, y=13, channel 1"), io.open_stream(tmp_path / "nan.exr",
+                                                                                 nan="fail") as st:
+        for y in range(0, 20, 8):
+            st.read(y, min(20, y + 8))
+    with io.open_stream(tmp_path / "nan.exr", nan="zero") as st:
+        assert st.read(8, 16)[5, 2, 1] == 0
+
+
+# ------------------------------------------------------------------ the driver
+@pytest.fixture(scope="module")
+def session():
+    pytest.importorskip("numba")
+    with Session("cpu") as s:
+        yield s
+
+
+@pytest.mark.parametrize("work", [Blur(levels=3), Blur(levels=2, border="mirror"), Filter(expr=parse("gauss5")),
+                                  Filter(expr=parse("box4 *v g"), border="wrap"), Filter(expr=parse("doosabin"))],
+                         ids=lambda w: w.label + "-" + w.border)
+@pytest.mark.parametrize("pixel_type", ["half", "float"])
+def test_streamed_equals_whole(tmp_path, session, work, pixel_type):
+    src, out = tmp_path / "in.exr", tmp_path / "out.exr"
+    write(src, noise(67, 45, seed=3), pixel_type)
+    whole = io.read_image(src, keep_half=True)
+    half = whole.pixels.dtype == np.float16
+    want = session.run(work, [whole.pixels], np.float16 if half else np.float32)[-1]
+    plan = session.plan(work, [whole.pixels.shape])
+    choice = stream.Choice(1 << 20, 1 << 30, 8, 1 << 20)
+    stream.stream_file(str(src), str(out), work, session, choice, budget=1 << 20)
+    got = io.read_image(out, keep_half=True).pixels
+    assert got.shape == want.shape == plan.output.size + (4,)
+    assert np.array_equal(got, want)
+
+
+def test_choose_bands_from_the_budget():
+    plan = Blur(levels=5).plan(((8192, 8192),))
+    whole = stream.estimate(plan, 4, None)
+    assert stream.choose(plan, 4, whole + 1).band is None  # fits: runs whole, as before
+    small = stream.choose(plan, 4, 256 << 20)
+    assert small.band % stream.MIN_BAND == 0 and small.working_set <= 256 << 20
+    larger = stream.choose(plan, 4, 512 << 20)
+    assert larger.band > small.band
+    with pytest.raises(DataError, match="needs at least .* over the budget of 1.0 MiB"):
+        stream.choose(plan, 4, 1 << 20, force=True)
+
+
+def test_parse_size():
+    assert stream.parse_size("512M") == 512 << 20
+    assert stream.parse_size("1.5G") == 3 << 29
+    assert stream.parse_size("2GiB") == 2 << 30
+    assert stream.parse_size("1000") == 1000
+    for bad in ("lots", "-1G", "0"):
+        with pytest.raises(UsageError, match="--memory"):
+            stream.parse_size(bad)
+
+
+# ------------------------------------------------------------------ the command line
+def run(*args, **kw):
+    return subprocess.run(CLI + [str(a) for a in args], capture_output=True, text=True, timeout=TIMEOUT, **kw)
+
+
+def test_cli_streams_when_told_and_says_so(tmp_path):
+    pytest.importorskip("numba")
+    src = tmp_path / "in.exr"
+    write(src, noise(300, 200, seed=5))
+    r = run("blur", "--backend", "cpu", "--levels", "3", "--memory", "1M", "-v", src, tmp_path / "s.exr")
+    assert r.returncode == 0, r.stderr
+    assert "streams in bands of" in r.stderr and "streamed in bands" in r.stdout
+    r = run("blur", "--backend", "cpu", "--levels", "3", "-v", src, tmp_path / "w.exr")
+    assert r.returncode == 0 and "runs whole" in r.stderr, r.stderr
+    a, b = (io.read_image(tmp_path / n, keep_half=True).pixels for n in ("s.exr", "w.exr"))
+    assert np.array_equal(a, b)
+    r = run("blur", "--backend", "cpu", "--memory", "10K", src, tmp_path / "x.exr")
+    assert r.returncode == 5 and "needs at least" in r.stderr and "Traceback" not in r.stderr
+    assert not (tmp_path / "x.exr").exists()
+    r = run("blur", "--backend", "reference", "--memory", "1M", src, tmp_path / "x.exr")
+    assert r.returncode == 2 and "--memory needs a plan executor" in r.stderr, r.stderr
+
+
+def _peak_rss(args) -> int:
+    """Peak resident set of one child process, in bytes (ru_maxrss of the waited-for child, Linux: KiB).
+
+    Run through a fresh Python so that RUSAGE_CHILDREN covers exactly that child."""
+    code = ("import resource, subprocess, sys; r = subprocess.run(sys.argv[1:], capture_output=True, text=True); "
+            "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss, r.returncode); "
+            "sys.stderr.write(r.stderr)")
+    r = subprocess.run([sys.executable, "-c", code] + [str(a) for a in args], capture_output=True, text=True,
+                       timeout=TIMEOUT)
+    kib, rc = r.stdout.split()
+    assert rc == "0", r.stderr
+    return int(kib) * 1024
+
+
+@pytest.mark.slow
+def test_streaming_stays_within_the_memory_given(tmp_path):
+    """A file whose decoded pixels are several times --memory streams within it (a bound, not a timing):
+    peak RSS over the same command's on a tiny image (interpreter, libraries, kernels) stays under 2× the
+    budget, where the whole-picture run takes many times more."""
+    pytest.importorskip("numba")
+    budget = 16 << 20
+    big, tiny = tmp_path / "big.exr", tmp_path / "tiny.exr"
+    write(big, noise(1536, 1536, seed=1), "half")       # 18 MiB half, 36 MiB as float32, 6 levels of it
+    write(tiny, noise(16, 16, seed=2), "half")
+    assert 1536 * 1536 * 4 * 4 > 2 * budget
+    cmd = CLI + ["blur", "--backend", "cpu", "--levels", "5", "--memory", str(budget)]
+    base = _peak_rss(cmd + [tiny, tmp_path / "t.exr"])
+    streamed = _peak_rss(cmd + [big, tmp_path / "s.exr"])
+    whole = _peak_rss(CLI + ["blur", "--backend", "cpu", "--levels", "5", big, tmp_path / "w.exr"])
+    assert streamed - base < 2 * budget, (base, streamed, whole)
+    assert whole - base > 3 * budget, (base, streamed, whole)  # the bound could fail
+    a, b = (io.read_image(tmp_path / n, keep_half=True).pixels for n in ("s.exr", "w.exr"))
+    assert np.array_equal(a, b)
+
+
+def test_resource_module_measures_children():
+    assert resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss >= 0
