@@ -14,7 +14,6 @@ import pytest
 from pyramid_cli import io, stream
 from pyramid_cli.errors import DataError, UsageError
 from pyramid_cli.parse import parse
-from pyramid_cli.pipeline import ReadOptions, WriteOptions
 from pyramid_cli.session import Session
 from pyramid_cli.work import Blur, Filter
 
