@@ -383,6 +383,7 @@ def blur(paths, levels: int, analysis: str, synthesis: str, quasi: bool, sigma: 
 @click.option("--sheet", type=click.Path(dir_okay=False), help="Also draw all levels side by side (Figure 1a).")
 @border_option
 @io_options
+@memory_option
 def levels(input_path, pattern, levels, analysis, laplacian, synthesis, multipart, sheet, border, **opts) -> None:
     """Write every level of the analysis pyramid (level 0 is the input).
 
@@ -393,6 +394,7 @@ def levels(input_path, pattern, levels, analysis, laplacian, synthesis, multipar
       pyramid levels render.exr 'pyr/render_{level}.exr' --levels 5
       pyramid levels --laplacian --multipart render.exr bands.exr
       pyramid collapse bands.exr rebuilt.exr
+      pyramid levels --memory 1G -v painting_32k.exr 'pyr/painting_{level}.exr'
     """
     from .pipeline import write_levels_files
     from .work import Laplacian, Levels
@@ -401,9 +403,14 @@ def levels(input_path, pattern, levels, analysis, laplacian, synthesis, multipar
             else Levels(levels=levels, analysis=analysis, border=border))
     reporter = _reporter(opts)
     ro, wo = _read_write(opts)
+    memory = None
+    if opts.get("memory") is not None:
+        from .stream import parse_size
+
+        memory = parse_size(opts["memory"])
     with _session(opts, reporter) as session:
         write_levels_files(input_path, pattern, work, session, read=ro, write=wo, reporter=reporter,
-                           multipart=multipart, sheet=sheet)
+                           multipart=multipart, sheet=sheet, memory=memory)
 
 
 @main.command()

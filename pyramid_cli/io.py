@@ -105,6 +105,7 @@ __all__ = [
     "ImageStream",
     "open_stream",
     "stream_writer",
+    "stream_writers",
     "streams_to",
 ]
 
@@ -1551,32 +1552,30 @@ def streams_to(path: str | os.PathLike[str]) -> bool:
 
 
 class BandWriter:
-    """Rows written as they complete into the temporary of :func:`stream_writer` (see there)."""
+    """Rows written as they complete into the temporary of :func:`stream_writers` (see there)."""
 
     def __init__(self, path: str, tmp: str, fmt: str, info: ImageInfo, shape: tuple[int, int, int], options: dict):
         self.path, self.tmp, self.fmt, self.info, self.options = path, tmp, fmt, info, options
         self.height, self.width = shape[0], shape[1]
-        self.next = 0
+        self.next = 0      # rows handed over
+        self.written = 0   # rows encoded and written
         self.spec: oiio.ImageSpec | None = None
         self._out = None
-        self._pending: list[np.ndarray] = []  # rows waiting for a whole row of tiles
+        self._pending: list[np.ndarray] = []  # rows waiting for a whole row of tiles, or 8 rows of dither
 
     def write(self, y0: int, pixels: np.ndarray) -> None:
-        """Linear pixels of rows ``y0 ..`` (in order: ``y0`` is the first row not written yet), encoded as
-        :func:`write_image` encodes the whole picture. Bands start on multiples of 8 rows when dithering."""
+        """Linear pixels of rows ``y0 ..`` (in order: ``y0`` is the first row not handed over yet), encoded as
+        :func:`write_image` encodes the whole picture (rows are grouped so that dithering and tiles line up)."""
         if y0 != self.next:
             raise ValueError(f"rows are written in order: row {self.next} expected, not {y0}")
-        spec, data = _encode(self.path, Image(pixels, self.info), **self.options)
+        if not len(pixels):
+            return
+        self.next += len(pixels)
+        self._pending.append(pixels)
         try:
             if self._out is None:
-                self._open(spec)
-            self.next += len(pixels)
-            if self.spec.tile_width > 0 and self.spec.tile_height > 0:
-                self._pending.append(data)
-                self._flush_tiles(final=self.next >= self.height)
-            else:
-                s = self.spec
-                _checked(self._out, self._out.write_scanlines(s.y + y0, s.y + self.next, s.z, data), "write")
+                self._open(_encode(self.path, Image(pixels[:1], self.info), **self.options)[0])
+            self._flush(final=self.next >= self.height)
         except _WriteFailed as exc:
             raise OutputError(f"cannot write {self.path}: {str(exc).replace(self.tmp, self.path)}"
                               f"{_diagnosis(self.tmp)}") from None
@@ -1592,26 +1591,32 @@ class BandWriter:
         _checked(out, out.open(self.tmp, spec, "Create"), "open")
         self.spec = spec
 
-    def _flush_tiles(self, final: bool) -> None:
+    def _flush(self, final: bool) -> None:
         s = self.spec
-        th = s.tile_height
-        rows = sum(len(p) for p in self._pending)
-        start = self.next - rows
-        if rows < th and not final:
+        tiled = s.tile_width > 0 and s.tile_height > 0
+        quantum = s.tile_height if tiled else 8 if self.options.get("dither") else 1
+        rows = self.next - self.written
+        whole = rows if final else rows // quantum * quantum
+        if not whole:
             return
-        data = np.concatenate(self._pending) if len(self._pending) > 1 else self._pending[0]
-        whole = len(data) if final else len(data) // th * th
-        for a in range(0, whole, th):
-            b = min(a + th, whole)
-            ok = self._out.write_tiles(s.x, s.x + s.width, s.y + start + a, s.y + start + b, s.z, s.z + 1,
-                                       np.ascontiguousarray(data[a:b]))
-            _checked(self._out, ok, "write")
-        self._pending = [data[whole:]] if whole < len(data) else []
+        pixels = np.concatenate(self._pending) if len(self._pending) > 1 else self._pending[0]
+        self._pending = [pixels[whole:]] if whole < rows else []
+        data = _encode(self.path, Image(pixels[:whole], self.info), **self.options)[1]
+        start = self.written
+        if tiled:
+            for a in range(0, whole, quantum):
+                b = min(a + quantum, whole)
+                ok = self._out.write_tiles(s.x, s.x + s.width, s.y + start + a, s.y + start + b, s.z, s.z + 1,
+                                           np.ascontiguousarray(data[a:b]))
+                _checked(self._out, ok, "write")
+        else:
+            _checked(self._out, self._out.write_scanlines(s.y + start, s.y + start + whole, s.z, data), "write")
+        self.written += whole
 
     def finish(self) -> None:
         """Close the file and check it reads back (OutputError naming the user's path)."""
-        if self.next != self.height:
-            raise ValueError(f"{self.next} of {self.height} rows written")
+        if self.written != self.height:
+            raise ValueError(f"{self.written} of {self.height} rows written")
         try:
             out, self._out = self._out, None
             _checked(out, out.close(), "close")
@@ -1628,28 +1633,43 @@ class BandWriter:
 
 
 @contextlib.contextmanager
-def stream_writer(path: str | os.PathLike[str], info: ImageInfo, shape: tuple[int, int, int], *,
-                  pixel_type: str | None = None, colorspace: str | None = None, alpha: str | None = None,
-                  dither: bool = False, compression: str | None = None, force: bool = False,
-                  inputs: Iterable[str | os.PathLike[str]] = ()):
-    """Write an image band by band, atomically: a :class:`BandWriter` on a hidden temporary beside ``path``.
+def stream_writers(paths: list[str | os.PathLike[str]], infos: list[ImageInfo], shapes: list[tuple[int, int, int]],
+                   *, pixel_type: str | None = None, colorspace: str | None = None, alpha: str | None = None,
+                   dither: bool = False, compression: str | None = None, force: bool = False,
+                   inputs: Iterable[str | os.PathLike[str]] = ()):
+    """Several images written band by band, all or nothing (:func:`write_images`' guarantee): one
+    :class:`BandWriter` per path on a hidden temporary beside it.
 
-    The file is encoded as :func:`write_image` encodes it (same options, same bytes), renamed onto ``path``
-    only when every row is written and the file reads back; any failure or interruption removes the
-    temporary and leaves what was at ``path`` untouched (:func:`pyramid_cli.atomic.atomic_path`).
+    Each file is encoded as :func:`write_image` encodes it (same options, same pixels); they are renamed onto
+    their paths only when every row of every file is written and each reads back; any failure or interruption
+    removes the temporaries and leaves what was at the paths untouched (:func:`pyramid_cli.atomic.atomic_paths`).
     """
-    out_path = os.fspath(path)
+    out_paths = [os.fspath(p) for p in paths]
     opts = {"pixel_type": pixel_type, "colorspace": colorspace, "alpha": alpha, "dither": dither,
             "compression": compression, "force": force, "inputs": tuple(inputs)}
-    fmt = _check_output_path(out_path, force, opts["inputs"])
-    check_write_options(out_path, pixel_type, compression)
-    if not streams_to(out_path):
-        raise OutputError(f"cannot write {out_path} band by band: {_FORMAT_TITLES.get(fmt, fmt)} is encoded whole")
-    with atomic_path(out_path) as tmp:
-        writer = BandWriter(out_path, tmp, fmt, info, shape, opts)
+    fmts = []
+    for p in out_paths:
+        fmt = _check_output_path(p, force, opts["inputs"])
+        check_write_options(p, pixel_type, compression)
+        if not streams_to(p):
+            raise OutputError(f"cannot write {p} band by band: {_FORMAT_TITLES.get(fmt, fmt)} is encoded whole")
+        fmts.append(fmt)
+    with atomic_paths(out_paths) as tmps:
+        writers = [BandWriter(p, tmp, fmt, info, shape, opts)
+                   for p, tmp, fmt, info, shape in zip(out_paths, tmps, fmts, infos, shapes, strict=True)]
         try:
-            yield writer
-            writer.finish()
+            yield writers
+            for w in writers:
+                w.finish()
         except BaseException:
-            writer.abort()
+            for w in writers:
+                w.abort()
             raise
+
+
+@contextlib.contextmanager
+def stream_writer(path: str | os.PathLike[str], info: ImageInfo, shape: tuple[int, int, int], **options):
+    """One image written band by band, atomically (:func:`stream_writers` of one path): yields its
+    :class:`BandWriter`. Options as :func:`write_image`."""
+    with stream_writers([path], [info], [shape], **options) as (writer,):
+        yield writer

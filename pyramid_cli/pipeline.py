@@ -247,15 +247,36 @@ def level_path(pattern: str, level: int) -> str:
 def write_levels_files(input_path: str, pattern: str, work: Levels | Laplacian, session: Session, *,
                        read: ReadOptions | None = None, write: WriteOptions | None = None,
                        reporter: Reporter | None = None, multipart: bool = False,
-                       sheet: str | None = None) -> list[str]:
+                       sheet: str | None = None, memory: int | None = None) -> list[str]:
     """Every level of a pyramid (or the Laplacian bands) of one image, one file each or one multipart EXR.
 
     Returns the paths written. Laplacian bands are stored as float and record the
     synthesis filter and border (``pyramid:synthesis``, ``pyramid:border``) so that :func:`collapse_files`
-    can undo them.
+    can undo them. One file per level streams, every level band by band, when the whole pyramid would not
+    fit ``memory`` bytes (default: a quarter of the available memory; :mod:`pyramid_cli.stream`).
     """
     ro, wo, reporter = read or ReadOptions(), write or WriteOptions(), reporter or Reporter()
     laplacian = isinstance(work, Laplacian)
+    if memory is not None and (multipart or sheet):
+        raise UsageError("--memory streams one file per level (not --multipart or --sheet, which hold every level)")
+    if not multipart and not sheet:
+        shape = io.read_shape(input_path)
+        p = session.plan(work, [shape[:2]]) if shape is not None and session.executor is not None else None
+        if p is not None or memory is not None:
+            from .stream import run_levels
+
+            n = (1 if work.keeps_input else 0) + (len(p.outputs) if p is not None else 0)
+            written = [level_path(pattern, k) for k in range(n)]
+            options = wo.for_inputs([input_path])
+            attributes = None
+            if laplacian:
+                options["pixel_type"] = wo.pixel_type or "float"
+                attributes = {"pyramid:synthesis": work.synthesis, "pyramid:border": work.border}
+            if run_levels(input_path, written, work, session, memory=memory, read=ro, options=options,
+                          attributes=attributes, reporter=reporter):
+                for path in written:
+                    reporter.result(f"wrote {path}")
+                return written
     image = _read(input_path, ro, reporter)
     work.check((image.pixels.shape[:2],), where=input_path)
     _announce_compiles(session, work, [image.pixels], reporter)

@@ -16,6 +16,7 @@ band is refused before it starts. Images that fit run whole, as before (fastest)
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import re
 from dataclasses import dataclass
@@ -126,10 +127,11 @@ def estimate(plan: Plan, channels: int, band: int | None, in_bytes: int = 4, out
         else:
             share = -(-band * im.size[0] // anchor)
             total += COPIES * min(rows, share + feet[k]) * cols * channels * item
-    out = plan.images[plan.outputs[-1]]
-    if band is None:
-        return total + out.size[0] * out.size[1] * channels * out_bytes
-    return total + 2 * band * out.size[1] * channels * out_bytes
+    for k in plan.outputs:  # what the writers hold (whole: the results; streamed: a band being encoded)
+        rows, cols = plan.images[k].size
+        share = rows if band is None else 2 * -(-band * rows // anchor)
+        total += share * cols * channels * out_bytes
+    return total
 
 
 def choose(plan: Plan, channels: int, budget: int, *, in_bytes: int = 4, out_bytes: int = 4, work_bytes: int = 4,
@@ -169,17 +171,20 @@ def _executor(session):
     return tiles.Emulator() if isinstance(ex, EmulatorExecutor) else ex
 
 
-def stream_file(in_path: str, out_path: str, work, session, choice: Choice | None = None, *, budget: int,
-                read=None, write=None, reporter=None, stream=None) -> Choice:
-    """Run ``work`` (one input, one output) from ``in_path`` to ``out_path`` band by band (see the module).
+def stream_file(in_path: str, out_path: str | list[str], work, session, choice: Choice | None = None, *,
+                budget: int, read=None, write=None, reporter=None, stream=None, attributes: dict | None = None
+                ) -> Choice:
+    """Run ``work`` from ``in_path`` to ``out_path`` band by band (see the module); a list of paths for a job
+    of several outputs (``levels``: level 0, the input, first when the job keeps it).
 
-    ``stream``: an open :class:`pyramid_cli.io.ImageStream` of ``in_path`` (opened here if None).
-    Returns the :class:`Choice` it ran with."""
+    ``stream``: an open :class:`pyramid_cli.io.ImageStream` of ``in_path`` (opened here if None);
+    ``attributes``: metadata added to every output. Returns the :class:`Choice` it ran with."""
     from . import io, tiles
     from .pipeline import ReadOptions, WriteOptions
 
     ro, wo = read or ReadOptions(), write or WriteOptions()
     executor = _executor(session)
+    paths = [out_path] if isinstance(out_path, (str, os.PathLike)) else list(out_path)
     owned = stream is None
     if owned:
         stream = io.open_stream(in_path, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan, keep_half=True)
@@ -187,26 +192,37 @@ def stream_file(in_path: str, out_path: str, work, session, choice: Choice | Non
         h, w, c = stream.shape
         work.check(((h, w),), where=in_path)
         plan = session.plan(work, [(h, w)])
-        half = stream.dtype == np.float16 and io.stores_half_unchanged(out_path, stream.info,
-                                                                      pixel_type=wo.pixel_type)
-        out_dtype = np.float16 if half else np.float32
+        options = wo.for_inputs([in_path]) if not isinstance(wo, dict) else dict(wo)
+        info = stream.info
+        if attributes:
+            info = dataclasses.replace(info, attributes={**info.attributes, **attributes})
+        kept = 1 if work.keeps_input else 0
+        sizes = [(h, w)] * kept + [plan.images[k].size for k in plan.outputs]
+        if len(paths) != len(sizes):
+            raise ValueError(f"{work.label} writes {len(sizes)} image(s), got {len(paths)} path(s)")
+        half = stream.dtype == np.float16
+        dtypes = [np.float16 if half and io.stores_half_unchanged(p, info, pixel_type=options.get("pixel_type"))
+                  else np.float32 for p in paths]
         emu = isinstance(executor, tiles.Emulator)
         if choice is None:
-            choice = choose(plan, c, budget, in_bytes=stream.dtype.itemsize, out_bytes=np.dtype(out_dtype).itemsize,
+            choice = choose(plan, c, budget, in_bytes=stream.dtype.itemsize, out_bytes=4,
                             work_bytes=8 if emu else 4, force=True, where=in_path)
         band = choice.band or MIN_BAND
-        out = plan.images[plan.outputs[-1]]
-        with io.stream_writer(out_path, stream.info, out.size + (c,), **wo.for_inputs([in_path])) as writer:
+        slot = {k: kept + i for i, k in enumerate(plan.outputs)}
+        with io.stream_writers(paths, [info] * len(paths), [s + (c,) for s in sizes], **options) as writers:
             def source(k, rows, cols):
                 px = stream.read(*rows)
+                if kept:  # level 0 is the input: written as it is read (each row once, in order)
+                    writers[0].write(rows[0], px.astype(dtypes[0], copy=False))
                 px = px[:, cols[0]:cols[1]] if (cols[0], cols[1]) != (0, w) else px
                 return px.astype(np.float64) if emu else px
 
             def sink(k, r, c0, px):
-                writer.write(r, px.astype(out_dtype, copy=False))
+                j = slot[k]
+                writers[j].write(r, px.astype(dtypes[j], copy=False))
 
-            scheduler = tiles.Scheduler(executor, plan, source, sink, band=band, dtype=np.float64 if emu else
-                                        np.float32)
+            scheduler = tiles.Scheduler(executor, plan, source, sink, band=band,
+                                        dtype=np.float64 if emu else np.float32)
             scheduler.run()
         session.ran = session.name
         if reporter is not None and stream.nonfinite and ro.nan == "keep":
@@ -221,43 +237,80 @@ def stream_file(in_path: str, out_path: str, work, session, choice: Choice | Non
 STREAMABLE = ("apply", "blur")  # single-image jobs with one output (Work.label)
 
 
+def _decide(in_path: str, work, session, memory: int | None, read, reporter):
+    """(open stream, choice) when ``work`` on ``in_path`` streams, else None (it runs whole, as before)."""
+    from . import io, tiles
+    from .pipeline import ReadOptions
+
+    if session is None or session.executor is None:
+        if memory is not None:
+            _executor(session)  # refuses with the reason
+        return None
+    ro = read or ReadOptions()
+    budget = memory if memory is not None else default_memory()
+    st = io.open_stream(in_path, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan, keep_half=True)
+    try:
+        h, w, c = st.shape
+        work.check(((h, w),), where=in_path)
+        plan = session.plan(work, [(h, w)])
+        if plan is None:
+            st.close()
+            return None
+        emu = isinstance(_executor(session), tiles.Emulator)
+        choice = choose(plan, c, budget, in_bytes=st.dtype.itemsize, out_bytes=4, work_bytes=8 if emu else 4,
+                        where=in_path)
+    except BaseException:
+        st.close()
+        raise
+    if reporter is not None:
+        reporter.detail(f"{in_path}: {choice.describe()}")
+    if not choice.streams:
+        st.close()
+        return None
+    return st, choice
+
+
 def run_job(job, work, session, *, memory: int | None, read=None, write=None, reporter=None) -> bool:
     """Stream ``job`` when its whole-picture run would not fit the budget (``memory``, else
     :func:`default_memory`); False when it runs whole as before (it fits, or cannot stream: another kind
     of job, an output format encoded whole, the reference backend without ``memory``)."""
     from . import io
-    from .pipeline import ReadOptions
 
     if work.label not in STREAMABLE or work.n_inputs != 1 or work.keeps_input:
         if memory is not None:
-            raise UsageError(f"--memory: {work.label} runs whole pictures (it streams apply and blur)")
-        return False
-    if session is None or session.executor is None:
-        if memory is not None:
-            _executor(session)  # refuses with the reason
+            raise UsageError(f"--memory: {work.label} runs whole pictures (it streams apply, blur and levels)")
         return False
     if not io.streams_to(job.output):
         return False
-    ro = read or ReadOptions()
-    budget = memory if memory is not None else default_memory()
-    with io.open_stream(job.input, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan, keep_half=True) as st:
-        h, w, c = st.shape
-        work.check(((h, w),), where=job.input)
-        plan = session.plan(work, [(h, w)])
-        if plan is None:
-            return False
-        emu = isinstance(_executor(session), __import__("pyramid_cli.tiles", fromlist=["Emulator"]).Emulator)
-        choice = choose(plan, c, budget, in_bytes=st.dtype.itemsize, out_bytes=st.dtype.itemsize,
-                        work_bytes=8 if emu else 4, where=job.input)
-        if reporter is not None:
-            reporter.detail(f"{job.input}: {choice.describe()}")
-        if not choice.streams:
-            return False
-        stream_file(job.input, job.output, work, session, choice, budget=budget, read=read, write=write,
+    decided = _decide(job.input, work, session, memory, read, reporter)
+    if decided is None:
+        return False
+    st, choice = decided
+    with st:
+        stream_file(job.input, job.output, work, session, choice, budget=choice.budget, read=read, write=write,
                     reporter=reporter, stream=st)
+        h, w = st.shape[:2]
     if reporter is not None:
         reporter.result(f"wrote {job.output} ({w}×{h}, {session.ran}, streamed in bands of {choice.band} rows)")
     return True
 
 
-__all__ = ["Choice", "choose", "estimate", "parse_size", "default_memory", "stream_file", "format_size", "run_job"]
+def run_levels(in_path: str, paths: list[str], work, session, *, memory: int | None, read=None, options=None,
+               attributes: dict | None = None, reporter=None) -> bool:
+    """``pyramid levels`` (one file per level) streamed when the whole pyramid would not fit the budget;
+    False when it runs whole as before. ``options``: the write options (:func:`pyramid_cli.io.write_image`)."""
+    from . import io
+
+    if not all(io.streams_to(p) for p in paths):
+        return False
+    decided = _decide(in_path, work, session, memory, read, reporter)
+    if decided is None:
+        return False
+    st, choice = decided
+    with st:
+        stream_file(in_path, paths, work, session, choice, budget=choice.budget, read=read, write=options,
+                    reporter=reporter, stream=st, attributes=attributes)
+    return True
+
+
+__all__ = ["Choice", "choose", "estimate", "parse_size", "default_memory", "stream_file", "format_size", "run_job", "run_levels"]

@@ -198,3 +198,27 @@ def test_streaming_stays_within_the_memory_given(tmp_path):
 
 def test_resource_module_measures_children():
     assert resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss >= 0
+
+
+@pytest.mark.parametrize("laplacian, budget", [(False, 200 << 10), (True, 260 << 10)])
+def test_levels_stream_every_level(tmp_path, session, laplacian, budget):
+    """Every level (the input itself as level 0, or the Laplacian bands) streamed equals the whole run's files."""
+    from pyramid_cli.pipeline import Reporter, write_levels_files
+    from pyramid_cli.work import Laplacian, Levels
+
+    src = tmp_path / "in.exr"
+    write(src, noise(150, 97, seed=4))
+    work = Laplacian(levels=3) if laplacian else Levels(levels=3)
+    said = []
+    rep = Reporter(verbose=True, out=said.append, err=said.append)
+    streamed = write_levels_files(str(src), str(tmp_path / "s_{level}.exr"), work, session, memory=budget,
+                                  reporter=rep)
+    assert any("streams in bands" in m for m in said), said
+    whole = write_levels_files(str(src), str(tmp_path / "w_{level}.exr"), work, session)
+    assert len(streamed) == len(whole) == 4
+    for a, b in zip(streamed, whole, strict=True):
+        x, y = io.read_image(a, keep_half=True), io.read_image(b, keep_half=True)
+        assert np.array_equal(x.pixels, y.pixels) and x.spec.pixel_type == y.spec.pixel_type
+        assert x.spec.attributes.get("pyramid:synthesis") == y.spec.attributes.get("pyramid:synthesis")
+    with pytest.raises(UsageError, match="--multipart"):
+        write_levels_files(str(src), str(tmp_path / "m.exr"), work, session, multipart=True, memory=1 << 20)
