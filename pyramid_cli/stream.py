@@ -234,7 +234,7 @@ def stream_file(in_path: str, out_path: str | list[str], work, session, choice: 
             stream.close()
 
 
-STREAMABLE = ("apply", "blur")  # single-image jobs with one output (Work.label)
+STREAMABLE = ("apply", "blur")  # single-image jobs of one output (Work.label); levels: run_levels
 
 
 def _decide(in_path: str, work, session, memory: int | None, read, reporter):
@@ -313,4 +313,5 @@ def run_levels(in_path: str, paths: list[str], work, session, *, memory: int | N
     return True
 
 
-__all__ = ["Choice", "choose", "estimate", "parse_size", "default_memory", "stream_file", "format_size", "run_job", "run_levels"]
+__all__ = ["Choice", "choose", "estimate", "parse_size", "default_memory", "stream_file", "format_size", "run_job",
+           "run_levels"]
