@@ -90,9 +90,41 @@ def _run(work: Work, arrays: list, session: Session | None, backend: str) -> lis
     return _session(session, backend).run(work, arrays)
 
 
+def _banded(work: Work, array, out, memory, session: Session | None, backend: str) -> np.ndarray:
+    """One image through ``work`` band by band (:mod:`pyramid_cli.tiles`): a memory-mapped input is read
+    a band at a time and the result written into ``out`` (a memmap keeps it on disk), within ``memory`` bytes
+    of working set (default: a quarter of the available memory), the pixels of the whole run."""
+    from . import stream, tiles
+
+    a = array if isinstance(array, np.ndarray) else np.asarray(array)
+    if a.ndim not in (2, 3) or 0 in a.shape:
+        as_pixels(a)  # raises the usual message
+    s = _session(session, backend)
+    if s.executor is None:
+        raise ValueError("out= and memory= need a plan executor (backend 'gl' or 'cpu'): the reference "
+                         "backend holds whole pictures")
+    work.check((a.shape[:2],))
+    plan = s.plan(work, [a.shape[:2]])
+    shape = plan.output.size + a.shape[2:]
+    if out is None:
+        out = np.empty(shape, dtype=np.float32)
+    elif tuple(out.shape) != shape or out.dtype not in (np.float16, np.float32, np.float64):
+        raise ValueError(f"out: expected a float array of shape {shape}, got {out.dtype} {tuple(out.shape)}")
+    budget = stream.parse_size(memory) if isinstance(memory, str) else memory or stream.default_memory()
+    channels = a.shape[2] if a.ndim == 3 else 1
+    choice = stream.choose(plan, channels, budget, in_bytes=max(4, a.dtype.itemsize), force=True)
+    from .session import EmulatorExecutor
+
+    executor = tiles.Emulator() if isinstance(s.executor, EmulatorExecutor) else s.executor
+    tiles.run_arrays(executor, plan, [a], band=choice.band, out=[out], dtype=out.dtype, convert=as_pixels)
+    s.ran = s.name
+    return out
+
+
 # ------------------------------------------------------------------ arrays
 def apply(expr: str | Expr, array, *, border: str = "clamp", backend: str = "auto",
-          session: Session | None = None) -> np.ndarray:
+          session: Session | None = None, out: np.ndarray | None = None, memory: int | str | None = None
+          ) -> np.ndarray:
     """Apply a filter-chain expression to an image.
 
     Parameters
@@ -108,11 +140,18 @@ def apply(expr: str | Expr, array, *, border: str = "clamp", backend: str = "aut
         Where it runs (ignored when ``session`` is given).
     session : Session, optional
         Reuse one executor across calls.
+    out : numpy.ndarray, optional
+        Write the result here (float16/32/64 of the result's shape), e.g. a ``numpy.memmap`` on disk.
+        With ``out``, a ``numpy.memmap`` input or ``memory``, the image runs band by band in bounded memory
+        (the pixels of the whole run), so images larger than RAM work.
+    memory : int or str, optional
+        Working-set budget of a banded run in bytes, or ``"512M"``, ``"2G"`` (default: a quarter of the
+        available memory).
 
     Returns
     -------
     numpy.ndarray
-        float32; ⊗ keeps the size, ⊗↓ gives ⌈n/2⌉, ⊗↑ gives 2n per axis.
+        float32 (or ``out``); ⊗ keeps the size, ⊗↓ gives ⌈n/2⌉, ⊗↑ gives 2n per axis.
 
     Examples
     --------
@@ -122,13 +161,17 @@ def apply(expr: str | Expr, array, *, border: str = "clamp", backend: str = "aut
     >>> pyr.apply("doosabin *^ g", np.ones((2, 2, 3)), border="mirror").shape
     (4, 4, 3)
     """
-    (out,) = _run(Filter(expr=_expr(expr), border=border), [as_pixels(array)], session, backend)
-    return out
+    work = Filter(expr=_expr(expr), border=border)
+    if out is not None or memory is not None or isinstance(array, np.memmap):
+        return _banded(work, array, out, memory, session, backend)
+    (result,) = _run(work, [as_pixels(array)], session, backend)
+    return result
 
 
 def blur(array, levels: int = 4, *, sigma: float | None = None, analysis: str = catalogue.ANALYSIS_DEFAULT,
          synthesis: str = catalogue.SYNTHESIS_DEFAULT, quasi: bool = False, border: str = "clamp",
-         backend: str = "auto", session: Session | None = None) -> np.ndarray:
+         backend: str = "auto", session: Session | None = None, out: np.ndarray | None = None,
+         memory: int | str | None = None) -> np.ndarray:
     """Pyramidal blur: ``levels`` analysis steps down, then synthesis back to the input size (§2, Figure 3).
 
     Parameters
@@ -146,13 +189,13 @@ def blur(array, levels: int = 4, *, sigma: float | None = None, analysis: str = 
         The defaults are the paper's Figure 3b.
     quasi : bool
         Apply the §5.5 quasi-interpolation prefilter at the coarsest level.
-    border, backend, session
-        As in :func:`apply`.
+    border, backend, session, out, memory
+        As in :func:`apply` (``out`` and memory-mapped inputs run band by band).
 
     Returns
     -------
     numpy.ndarray
-        float32, the input's shape.
+        float32 (or ``out``), the input's shape.
 
     Examples
     --------
@@ -170,8 +213,10 @@ def blur(array, levels: int = 4, *, sigma: float | None = None, analysis: str = 
         if not 1 <= levels <= 16:
             raise ValueError(f"levels must be 1 to 16, not {levels}")
         work = Blur(levels=levels, analysis=analysis, synthesis=synthesis, quasi=quasi, border=border)
-    (out,) = _run(work, [as_pixels(array)], session, backend)
-    return out
+    if out is not None or memory is not None or isinstance(array, np.memmap):
+        return _banded(work, array, out, memory, session, backend)
+    (result,) = _run(work, [as_pixels(array)], session, backend)
+    return result
 
 
 def pyramid(array, *, analysis: str = catalogue.ANALYSIS_DEFAULT, levels: int | None = None, border: str = "clamp",

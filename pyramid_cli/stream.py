@@ -149,10 +149,10 @@ def choose(plan: Plan, channels: int, budget: int, *, in_bytes: int = 4, out_byt
         prefix = f"{where}: " if where else ""
         raise DataError(f"{prefix}this job needs at least {format_size(smallest)} of memory in bands of {MIN_BAND} "
                         f"rows (its guard bands at every level), over the budget of {format_size(budget)}; "
-                        "give more with --memory")
-    lo, hi = MIN_BAND, max(MIN_BAND, rows + MIN_BAND)
+                        "give more with --memory (memory= in Python)")
+    lo, hi = MIN_BAND, (rows // MIN_BAND + 2) * MIN_BAND  # hi: a whole band more than the picture
     while hi - lo > MIN_BAND:  # estimate grows with the band: bisect on multiples of MIN_BAND
-        mid = (lo + hi) // 2 // MIN_BAND * MIN_BAND
+        mid = (lo + hi) // (2 * MIN_BAND) * MIN_BAND  # strictly between lo and hi
         if estimate(plan, channels, mid, **kw) <= budget:
             lo = mid
         else:

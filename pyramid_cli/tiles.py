@@ -290,12 +290,13 @@ def ps_period(ps) -> int:
 
 
 def run_arrays(executor, plan: Plan, images, *, band: int, width: int | None = None, dtype=np.float32,
-               out: list[np.ndarray] | None = None) -> list[np.ndarray]:
+               out: list[np.ndarray] | None = None, convert=None) -> list[np.ndarray]:
     """Run ``plan`` tiled on in-memory (or memory-mapped) arrays; every ``plan.outputs`` image.
 
     ``images``: one (H, W) or (H, W, C) array per ``plan.inputs`` (a ``numpy.memmap`` is read band
     by band). ``out``: arrays to write into (a memmap keeps the result on disk); default new arrays.
     Outputs have ``dtype`` (the executor's intermediates stay float32; the emulator's float64).
+    ``convert``: applied to every band read (integer codes to floats, say).
     """
     arrays = list(images) if isinstance(images, (list, tuple)) else [images]
     flat = arrays[0].ndim == 2
@@ -308,6 +309,7 @@ def run_arrays(executor, plan: Plan, images, *, band: int, width: int | None = N
 
     def source(k, rows, cols):
         a = by_index[k][rows[0]:rows[1], cols[0]:cols[1]]
+        a = np.asarray(convert(a) if convert is not None else a)
         a = a[:, :, None] if flat else a
         if native == np.float64:
             return a.astype(np.float64)

@@ -203,3 +203,30 @@ def test_gl_filter_work_applies_tiled(gl):
     work = Filter(expr=parse("quadratic *v g"))
     p = work.plan((SIZE,))
     assert_same_tiled(gl, p, [image(SIZE, 3)], (3, 3))
+
+
+# ------------------------------------------------------------------ the Python API: arrays larger than RAM
+@pytest.mark.parametrize("fn", ["blur", "apply"])
+def test_api_memmap_in_memmap_out(tmp_path, fn):
+    """A memory-mapped input runs band by band into a memory-mapped ``out=``; the pixels of the whole run."""
+    pytest.importorskip("numba")
+    import pyramid_cli as pyr
+
+    size = (70, 45, 3)
+    src = np.lib.format.open_memmap(tmp_path / "in.npy", "w+", np.float32, size)
+    src[...] = image(size[:2], 3, seed=9)
+    src.flush()
+    mm = np.load(tmp_path / "in.npy", mmap_mode="r")
+    call = (lambda a, **kw: pyr.blur(a, 3, backend="cpu", **kw)) if fn == "blur" else \
+        (lambda a, **kw: pyr.apply("quadratic *v g", a, backend="cpu", **kw))
+    want = call(np.array(mm))
+    dst = np.lib.format.open_memmap(tmp_path / "out.npy", "w+", np.float32, want.shape)
+    got = call(mm, out=dst, memory="128K")
+    assert got is dst
+    dst.flush()
+    assert np.array_equal(np.load(tmp_path / "out.npy"), want)
+    assert np.array_equal(call(mm), want)  # a memmap alone: banded, into a new array
+    codes = (np.asarray(mm) * 255).astype(np.uint8)  # integer codes are normalised band by band
+    assert np.array_equal(call(codes, memory=1 << 17), call(codes))
+    with pytest.raises(ValueError, match="out: expected a float array of shape"):
+        call(mm, out=np.empty((3, 3), np.float32))
