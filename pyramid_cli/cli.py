@@ -132,13 +132,17 @@ def _size(ctx, param, value):
               help="cost: per filter, the paper's decomposition or one fused pass, whichever is faster by the "
                    "cost model calibrated by bench/calibrate.py (pyramid_cli/cost_model.json); paper: always "
                    "the paper's; fused: always one pass per filter (what the CPU executor runs).")
-def plan_command(expression, size, as_json: bool, strategy: str) -> None:
+@click.option("--memory", metavar="SIZE", default=None,
+              help="Also say how a file of this size runs in this working-set budget (e.g. 512M): whole, or "
+                   "streamed in bands of how many rows (RGBA float; see pyramid apply --memory).")
+def plan_command(expression, size, as_json: bool, strategy: str, memory: str | None) -> None:
     """Show the render passes and bilinear taps that compute EXPRESSION.
 
     \b
     Example:
       pyramid plan 'quadratic *v g' --size 1920x1080
       pyramid plan --json 'h_Doo-Sabin ⊗↑ g' --size 64x64
+      pyramid plan 'gauss7' --size 32768x32768 --memory 1G
 
     \b
     Tap positions are [x, y] in source texels relative to the source pixel the
@@ -149,7 +153,20 @@ def plan_command(expression, size, as_json: bool, strategy: str) -> None:
     w, h = size
     p = plan(expression, (h, w), strategy)
     check(p)
-    click.echo(json.dumps(to_json(p), ensure_ascii=False) if as_json else render(p))
+    choice = None
+    if memory is not None:
+        from .stream import choose, parse_size
+
+        choice = choose(p, 4, parse_size(memory))
+    if as_json:
+        doc = to_json(p)
+        if choice is not None:
+            doc["memory"] = choice.to_json()
+        click.echo(json.dumps(doc, ensure_ascii=False))
+        return
+    click.echo(render(p))
+    if choice is not None:
+        click.echo(f"memory: {choice.describe()}")
 
 
 def io_options(f):

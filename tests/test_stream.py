@@ -222,3 +222,16 @@ def test_levels_stream_every_level(tmp_path, session, laplacian, budget):
         assert x.spec.attributes.get("pyramid:synthesis") == y.spec.attributes.get("pyramid:synthesis")
     with pytest.raises(UsageError, match="--multipart"):
         write_levels_files(str(src), str(tmp_path / "m.exr"), work, session, multipart=True, memory=1 << 20)
+
+
+def test_plan_says_how_a_size_runs_in_a_budget():
+    from click.testing import CliRunner
+
+    from pyramid_cli.cli import main
+
+    r = CliRunner().invoke(main, ["plan", "gauss5", "--size", "32768x32768", "--memory", "1G"])
+    assert r.exit_code == 0 and "memory: streams in bands of" in r.output, r.output
+    r = CliRunner().invoke(main, ["plan", "gauss5", "--size", "64x64", "--memory", "1G", "--json"])
+    assert r.exit_code == 0 and '"band": null' in r.output
+    r = CliRunner().invoke(main, ["plan", "gauss5", "--size", "32768x32768", "--memory", "1M"])
+    assert r.exit_code == 5 and "needs at least" in r.output
