@@ -78,7 +78,7 @@ def load() -> float:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--sizes", default="4096,8192,16384,32768")
-    X
+    ap.add_argument("--memory", default="512M", help="pyramid's --memory (default 512M: every size streams)")
     ap.add_argument("--reps", type=int, default=1)
     ap.add_argument("--data", default="/tmp/pyramid-bench-big")
     ap.add_argument("--json", default=str(HERE / "results" / "big-latest.json"))
