@@ -131,7 +131,7 @@ class Scheduler:
         self.dtype = dtype
         self.writer = {ps.target: ps for ps in plan.passes}
         self.steps = 0          # executor calls, for reports
-        self.peak_rows = 0      # most rows held at once (all images), for reports
+        self.peak_pixels = 0      # most pixels held at once (all images), for reports
 
     # ------------------------------------------------------------ driving
     def run(self) -> None:
@@ -222,7 +222,7 @@ class Scheduler:
     def _append(self, st: _State, px: np.ndarray) -> None:
         st.buf = px.copy() if st.buf is None else np.concatenate([st.buf, px])
         st.done += px.shape[0]
-        self.peak_rows = max(self.peak_rows, sum(s.buf.shape[0] * s.buf.shape[1] for s in self.state.values()
+        self.peak_pixels = max(self.peak_pixels, sum(s.buf.shape[0] * s.buf.shape[1] for s in self.state.values()
                                                  if s.buf is not None))
 
     def _window(self, src: _State, rr: tuple[int, int], cc: tuple[int, int]):

@@ -88,7 +88,7 @@ def test_the_band_is_bounded():
                         lambda k, r, c, px: got.append(px), band=8, dtype=np.float64)
     s.run()
     assert sum(len(g) for g in got) == 400
-    assert s.peak_rows < 400 * 16 / 4, s.peak_rows
+    assert s.peak_pixels < 400 * 16 / 4, s.peak_pixels
 
 
 def test_reads_of_a_pass_include_the_guard_band():
