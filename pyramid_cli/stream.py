@@ -217,9 +217,9 @@ def stream_file(in_path: str, out_path: str | list[str], work, session, choice: 
                 px = px[:, cols[0]:cols[1]] if (cols[0], cols[1]) != (0, w) else px
                 return px.astype(np.float64) if emu else px
 
-            def sink(k, r, c0, px):
+            def sink(k, r, c0, px):  # px is the scheduler's buffer: the writer may keep rows, so a copy
                 j = slot[k]
-                writers[j].write(r, px.astype(dtypes[j], copy=False))
+                writers[j].write(r, px.astype(dtypes[j]))
 
             scheduler = tiles.Scheduler(executor, plan, source, sink, band=band,
                                         dtype=np.float64 if emu else np.float32)

@@ -113,7 +113,8 @@ class Scheduler:
         (inside the image), (h, w, C).
     sink : callable
         ``sink(k, row, col, pixels)``: output image ``k``'s pixels at ``(row, col)``; called in row order
-        within a strip.
+        within a strip. ``pixels`` is a view of the scheduler's buffers, valid during the call only: copy
+        what must outlive it.
     band, width : int
         Rows and columns of a tile, in pixels of the largest output (smaller outputs get their share).
     dtype
@@ -206,13 +207,11 @@ class Scheduler:
             self._append(st, px)
             return
         step = ps.tile((st.done, hi), st.comp)
-        windows, origins = [], []
-        for s, (rr, cc) in sorted(ps.reads(step.rows, step.cols).items()):
-            src = self.state[s]
-            need = _restrict(rr, src.rows, src.border)
-            self._advance(s, *need)
-            windows.append(self._window(src, rr, cc))
-            origins.append((s, step.origins[s], rr, cc))
+        reads = sorted(ps.reads(step.rows, step.cols).items())
+        for s, (rr, _) in reads:  # every source first: advancing one may append to another (a shared ancestor)
+            self._advance(s, *_restrict(rr, self.state[s].rows, self.state[s].border))
+        windows = [self._window(self.state[s], rr, cc) for s, (rr, cc) in reads]  # views, valid until the next append
+        origins = [(s, step.origins[s], rr, cc) for s, (rr, cc) in reads]
         out = self._run(ps.target, step, windows, origins)
         r0, (k0, k1) = st.done, st.cols
         self._append(st, out[r0 - step.rows[0]:, k0 - step.cols[0]:k1 - step.cols[0]])
@@ -220,8 +219,8 @@ class Scheduler:
             self._trim(s)
 
     def _append(self, st: _State, px: np.ndarray) -> None:
-        st.buf = px.copy() if st.buf is None else np.concatenate([st.buf, px])
-        st.done += px.shape[0]
+        st.buf = px.copy() if st.buf is None else np.concatenate([st.buf, px])  # (a ring buffer measured no
+        st.done += px.shape[0]                                                   # faster, and held more)
         self.peak_pixels = max(self.peak_pixels, sum(s.buf.shape[0] * s.buf.shape[1] for s in self.state.values()
                                                  if s.buf is not None))
 
