@@ -25,44 +25,123 @@ WRAP_NAMES = tuple(WRAP_TO_BORDER)
 SHA1_BLOCK = 256
 
 
+ROUNDING = ("down", "up")  # level sizes max(1, ⌊n/2⌋) (maketx's, the default) or ⌈n/2⌉ (⊗↓'s)
+
+
 @dataclass(frozen=True, kw_only=True)
 class TextureLevels(Levels):
-    """A MIP chain down to 1×1 (:class:`pyramid_cli.work.Levels`) with maketx's ``--constant-color-detect``.
+    """A MIP chain down to 1×1 (:class:`pyramid_cli.work.Levels`) as a renderer reads it.
 
-    ``constant_detect``: an image whose pixels are all the same becomes one tile of that colour before
-    the levels are made (:func:`shrink_constant`).
+    ``rounding`` "down" (the default): maketx's and OpenEXR's level sizes ``max(1, ⌊n/2⌋)``;
+    levels that halve exactly use the paper's ``analysis`` filter, the others are resampled with
+    the same filter's continuous kernel so that every level covers the whole texture domain
+    (:mod:`pyramid_cli.plan.resample`, :func:`pyramids.mip_plan`). "up": the analysis pyramid's
+    sizes ``⌈n/2⌉`` (odd sizes padded by the border), :class:`Levels` as it is.
+    ``constant_detect``: an image whose pixels are all the same becomes one tile of that colour
+    before the levels are made (:func:`shrink_constant`).
     """
 
     constant_detect: bool = False
-    round_down: bool = False  # maketx's level sizes ⌊n/2⌋, by area resampling (:func:`area_levels`)
+    rounding: str = "down"
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.rounding not in ROUNDING:
+            raise UsageError(f"unknown rounding {self.rounding!r} (down or up)")
+        if self.rounding == "down":
+            from .pyramids import mip_axis_weights
+
+            mip_axis_weights(self.analysis)  # refuses a filter the rule cannot resample (exit 2)
 
     @property
     def filter_name(self) -> str:
-        """The filter that makes the levels: ``"area"`` when rounding down, else ``analysis``."""
-        return "area" if self.round_down else self.analysis
+        """The filter and rule, as the hash and ImageHistory name them: ``quadratic`` or ``quadratic/up``."""
+        return self.analysis if self.rounding == "down" else f"{self.analysis}/up"
+
+    def count(self, size) -> int:
+        return len(mip_sizes(tuple(size[:2]), self.rounding)) - 1
+
+    def plan(self, sizes, strategy="cost"):
+        if self.rounding == "up":
+            return super().plan(sizes, strategy)
+        from .pyramids import mip_plan
+
+        return mip_plan(tuple(sizes[0][:2]), self.analysis, self.border, strategy) if self.count(sizes[0]) else None
+
+    def reference(self, images):
+        if self.rounding == "up":
+            return super().reference(images)
+        return mip_reference(images[0], self.analysis, self.border)[1:]
 
 
-def area_weights(n: int, m: int) -> np.ndarray:
-    """The (m, n) matrix resampling n samples to m by area: output j averages input over [j·n/m, (j+1)·n/m)."""
-    scale = n / m
-    lo = np.arange(m)[:, None] * scale
-    i = np.arange(n)[None, :]
-    overlap = np.clip(np.minimum(lo + scale, i + 1) - np.maximum(lo, i), 0, None)
-    return overlap / scale
+def mip_sizes(size: tuple[int, int], rounding: str = "down") -> list[tuple[int, int]]:
+    """Level sizes (rows, columns) down to 1×1: ``max(1, ⌊n/2⌋)`` ("down") or ``⌈n/2⌉`` ("up")."""
+    out = [tuple(size)]
+    while out[-1][0] > 1 or out[-1][1] > 1:
+        h, w = out[-1]
+        out.append((max(1, h // 2), max(1, w // 2)) if rounding == "down" else ((h + 1) // 2, (w + 1) // 2))
+    return out
 
 
-def area_levels(pixels: np.ndarray) -> list[np.ndarray]:
-    """MIP levels 1.. down to 1×1 with maketx's sizes ``max(1, ⌊n/2⌋)``, each the area average of the one above.
+# ------------------------------------------------------------------ the float64 reference of domain-true levels
+def _kernel_1d(analysis: str) -> tuple[np.ndarray, np.ndarray] | None:
+    """(offsets d, weights w_d) of a named analysis mask, f[r] = Σ w_d g[2r − d], straight from the paper's
+    index formula ``d = ⌊i − n/2⌋`` (1-based i) and the mask's row sums; None for expressions."""
+    from . import catalogue
 
-    Every output texel covers its exact share of the level above (no sample of the domain is dropped
-    or counted twice for odd sizes), so every level keeps the image's mean. Computed in float64.
+    if analysis not in catalogue.ANALYSIS_FILTERS:
+        return None
+    mask = np.array([[float(v) for v in row] for row in catalogue.mask(analysis).mask])
+    n = mask.shape[0]
+    return np.floor(np.arange(1, n + 1) - n / 2).astype(int), mask.sum(axis=1)
+
+
+def resample_matrix(d: np.ndarray, w: np.ndarray, n_in: int, n_out: int, border: str) -> np.ndarray:
+    """(n_out, n_in) float64 matrix resampling an axis with the continuous kernel of the weights ``w_d``.
+
+    Independent of the planner's exact tables (:mod:`pyramid_cli.plan.resample`, whose docstring
+    derives the kernel): here the kernel's integral ``F(u)`` is a piecewise-linear function through its
+    breakpoints, and each texel's weight is ``F`` at the end of its footprint minus ``F`` at its start,
+    ``u = (x − (j + ½)·s)/s`` for input position x and ``s = n_in/n_out``; reads past the edges fold by
+    ``border`` into the matrix's columns (zero drops them).
     """
-    levels, x = [], pixels.astype(np.float64)
-    while x.shape[0] > 1 or x.shape[1] > 1:
-        h, w = x.shape[:2]
-        x = np.einsum("ji,ikc->jkc", area_weights(h, max(1, h // 2)), x)
-        x = np.einsum("lk,jkc->jlc", area_weights(w, max(1, w // 2)), x)
-        levels.append(x.astype(np.float32))
+    from .border import Border, fold
+
+    if n_in == n_out == 1:
+        return np.ones((1, 1))
+    dd = np.arange(d.max(), d.min() - 1, -1)  # every offset, the kernel's pieces left to right
+    wd = np.array([w[d == k].sum() for k in dd])
+    lo = -dd / 2.0  # piece of weight w_d: [−d/2, (1 − d)/2) in output units, density 2·w_d
+    xs = np.concatenate([lo, [lo[-1] + 0.5]])
+    cum = np.concatenate([[0.0], np.cumsum(wd)])
+    s = n_in / n_out
+    reach = int(np.ceil(np.abs(xs).max() * s)) + 2
+    i = np.arange(-reach, n_in + reach)
+    c = (np.arange(n_out)[:, None] + 0.5) * s
+    ext = np.interp((i[None, :] + 1 - c) / s, xs, cum) - np.interp((i[None, :] - c) / s, xs, cum)
+    cols = fold(i + 1, n_in, Border.parse(border))
+    out = np.zeros((n_out, n_in + 1))
+    np.add.at(out.T, cols, ext.T)  # folded column 0 means "outside, reads zero"
+    return out[:, 1:]
+
+
+def mip_reference(pixels: np.ndarray, analysis: str, border: str = "clamp") -> list[np.ndarray]:
+    """Levels 0..1×1 with maketx's sizes, every level resampled from the one above by ``analysis``'s
+    continuous kernel (at exact halvings that is the filter itself), in float64."""
+    from .pyramids import mip_axis_weights
+
+    kern = _kernel_1d(analysis)
+    if kern is None:  # an expression: its separated 1-D weights (the planner's source, no other exists)
+        rows, _ = mip_axis_weights(analysis)
+        kern = (np.array([d for d, _ in rows]), np.array([float(v) for _, v in rows]))
+    x = np.asarray(pixels, dtype=np.float64)
+    levels = [x]
+    for h, w in mip_sizes(x.shape[:2])[1:]:
+        a = resample_matrix(*kern, x.shape[0], h, border)
+        b = resample_matrix(*kern, x.shape[1], w, border)
+        x = np.einsum("ji,ik...->jk...", a, x)
+        x = np.einsum("lk,jk...->jl...", b, x)
+        levels.append(x)
     return levels
 
 
@@ -179,9 +258,10 @@ def texture_metadata(border: str, analysis: str, sha1: str | None = None, oiio_v
     from . import __version__
 
     tool = f"pyramid mipmap (bilinear-pyramid {__version__})"
+    name, _, up = analysis.partition("/")  # TextureLevels.filter_name: "quadratic" or "quadratic/up"
     meta = {"wrapmodes": wrapmodes(border),
             "Software": f"OpenImageIO {oiio_version} : {tool}" if oiio_version else tool,
-            "Exif:ImageHistory": f"pyramid mipmap {'--round down' if analysis == 'area' else '--analysis ' + analysis}"
+            "Exif:ImageHistory": f"pyramid mipmap --analysis {name} --round {'up' if up else 'down'}"
                                  f" --wrap {BORDER_TO_WRAP[border]}"}
     if sha1:
         meta["oiio:SHA-1"] = sha1

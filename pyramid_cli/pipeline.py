@@ -183,11 +183,6 @@ def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: R
 
     def compute(job_image):
         job, image = job_image
-        if mip_tile and getattr(work, "round_down", False):  # maketx's sizes: area resampling in numpy
-            from .mip import area_levels
-
-            pixels = image.pixels.astype(np.float32)
-            return [io.Image(px, image.spec) for px in [pixels, *area_levels(pixels)]]
         if not announced:
             announced.append(True)
             _announce_compiles(session, work, [image.pixels], reporter)
@@ -212,8 +207,7 @@ def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: R
         if not show_bar:
             h, w = images[0].pixels.shape[:2]
             levels = f", {len(images)} MIP levels" if mip_tile else ""
-            ran = "numpy" if getattr(work, "round_down", False) else session.ran
-            reporter.result(f"wrote {job.output} ({w}×{h}{levels}, {ran})")
+            reporter.result(f"wrote {job.output} ({w}×{h}{levels}, {session.ran})")
 
     show_bar = many and not reporter.quiet and reporter.progress is not None
     run_options = {"keep_going": keep_going, "skip_existing": skip_existing, "workers": jobs,

@@ -136,6 +136,56 @@ def blur_plan(size: tuple[int, int], levels: int, analysis: str = A0, synthesis:
     return plan_steps(step_list, size, crops, text=text, strategy=strategy, border=border)
 
 
+@lru_cache(maxsize=64)
+def mip_axis_weights(analysis: str):
+    """The 1-D weights (rows, columns) of a one-step separable ⊗↓ filter, ``((d, w_d), …)`` each, for
+    :func:`mip_plan`; UsageError (exit 2) for an analysis that maketx's level sizes cannot use."""
+    st = steps(_one_step(analysis, Op.DOWN))
+    split = algebra.split_step(algebra.step_of(*st[0])) if len(st) == 1 and st[0][2] == 1 else None
+    if split is None:
+        raise UsageError(f"--analysis {analysis!r}: maketx's level sizes (--round down) need one separable ⊗↓ "
+                         "step (box, box4, quadratic, cubic or a separable mask); use --round up for others")
+    return tuple(tuple(sorted(axis[0].items())) for axis in split)
+
+
+@lru_cache(maxsize=32)  # batches re-use a plan per image size
+def mip_plan(size: tuple[int, int], analysis: str = catalogue.MIP_ANALYSIS_DEFAULT, border: str = "clamp",
+             strategy: str = "cost") -> Plan:
+    """MIP levels 1..1×1 with maketx's sizes ``max(1, ⌊n/2⌋)``, every level covering the whole texture domain.
+
+    A level that halves both sizes exactly runs the paper's ⊗↓ passes of ``analysis`` (§4). Any other
+    level runs one :class:`~pyramid_cli.plan.ResamplePass` per axis that changes: the same filter's
+    continuous kernel stretched to the level's ratio (:mod:`pyramid_cli.plan.resample`; at an exact
+    halving its weights are the paper's). An axis of one pixel stays as it is.
+    """
+    from .mip import mip_sizes
+    from .plan.resample import axis_table
+
+    weights = mip_axis_weights(analysis)
+    down = steps(_one_step(analysis, Op.DOWN))
+    sizes = mip_sizes(size)
+    b = Builder(size, strategy, border)
+    outs, current = [], 0
+    for k in range(1, len(sizes)):
+        (h, w), (h2, w2) = sizes[k - 1], sizes[k]
+        if h == 2 * h2 and w == 2 * w2:
+            first = len(b.passes)
+            current = _run_steps(b, current, down)
+            for ps in b.passes[first:]:
+                ps.label = f"level {k} {w2}×{h2}: {ps.label} (exact halving: the paper's passes)"
+        else:
+            for axis, (n, m) in enumerate(((h, h2), (w, w2))):
+                if n == m:
+                    continue
+                name = ("rows", "columns")[axis]
+                starts, table = axis_table(weights[axis], n, m)
+                ratio = "exact ×2" if n == 2 * m else f"×{n / m:.4g}"
+                current = b.resample(current, axis, starts, table,
+                                     f"level {k} {w2}×{h2}: {analysis} kernel resampled, {name} {n}→{m} ({ratio})")
+        outs.append(current)
+    return b.build(f"mipmap: {len(sizes) - 1} level(s) to 1×1, maketx's sizes, {analysis} ⊗↓", outputs=outs)
+
+
 # ------------------------------------------------------------------ the same workflows by the reference
 def _ref(expr: Expr, x, border: str):
     from . import reference

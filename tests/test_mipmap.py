@@ -203,7 +203,7 @@ def test_8bit_srgb_png_gives_an_8bit_srgb_mipmapped_tiff(tmp_path, png8, ext):
     dst = tmp_path / f"albedo.{ext}"
     mipmap("--tile", "16", png8, dst)
     info = subprocess.run([OIIOTOOL, "--info", "-v", str(dst)], check=True, capture_output=True, text=True).stdout
-    assert "uint8 tiff" in info and "MIP-map levels: 48x64 24x32 12x16 6x8 3x4 2x2 1x1" in info, info
+    assert "uint8 tiff" in info and "MIP-map levels: 48x64 24x32 12x16 6x8 3x4 1x2 1x1" in info, info
     assert 'textureformat: "Plain Texture"' in info and "tile size: 16 x 16" in info
     assert "srgb" in attributes(dst)["oiio:ColorSpace"].lower()
     # Filtered in linear light and encoded back: the levels are the EXR's (linear half) levels, sRGB-encoded.
@@ -327,34 +327,40 @@ def maketx_sizes(path: Path) -> list[tuple[int, int]]:
 
 
 @pytest.mark.parametrize("shape", [(37, 50), (64, 48), (1, 9), (5, 3)])
-def test_round_down_gives_maketx_level_sizes_and_keeps_the_mean(tmp_path, shape):
+@pytest.mark.parametrize("analysis", ["box", "quadratic"])
+def test_default_sizes_are_maketx_and_every_level_keeps_the_mean(tmp_path, shape, analysis):
     src, ours, theirs = tmp_path / "in.exr", tmp_path / "ours.exr", tmp_path / "theirs.exr"
     g = np.random.default_rng(6).random(shape + (3,)).astype(np.float32)
     write(src, g)
-    mipmap("--round", "down", "--type", "float", src, ours)
+    mipmap("--wrap", "periodic", "--analysis", analysis, "--type", "float", src, ours)
     maketx(src, theirs)
     assert maketx_sizes(ours) == maketx_sizes(theirs)
     mean = g.astype(np.float64).mean(axis=(0, 1))
     for level in levels_of(ours):  # every texel covers its share: no part of the domain dropped or doubled
-        np.testing.assert_allclose(level.mean(axis=(0, 1)), mean, atol=1e-5)
+        np.testing.assert_allclose(level.mean(axis=(0, 1)), mean, rtol=1e-5)
     average = [float(v) for v in attributes(ours)["oiio:AverageColor"].split(",")]
-    np.testing.assert_allclose(levels_of(ours)[-1][0, 0], average, atol=1e-5)
+    np.testing.assert_allclose(levels_of(ours)[-1][0, 0], average, rtol=1e-5)
 
 
-def test_round_down_of_even_sizes_is_the_box_filter(tmp_path):
-    src, down, box = tmp_path / "in.exr", tmp_path / "down.exr", tmp_path / "box.exr"
+def test_round_up_keeps_the_analysis_pyramids_sizes_and_even_levels_agree(tmp_path):
+    src, down, up = tmp_path / "in.exr", tmp_path / "down.exr", tmp_path / "up.exr"
     write(src, np.random.default_rng(7).random((32, 16, 4)).astype(np.float32))
     mipmap("--round", "down", "--type", "float", src, down)
-    mipmap("--analysis", "box", "--type", "float", src, box)
-    for a, b in zip(levels_of(down), levels_of(box), strict=True):
+    mipmap("--round", "up", "--type", "float", src, up)
+    for a, b in zip(levels_of(down), levels_of(up), strict=True):  # powers of two: the same filter
         np.testing.assert_allclose(a, b, atol=1e-6)
+    odd = tmp_path / "odd.exr"
+    write(odd, np.random.default_rng(7).random((5, 7, 3)).astype(np.float32))
+    mipmap("--round", "up", "--type", "float", odd, up)
+    assert maketx_sizes(up) == [(5, 7), (3, 4), (2, 2), (1, 1)]
+    assert "--round up" in attributes(up)["Exif:ImageHistory"]
 
 
 def test_round_down_tx_reads_in_the_texture_system(tmp_path, png8):
     src = tmp_path / "odd.png"
     write(src, (np.random.default_rng(9).random((37, 50, 3)) * 255).astype(np.uint8), "uint8")
     dst = tmp_path / "odd.tx"
-    mipmap("--round", "down", "--tile", "16", src, dst)
+    mipmap("--tile", "16", src, dst)
     levels = levels_of(dst)
     assert [x.shape[:2] for x in levels] == [(37, 50), (18, 25), (9, 12), (4, 6), (2, 3), (1, 1)]
     ts = oiio.TextureSystem(shared=False)
@@ -367,12 +373,12 @@ def test_round_down_tx_reads_in_the_texture_system(tmp_path, png8):
     assert "--round down" in attributes(tmp_path / "odd.tx").get("Exif:ImageHistory", "--round down")
 
 
-def test_round_down_refuses_an_analysis(tmp_path):
+def test_round_down_refuses_an_analysis_it_cannot_resample(tmp_path):
     src = tmp_path / "in.exr"
     write(src, np.zeros((8, 8, 3), np.float32))
-    r = CliRunner().invoke(main, ["mipmap", *CPU, "--round", "down", "--analysis", "cubic", str(src),
-                                  str(tmp_path / "o.exr")])
-    assert r.exit_code == 2 and "--analysis applies to --round up only" in r.output, r.output
+    r = CliRunner().invoke(main, ["mipmap", *CPU, "--analysis", "box *v^2 g", str(src), str(tmp_path / "o.exr")])
+    assert r.exit_code == 2 and "need one separable ⊗↓ step" in r.output, r.output
+    assert not (tmp_path / "o.exr").exists()
 
 
 def test_exr_levels_that_halve_neither_way_are_refused(tmp_path):
