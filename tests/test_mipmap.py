@@ -395,3 +395,55 @@ def _flat(tmp_path: Path) -> Path:
     src = tmp_path / "flat.exr"
     write(src, np.zeros((4, 4, 3), np.float32))
     return src
+
+
+# ------------------------------------------------------------------------------------ against maketx
+
+
+def write_half(path: Path, pixels: np.ndarray) -> None:
+    write(path, pixels.astype(np.float16), "half")
+
+
+@pytest.mark.parametrize("shape", [(64, 32, 4), (16, 16, 3)])
+@pytest.mark.parametrize("backend", ["cpu", "gl"])
+def test_box_on_even_sizes_is_bit_identical_to_maketx_box(tmp_path, shape, backend):
+    """Half sources: a sum of four halves is exact in float32, so the order of the additions cannot
+    matter and both tools must store the same half values at every level (float32 sources differ by
+    one float32 ulp at most: each tool adds in its own order)."""
+    if backend == "gl":
+        from pyramid_cli import gl
+
+        ok, why = gl.available()
+        if not ok and not os.environ.get("CI"):
+            pytest.skip(why)
+    src, ours, theirs = tmp_path / "in.exr", tmp_path / "ours.exr", tmp_path / "theirs.exr"
+    write_half(src, np.random.default_rng(11).random(shape))
+    r = CliRunner().invoke(main, ["mipmap", "--backend", backend, "--analysis", "box", str(src), str(ours)])
+    assert r.exit_code == 0, r.output
+    maketx(src, theirs, "--filter", "box")
+    a, b = levels_of(ours, "half"), levels_of(theirs, "half")
+    assert [x.shape for x in a] == [x.shape for x in b]
+    for k, (x, y) in enumerate(zip(a, b, strict=True)):
+        assert np.array_equal(x.view(np.uint16), y.view(np.uint16)), f"level {k}"
+
+
+@pytest.mark.parametrize("shape", [(777, 1001), (3, 5), (1, 7), (7, 1), (2, 3),
+                                   pytest.param((1080, 1920), marks=pytest.mark.slow)])
+def test_level_count_and_sizes_are_maketxs(tmp_path, shape):
+    src, ours, theirs = tmp_path / "in.exr", tmp_path / "ours.tx", tmp_path / "theirs.tx"
+    write_half(src, np.random.default_rng(12).random(shape + (3,)))
+    mipmap(src, ours)
+    maketx(src, theirs)
+    assert maketx_sizes(ours) == maketx_sizes(theirs)
+
+
+def test_average_color_and_the_1x1_level_equal_maketxs_for_box_on_even_sizes(tmp_path):
+    src, ours, theirs = tmp_path / "in.exr", tmp_path / "ours.exr", tmp_path / "theirs.exr"
+    write(src, np.random.default_rng(13).random((64, 128, 3)).astype(np.float32))
+    mipmap("--analysis", "box", "--type", "float", src, ours)
+    maketx(src, theirs, "--filter", "box", "-d", "float")
+    a, b = attributes(ours), attributes(theirs)
+    assert set(b) - set(a) <= {"Exif:ImageHistory"}
+    np.testing.assert_allclose([float(v) for v in a["oiio:AverageColor"].split(",")],
+                               [float(v) for v in b["oiio:AverageColor"].split(",")], rtol=1e-6)
+    np.testing.assert_allclose(levels_of(ours)[-1], levels_of(theirs)[-1], rtol=1e-6)
