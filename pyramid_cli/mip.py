@@ -218,23 +218,55 @@ def format_floats(values: list[float]) -> str:
     return ",".join(f"{v:g}" for v in values)
 
 
+def stored_floats(data: np.ndarray) -> np.ndarray:
+    """Stored values as OpenImageIO converts them to float32: integers times ``float32(1/max)``
+    (``convert_type``, bit for bit), half widened, float as is."""
+    if np.issubdtype(data.dtype, np.integer):
+        return data.astype(np.float32) * np.float32(1 / np.iinfo(data.dtype).max)
+    return data.astype(np.float32, copy=False)
+
+
+def sha1_state(data: np.ndarray, block: int = SHA1_BLOCK, threads: int = 2):
+    """The unfinished SHA-1 of ``computePixelHashSHA1(buf, extra, ROI::All(), block)`` over stored pixels.
+
+    ``data`` is (H, W, C) as the file stores it (uint8, uint16, float16 or float32); each ``block`` rows
+    are converted to float32 as OpenImageIO converts them (:func:`stored_floats`: what maketx hashes,
+    since it works in float) and hashed in ``threads`` threads. Up to ``block`` rows: the SHA-1 of the
+    bytes; more: the SHA-1 of the concatenated upper-case hex digests of each block. :func:`finish_sha1`
+    appends ``extra`` and gives the digest, so the state can be computed from the pixels as they are read.
+    """
+    if block <= 0 or block >= data.shape[0]:
+        return hashlib.sha1(np.ascontiguousarray(stored_floats(data)).tobytes())
+
+    def digest(y: int) -> bytes:
+        return hashlib.sha1(np.ascontiguousarray(stored_floats(data[y:y + block]))).hexdigest().upper().encode()
+
+    starts = range(0, data.shape[0], block)
+    if threads > 1 and len(starts) > 1:
+        from concurrent.futures import ThreadPoolExecutor
+
+        with ThreadPoolExecutor(max_workers=threads) as pool:  # hashlib and numpy release the GIL
+            digests = list(pool.map(digest, starts))
+    else:
+        digests = [digest(y) for y in starts]
+    return hashlib.sha1(b"".join(digests))
+
+
+def finish_sha1(state, extra: str = "") -> str:
+    """The upper-case hex SHA-1 of a :func:`sha1_state` with ``extra`` appended (the state is not changed)."""
+    sha = state.copy()
+    sha.update(extra.encode())
+    return sha.hexdigest().upper()
+
+
 def pixel_sha1(data: np.ndarray, extra: str = "", block: int = SHA1_BLOCK) -> str:
     """OpenImageIO's ``computePixelHashSHA1(buf, extra, ROI::All(), block)`` of stored pixels ``data``.
 
     ``data`` is (H, W, C) as maketx holds the source: float32 of the stored values (integers as
-    0..1, no colour conversion), bytes in native order. Up to
-    ``block`` rows: the SHA-1 of the bytes then ``extra``. More: the SHA-1 of the concatenated
-    upper-case hex digests of each ``block`` rows, then ``extra``.
+    0..1, no colour conversion), bytes in native order; other stored types are converted as
+    OpenImageIO converts them (:func:`sha1_state`).
     """
-    data = np.ascontiguousarray(data)
-    extra_bytes = extra.encode()
-    if block <= 0 or block >= data.shape[0]:
-        return hashlib.sha1(data.tobytes() + extra_bytes).hexdigest().upper()
-    sha = hashlib.sha1()
-    for y in range(0, data.shape[0], block):
-        sha.update(hashlib.sha1(data[y:y + block].tobytes()).hexdigest().upper().encode())
-    sha.update(extra_bytes)
-    return sha.hexdigest().upper()
+    return finish_sha1(sha1_state(data, block), extra)
 
 
 def hash_extra(border: str, analysis: str) -> str:

@@ -92,8 +92,10 @@ def _announce_compiles(session: Session, work: Work, images, reporter: Reporter)
                         "later runs load them from the cache in a fraction of a second)")
 
 
-def _read(path: str, ro: ReadOptions, reporter: Reporter, keep_half: bool = False) -> io.Image:
-    image = io.read_image(path, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan, keep_half=keep_half)
+def _read(path: str, ro: ReadOptions, reporter: Reporter, keep_half: bool = False,
+          hash_source: bool = False) -> io.Image:
+    image = io.read_image(path, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan, keep_half=keep_half,
+                          hash_source=hash_source)
     bad = io.count_nonfinite(image.pixels) if ro.nan == "keep" else 0
     if bad:
         reporter.warn(f"{path}: {bad} NaN/Inf value(s) kept; they spread through the filter "
@@ -168,7 +170,7 @@ def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: R
 
     def read_job(job):
         io.check_write_options(job.output, wo.pixel_type, wo.compression)  # refused before any work
-        image = _read(job.input, ro, reporter, keep_half=not mip_tile)
+        image = _read(job.input, ro, reporter, keep_half=not mip_tile, hash_source=bool(mip_tile))
         if mip_tile and getattr(work, "constant_detect", False):
             from .mip import shrink_constant
 
@@ -195,12 +197,14 @@ def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: R
     def write_job(job, images):
         options = wo.for_inputs([job.input])
         if mip_tile:
-            from .mip import hash_extra, texture_metadata
+            from .mip import finish_sha1, hash_extra, texture_metadata
 
             border = getattr(work, "border", "clamp")
             analysis = getattr(work, "filter_name", getattr(work, "analysis", ""))
-            meta = texture_metadata(border, analysis, io.source_sha1(job.input, hash_extra(border, analysis)),
-                                    io.oiio_version())
+            state = images[0].spec.pixel_hash  # hashed as it was read: the file is not read again
+            extra = hash_extra(border, analysis)
+            sha1 = finish_sha1(state, extra) if state is not None else io.source_sha1(job.input, extra)
+            meta = texture_metadata(border, analysis, sha1, io.oiio_version())
             io.write_levels(job.output, images, mode="mipmap", tile=mip_tile, meta=meta, **options)
         else:
             io.write_image(job.output, images[0], **options)

@@ -447,3 +447,25 @@ def test_average_color_and_the_1x1_level_equal_maketxs_for_box_on_even_sizes(tmp
     np.testing.assert_allclose([float(v) for v in a["oiio:AverageColor"].split(",")],
                                [float(v) for v in b["oiio:AverageColor"].split(",")], rtol=1e-6)
     np.testing.assert_allclose(levels_of(ours)[-1], levels_of(theirs)[-1], rtol=1e-6)
+
+
+@pytest.mark.parametrize("pixel_type, rows", [("uint8", 40), ("uint16", 300), ("half", 520), ("float", 257)])
+def test_sha1_is_hashed_from_the_pixels_in_memory_as_maketx_hashes_the_file(tmp_path, monkeypatch, pixel_type,
+                                                                             rows):
+    """The source is read once: its stored values are hashed before any conversion (integers as OpenImageIO
+    converts them to float, bit for bit), in maketx's 256-row blocks, and the result is maketx's hash of the file."""
+    src, dst, theirs = tmp_path / "in.tif", tmp_path / "out.tx", tmp_path / "theirs.tx"
+    g = np.random.default_rng(21).random((rows, 9, 3))
+    stored = {"uint8": (g * 255).astype(np.uint8), "uint16": (g * 65535).astype(np.uint16),
+              "half": g.astype(np.float16), "float": g.astype(np.float32)}[pixel_type]
+    write(src, stored, pixel_type)
+
+    def reread(*args, **kwargs):
+        raise AssertionError("the source was read again for its hash")
+
+    monkeypatch.setattr(pio, "source_sha1", reread)
+    mipmap("--analysis", "box", src, dst)
+    monkeypatch.undo()
+    assert attributes(dst)["oiio:SHA-1"] == pio.source_sha1(src, hash_extra("clamp", "box"))
+    maketx(src, theirs, "--filter", "box")
+    assert pio.source_sha1(src, "box ") == attributes(theirs)["oiio:SHA-1"]
