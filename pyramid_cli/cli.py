@@ -454,12 +454,18 @@ def collapse(inputs, output_path, synthesis, border, **opts) -> None:
                    "so every level covers the whole texture domain and keeps the mean. up: ⌈n/2⌉, the "
                    "analysis pyramid's levels (an odd size is padded by the border, so coarse levels cover a "
                    "little more than the image and lookups drift toward the top left).")
+@click.option("--resize", is_flag=True, help="maketx's --resize: level 0 resampled up to the next power of two "
+              "on each axis first (as a bilinear lookup of the source reads it), then the levels from it.")
+@click.option("--nchannels", type=click.IntRange(1, 64), metavar="N", help="maketx's --nchannels: keep the first N "
+              "channels, or append channels of zeros up to N.")
+@click.option("--monochrome-detect", "monochrome_detect", is_flag=True, help="maketx's flag: an RGB image (no "
+              "alpha) whose three channels are equal at every pixel becomes a one-channel (Y) texture.")
 @border_option
 @io_options
 @batch_options
 @click.pass_context
-def mipmap(ctx: click.Context, paths, analysis, tile, wrap, swrap, twrap, constant_detect, rounding, border,
-           **opts) -> None:
+def mipmap(ctx: click.Context, paths, analysis, tile, wrap, swrap, twrap, constant_detect, rounding, resize, nchannels,
+           monochrome_detect, border, **opts) -> None:
     """Write a tiled MIP-mapped texture down to 1×1 (what maketx makes, with better filters).
 
     OpenEXR (.exr) holds the levels as its own MIP levels, TIFF (.tx, .tif) as
@@ -482,6 +488,7 @@ def mipmap(ctx: click.Context, paths, analysis, tile, wrap, swrap, twrap, consta
       pyramid mipmap albedo.png albedo.tx                       # 8-bit sRGB .tx, like maketx
       pyramid mipmap --wrap periodic --analysis cubic 'tex/*.png' -o 'tx/{stem}.tx'
       pyramid mipmap --constant-color-detect --tile 64 'tex/*.exr' -o 'tx/{stem}.tx.exr'
+      pyramid mipmap --monochrome-detect --resize mask.png mask.tx      # 1 channel, powers of two
       pyramid mipmap 'tex/albedo.<UDIM>.exr' -o 'tx/albedo.<UDIM>.tx.exr'
     """
     from .mip import TextureLevels, border_for_wrap, parse_wrap
@@ -498,7 +505,7 @@ def mipmap(ctx: click.Context, paths, analysis, tile, wrap, swrap, twrap, consta
     if tile % 16 and output.lower().endswith((".tx", ".tif", ".tiff")):
         raise UsageError(f"--tile {tile}: TIFF tiles must be a multiple of 16 ({output})")
     work = TextureLevels(levels=None, analysis=analysis, border=border, constant_detect=constant_detect,
-                         rounding=rounding)
+                         rounding=rounding, resize=resize, nchannels=nchannels, monochrome_detect=monochrome_detect)
     _process(paths, work, opts, mip_tile=tile)
 
 

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import catalogue
 from .errors import UsageError
 from .work import Levels
 
@@ -41,8 +42,17 @@ class TextureLevels(Levels):
     before the levels are made (:func:`shrink_constant`).
     """
 
+    analysis: str = catalogue.MIP_ANALYSIS_DEFAULT
     constant_detect: bool = False
     rounding: str = "down"
+    resize: bool = False           # maketx's --resize: level 0 up to powers of two first (rounding "down" only)
+    nchannels: int | None = None   # maketx's --nchannels: keep or pad to this many channels (:func:`channel_plan`)
+    monochrome_detect: bool = False  # maketx's --monochrome-detect: R = G = B everywhere → one channel
+
+    @property
+    def keeps_input(self) -> bool:  # type: ignore[override]
+        """Level 0 is the input, except when it is resized."""
+        return not self.resize
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -52,26 +62,73 @@ class TextureLevels(Levels):
             from .pyramids import mip_axis_weights
 
             mip_axis_weights(self.analysis)  # refuses a filter the rule cannot resample (exit 2)
+        elif self.resize:
+            raise UsageError("--resize makes maketx's power-of-two levels: it needs --round down")
+        if self.nchannels is not None and self.nchannels < 1:
+            raise UsageError(f"--nchannels {self.nchannels}: at least 1")
 
     @property
     def filter_name(self) -> str:
         """The filter and rule, as the hash and ImageHistory name them: ``quadratic`` or ``quadratic/up``."""
-        return self.analysis if self.rounding == "down" else f"{self.analysis}/up"
+        name = self.analysis if self.rounding == "down" else f"{self.analysis}/up"
+        return name + ("/resize" if self.resize else "")
 
     def count(self, size) -> int:
-        return len(mip_sizes(tuple(size[:2]), self.rounding)) - 1
+        size = tuple(size[:2])
+        if self.resize:
+            from .plan.resample import ceil2
+
+            return len(mip_sizes((ceil2(size[0]), ceil2(size[1]))))  # level 0 is made too
+        return len(mip_sizes(size, self.rounding)) - 1
 
     def plan(self, sizes, strategy="cost"):
         if self.rounding == "up":
             return super().plan(sizes, strategy)
         from .pyramids import mip_plan
 
-        return mip_plan(tuple(sizes[0][:2]), self.analysis, self.border, strategy) if self.count(sizes[0]) else None
+        if not self.count(sizes[0]):
+            return None
+        return mip_plan(tuple(sizes[0][:2]), self.analysis, self.border, strategy, self.resize)
 
     def reference(self, images):
         if self.rounding == "up":
             return super().reference(images)
-        return mip_reference(images[0], self.analysis, self.border)[1:]
+        levels = mip_reference(images[0], self.analysis, self.border, self.resize)
+        return levels if self.resize else levels[1:]
+
+
+def channel_plan(nchannels: int, names: list[str], alpha: int, wanted: int | None,
+                 monochrome_detect: bool, monochrome: bool) -> tuple[int, list[str], int] | None:
+    """maketx's channel changes before the levels: ``--monochrome-detect`` (3 channels, no alpha, R = G = B at
+    every pixel → one channel named Y) unless ``--nchannels`` is given, then ``--nchannels`` (keep the first
+    ``wanted``; more appends channels of zeros named as OpenImageIO names them: R G B A channel4 …, an added
+    A is not treated as alpha here, it stays an ordinary channel of zeros).
+
+    Returns (channels kept from the source, new names, new alpha index) or None when nothing changes.
+    ``monochrome`` says whether the pixels are monochrome (checked by the caller only when it matters).
+    """
+    if wanted is None and monochrome_detect and nchannels == 3 and alpha < 0 and monochrome:
+        return 1, ["Y"], -1
+    if wanted is None or wanted == nchannels:
+        return None
+    default = ["R", "G", "B", "A"]
+    new = [names[c] if c < nchannels else (default[c] if c < 4 else f"channel{c}") for c in range(wanted)]
+    return min(wanted, nchannels), new, alpha if alpha < wanted else -1
+
+
+def is_monochrome(pixels: np.ndarray) -> bool:
+    """Every pixel's three channels equal (ImageBufAlgo::isMonochrome with threshold 0)."""
+    return pixels.shape[-1] == 3 and bool(np.all(pixels[..., 0] == pixels[..., 1])
+                                          and np.all(pixels[..., 0] == pixels[..., 2]))
+
+
+def apply_channels(pixels: np.ndarray, kept: int, total: int) -> np.ndarray:
+    """The first ``kept`` channels, padded with zeros to ``total`` channels."""
+    if kept == total == pixels.shape[-1]:
+        return pixels
+    out = np.zeros(pixels.shape[:2] + (total,), dtype=pixels.dtype)
+    out[..., :kept] = pixels[..., :kept]
+    return out
 
 
 def mip_sizes(size: tuple[int, int], rounding: str = "down") -> list[tuple[int, int]]:
@@ -125,9 +182,23 @@ def resample_matrix(d: np.ndarray, w: np.ndarray, n_in: int, n_out: int, border:
     return out[:, 1:]
 
 
-def mip_reference(pixels: np.ndarray, analysis: str, border: str = "clamp") -> list[np.ndarray]:
+def bilinear_matrix(n_in: int, n_out: int, border: str) -> np.ndarray:
+    """(n_out, n_in) float64 matrix of a bilinear lookup at the texel centres of ``n_out`` samples spread over
+    the same domain (independent of :func:`pyramid_cli.plan.resample.bilinear_table`); reads fold by ``border``."""
+    from .border import Border, fold
+
+    x = (np.arange(n_out) + 0.5) * n_in / n_out - 0.5
+    i0 = np.floor(x).astype(int)
+    out = np.zeros((n_out, n_in + 1))
+    for i, w in ((i0, 1 - (x - i0)), (i0 + 1, x - i0)):
+        np.add.at(out, (np.arange(n_out), fold(i + 1, n_in, Border.parse(border))), w)
+    return out[:, 1:]
+
+
+def mip_reference(pixels: np.ndarray, analysis: str, border: str = "clamp", resize: bool = False) -> list[np.ndarray]:
     """Levels 0..1×1 with maketx's sizes, every level resampled from the one above by ``analysis``'s
-    continuous kernel (at exact halvings that is the filter itself), in float64."""
+    continuous kernel (at exact halvings that is the filter itself), in float64; with ``resize``, level 0
+    is first resampled up to powers of two by a bilinear lookup."""
     from .pyramids import mip_axis_weights
 
     kern = _kernel_1d(analysis)
@@ -135,6 +206,10 @@ def mip_reference(pixels: np.ndarray, analysis: str, border: str = "clamp") -> l
         rows, _ = mip_axis_weights(analysis)
         kern = (np.array([d for d, _ in rows]), np.array([float(v) for _, v in rows]))
     x = np.asarray(pixels, dtype=np.float64)
+    if resize:
+        h, w = (1 << max(0, n - 1).bit_length() for n in x.shape[:2])
+        x = np.einsum("ji,ik...->jk...", bilinear_matrix(x.shape[0], h, border), x)
+        x = np.einsum("lk,jk...->jl...", bilinear_matrix(x.shape[1], w, border), x)
     levels = [x]
     for h, w in mip_sizes(x.shape[:2])[1:]:
         a = resample_matrix(*kern, x.shape[0], h, border)
@@ -290,11 +365,11 @@ def texture_metadata(border: str, analysis: str, sha1: str | None = None, oiio_v
     from . import __version__
 
     tool = f"pyramid mipmap (bilinear-pyramid {__version__})"
-    name, _, up = analysis.partition("/")  # TextureLevels.filter_name: "quadratic" or "quadratic/up"
+    name, *flags = analysis.split("/")  # TextureLevels.filter_name: "quadratic", "quadratic/up", ".../resize"
     meta = {"wrapmodes": wrapmodes(border),
             "Software": f"OpenImageIO {oiio_version} : {tool}" if oiio_version else tool,
-            "Exif:ImageHistory": f"pyramid mipmap --analysis {name} --round {'up' if up else 'down'}"
-                                 f" --wrap {BORDER_TO_WRAP[border]}"}
+            "Exif:ImageHistory": f"pyramid mipmap --analysis {name} --round {'up' if 'up' in flags else 'down'}"
+                                 f"{' --resize' if 'resize' in flags else ''} --wrap {BORDER_TO_WRAP[border]}"}
     if sha1:
         meta["oiio:SHA-1"] = sha1
     return meta

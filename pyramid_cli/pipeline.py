@@ -157,6 +157,27 @@ def process(paths: list[str], template: str | None, work: Work, session: Session
     return report
 
 
+def _texture_channels(image: io.Image, work, path: str, reporter: Reporter) -> io.Image:
+    """maketx's ``--monochrome-detect`` and ``--nchannels`` on a texture's source (:func:`mip.channel_plan`)."""
+    import dataclasses
+
+    from .mip import apply_channels, channel_plan, is_monochrome
+
+    spec, px = image.spec, image.pixels
+    n = px.shape[2]
+    mono = work.monochrome_detect and n == 3 and spec.alpha_channel < 0 and is_monochrome(px)
+    change = channel_plan(n, list(spec.channel_names), spec.alpha_channel, work.nchannels, work.monochrome_detect,
+                          mono)
+    if change is None:
+        return image
+    kept, names, alpha = change
+    reporter.detail(f"{path}: {n} channel(s) → {len(names)} ({', '.join(names)})"
+                    + (": monochrome" if mono and work.nchannels is None else ""))
+    new = dataclasses.replace(spec, channel_names=names, alpha_channel=alpha,
+                              alpha_mode=spec.alpha_mode if alpha >= 0 else "none", channel_pixel_types=[])
+    return io.Image(apply_channels(px, kept, len(names)), new)
+
+
 def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: ReadOptions, write: WriteOptions,
              reporter: Reporter, keep_going: bool = False, skip_existing: bool = False, jobs: int = 2,
              mip_tile: int | None = None, many: bool = True) -> batch.Report:
@@ -178,6 +199,8 @@ def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: R
             if small is not None and small.shape != image.pixels.shape:
                 reporter.detail(f"{job.input}: constant colour, made from one {small.shape[1]}×{small.shape[0]} tile")
                 image = io.Image(small, image.spec)
+        if mip_tile and (getattr(work, "nchannels", None) or getattr(work, "monochrome_detect", False)):
+            image = _texture_channels(image, work, job.input, reporter)
         work.check((image.pixels.shape[:2],), where=job.input)
         return job, image
 

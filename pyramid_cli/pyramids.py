@@ -150,22 +150,35 @@ def mip_axis_weights(analysis: str):
 
 @lru_cache(maxsize=32)  # batches re-use a plan per image size
 def mip_plan(size: tuple[int, int], analysis: str = catalogue.MIP_ANALYSIS_DEFAULT, border: str = "clamp",
-             strategy: str = "cost") -> Plan:
+             strategy: str = "cost", resize: bool = False) -> Plan:
     """MIP levels 1..1×1 with maketx's sizes ``max(1, ⌊n/2⌋)``, every level covering the whole texture domain.
 
     A level that halves both sizes exactly runs the paper's ⊗↓ passes of ``analysis`` (§4). Any other
     level runs one :class:`~pyramid_cli.plan.ResamplePass` per axis that changes: the same filter's
     continuous kernel stretched to the level's ratio (:mod:`pyramid_cli.plan.resample`; at an exact
     halving its weights are the paper's). An axis of one pixel stays as it is.
+
+    ``resize`` (maketx's ``--resize``): level 0 is first resampled up to powers of two, as a bilinear
+    lookup reads the source (:func:`pyramid_cli.plan.resample.bilinear_table`); it is then output 0.
     """
     from .mip import mip_sizes
-    from .plan.resample import axis_table
+    from .plan.resample import axis_table, bilinear_table, ceil2
 
     weights = mip_axis_weights(analysis)
     down = steps(_one_step(analysis, Op.DOWN))
-    sizes = mip_sizes(size)
     b = Builder(size, strategy, border)
     outs, current = [], 0
+    if resize:
+        for axis, n in enumerate(size):
+            if ceil2(n) != n:
+                current = b.resample(current, axis, *bilinear_table(n, ceil2(n)),
+                                     f"level 0: resized to a power of two, {('rows', 'columns')[axis]} "
+                                     f"{n}→{ceil2(n)} (bilinear)")
+        size = (ceil2(size[0]), ceil2(size[1]))
+        if current == 0:  # already powers of two: level 0 is a copy of the input
+            current = b.combine([(0, Fraction(1))], "level 0 (already powers of two)")
+        outs.append(current)
+    sizes = mip_sizes(size)
     for k in range(1, len(sizes)):
         (h, w), (h2, w2) = sizes[k - 1], sizes[k]
         if h == 2 * h2 and w == 2 * w2:
@@ -183,7 +196,8 @@ def mip_plan(size: tuple[int, int], analysis: str = catalogue.MIP_ANALYSIS_DEFAU
                 current = b.resample(current, axis, starts, table,
                                      f"level {k} {w2}×{h2}: {analysis} kernel resampled, {name} {n}→{m} ({ratio})")
         outs.append(current)
-    return b.build(f"mipmap: {len(sizes) - 1} level(s) to 1×1, maketx's sizes, {analysis} ⊗↓", outputs=outs)
+    text = f"mipmap: {len(sizes) - 1} level(s) to 1×1, maketx's sizes, {analysis} ⊗↓"
+    return b.build(text + (", level 0 resized to powers of two" if resize else ""), outputs=outs)
 
 
 # ------------------------------------------------------------------ the same workflows by the reference

@@ -201,3 +201,27 @@ def test_cpu_reads_half_inputs_and_prepares_resampling_kernels(cpu_executor):
     got = cpu_executor.run_outputs(p, x)
     for g, r in zip(got, mip_reference(x.astype(np.float64), "quadratic", "mirror")[1:], strict=True):
         np.testing.assert_allclose(g, r, atol=2e-6)
+
+
+# ------------------------------------------------------------------ --resize (level 0 up to powers of two)
+def test_bilinear_table_reads_at_the_new_texel_centres():
+    from pyramid_cli.plan.resample import bilinear_table
+
+    assert bilinear_table(5, 5) == (tuple(range(5)), tuple((Fraction(1), Fraction(0)) for _ in range(5)))
+    starts, table = bilinear_table(3, 4)  # centres at (j + ½)·¾ − ½ = −1/8, 5/8, 11/8, 17/8
+    assert starts == (-1, 0, 1, 2)
+    assert table == ((Fraction(1, 8), Fraction(7, 8)), (Fraction(3, 8), Fraction(5, 8)),
+                     (Fraction(5, 8), Fraction(3, 8)), (Fraction(7, 8), Fraction(1, 8)))
+
+
+@pytest.mark.parametrize("size", [(5, 7), (3, 1), (8, 6), (1, 1)])
+@pytest.mark.parametrize("border", BORDERS)
+def test_resize_on_every_executor_equals_the_reference(cpu_executor, gl, size, border):
+    x = np.random.default_rng(3).random(size + (3,)).astype(np.float32)
+    p = mip_plan(size, "quadratic", border, "cost", True)
+    check(p)
+    ref = mip_reference(x, "quadratic", border, resize=True)
+    assert [p.images[k].size for k in p.outputs] == [r.shape[:2] for r in ref]
+    for name, run in [("emulator", emulate.run_outputs), ("cpu", cpu_executor.run_outputs), ("gl", gl.run_outputs)]:
+        for k, (g, r) in enumerate(zip(run(p, x), ref, strict=True)):
+            np.testing.assert_allclose(g, r, atol=2e-6, err_msg=f"{name} level {k}")

@@ -469,3 +469,60 @@ def test_sha1_is_hashed_from_the_pixels_in_memory_as_maketx_hashes_the_file(tmp_
     assert attributes(dst)["oiio:SHA-1"] == pio.source_sha1(src, hash_extra("clamp", "box"))
     maketx(src, theirs, "--filter", "box")
     assert pio.source_sha1(src, "box ") == attributes(theirs)["oiio:SHA-1"]
+
+
+# ------------------------------------------------------------------ maketx's channel and size flags
+
+
+def channel_layout(path: Path) -> tuple[int, list[str], list[tuple[int, int]], list[float]]:
+    inp = oiio.ImageInput.open(str(path))
+    spec = inp.spec()
+    sizes = []
+    while inp.seek_subimage(0, len(sizes)):
+        sizes.append((inp.spec().width, inp.spec().height))
+    inp.close()
+    return (spec.nchannels, list(spec.channelnames), sizes,
+            [float(v) for v in spec.get_string_attribute("oiio:AverageColor").split(",")])
+
+
+@pytest.fixture
+def sources(tmp_path) -> dict[str, Path]:
+    g = np.random.default_rng(14).random((20, 30, 1)).astype(np.float32)
+    rgba = np.concatenate([np.random.default_rng(15).random((20, 30, 3)), np.full((20, 30, 1), 0.5)], axis=2)
+    out = {}
+    for name, px in [("mono", np.repeat(g, 3, axis=2)), ("rgba", rgba.astype(np.float32)),
+                     ("rgb", np.random.default_rng(16).random((20, 30, 3)).astype(np.float32))]:
+        out[name] = tmp_path / f"{name}.exr"
+        write(out[name], px)
+    return out
+
+
+@pytest.mark.parametrize("source, args", [("mono", ["--monochrome-detect"]), ("rgb", ["--monochrome-detect"]),
+                                          ("rgba", ["--nchannels", "3"]), ("rgba", ["--nchannels", "5"]),
+                                          ("mono", ["--nchannels", "4"]), ("mono", ["--monochrome-detect",
+                                                                                   "--nchannels", "2"])])
+def test_channel_flags_like_maketx(tmp_path, sources, source, args):
+    ours, theirs = tmp_path / "ours.exr", tmp_path / "theirs.exr"
+    mipmap(*args, "--type", "float", sources[source], ours)
+    maketx(sources[source], theirs, *args, "-d", "float")
+    a, b = channel_layout(ours), channel_layout(theirs)
+    assert a[:3] == b[:3], (a, b)
+    np.testing.assert_allclose(a[3], b[3], atol=1e-6)
+
+
+def test_resize_makes_maketxs_power_of_two_levels(tmp_path, sources):
+    ours, theirs = tmp_path / "ours.exr", tmp_path / "theirs.exr"
+    mipmap("--resize", "--wrap", "periodic", "--type", "float", sources["rgb"], ours)
+    maketx(sources["rgb"], theirs, "--resize")
+    assert maketx_sizes(ours) == maketx_sizes(theirs) == [(32, 32), (16, 16), (8, 8), (4, 4), (2, 2), (1, 1)]
+    levels = levels_of(ours)
+    src = levels_of(sources["rgb"])[0].astype(np.float64)
+    # level 0 is what a bilinear lookup of the source reads at the new texel centres (periodic: the mean stays)
+    np.testing.assert_allclose(levels[0].mean(axis=(0, 1)), src.mean(axis=(0, 1)), rtol=2e-3)
+    for level in levels[1:]:
+        np.testing.assert_allclose(level.mean(axis=(0, 1)), levels[0].astype(np.float64).mean(axis=(0, 1)),
+                                   rtol=1e-5)
+    assert "--resize" in attributes(ours)["Exif:ImageHistory"]
+    r = CliRunner().invoke(main, ["mipmap", *CPU, "--resize", "--round", "up", str(sources["rgb"]),
+                                  str(tmp_path / "up.exr")])
+    assert r.exit_code == 2 and "--resize" in r.output

@@ -74,6 +74,29 @@ def axis_table(weights: Weights1D, n_in: int, n_out: int) -> tuple[tuple[int, ..
             tuple(tuple(w + [Fraction(0)] * (width - len(w))) for _, w in rows))
 
 
+@lru_cache(maxsize=64)
+def bilinear_table(n_in: int, n_out: int) -> tuple[tuple[int, ...], tuple[tuple[Fraction, ...], ...]]:
+    """Weights that resample ``n_in`` samples to ``n_out`` as a bilinear texture lookup reads them.
+
+    Output ``j``'s centre lies at the input index ``x = (j + ½)·n_in/n_out − ½`` (texel centres on the
+    lookup's lattice); it mixes ``src[⌊x⌋]`` and ``src[⌊x⌋ + 1]`` by the fraction of ``x`` (reads past the
+    edges fold by the border). maketx's ``--resize`` (up to powers of two) uses it: the resized level 0 is
+    what a bilinear lookup of the source returns at the new texel centres. Same layout as :func:`axis_table`.
+    """
+    starts, rows = [], []
+    for j in range(n_out):
+        x = (j + Fraction(1, 2)) * Fraction(n_in, n_out) - Fraction(1, 2)
+        i = x.__floor__()
+        starts.append(i)
+        rows.append((1 - (x - i), x - i))
+    return tuple(starts), tuple(rows)
+
+
+def ceil2(n: int) -> int:
+    """The next power of two at or above ``n`` (maketx's ``--resize``)."""
+    return 1 << max(0, n - 1).bit_length()
+
+
 def dense(starts, table, n_in: int, border: str) -> list[list[Fraction]]:
     """The (n_out, n_in) matrix of a table with reads folded by ``border`` (zero: dropped)."""
     mode = Border.parse(border)
@@ -97,4 +120,4 @@ def level_size(n: int) -> int:
     return max(1, n // 2)
 
 
-__all__ = ["axis_table", "dense", "column_sums", "level_size", "Weights1D"]
+__all__ = ["axis_table", "bilinear_table", "ceil2", "dense", "column_sums", "level_size", "Weights1D"]
