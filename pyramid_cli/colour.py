@@ -129,8 +129,14 @@ def _decode_integer(data: np.ndarray, srgb: bool, colour: np.ndarray, alpha: int
         px[..., colour] = srgb_to_linear(px[..., colour])
         _premultiply(px, alpha, colour)
         return px.astype(np.float32)
-    out = np.empty(data.shape, dtype=np.float32)
     a = linear[data[..., alpha]] if alpha >= 0 and straight else None
+    if a is None and all(colour):  # gathers through a float32 table (the same single rounding), no strides,
+        table = decoded.astype(np.float32)  # in bands of rows so the index conversion stays in cache
+        out = np.empty(data.shape, dtype=np.float32)
+        for y in range(0, data.shape[0], 64):
+            np.take(table, data[y:y + 64], out=out[y:y + 64])
+        return out
+    out = np.empty(data.shape, dtype=np.float32)
     for c in range(data.shape[2]):
         codes = data[..., c]
         if colour[c]:

@@ -226,7 +226,7 @@ def shrink_constant(pixels: np.ndarray, tile: int) -> np.ndarray | None:
     None when the pixels are not all the same (compared exactly, as maketx compares min and max).
     """
     flat = pixels.reshape(-1, pixels.shape[-1])
-    if not np.all(flat == flat[0]):
+    if not np.all(flat[:pixels.shape[1]] == flat[0]) or not np.all(flat == flat[0]):  # the first row, then all
         return None
     h, w = min(tile, pixels.shape[0]), min(tile, pixels.shape[1])
     return np.ascontiguousarray(np.broadcast_to(flat[0], (h, w, pixels.shape[-1])))
@@ -275,15 +275,26 @@ def _normalised(data: np.ndarray) -> np.ndarray:
 
 
 def average_color(data: np.ndarray) -> list[float]:
-    """Per-channel mean of the stored values (computePixelStats' ``avg``: integers as 0..1, encoding as stored)."""
-    px = _normalised(data).reshape(-1, data.shape[-1])
-    return [float(v) for v in px.mean(axis=0)]
+    """Per-channel mean of the stored values (computePixelStats' ``avg``: integers as 0..1, encoding as stored).
+
+    Summed down the rows first (one vectorised pass over the image as an (H, W·C) array: integers exactly in
+    integer accumulators, floats in float64), then across the row's columns.
+    """
+    h, w, c = data.shape
+    rows = data.reshape(h, w * c)
+    if np.issubdtype(data.dtype, np.integer):
+        acc = np.uint32 if data.dtype.itemsize == 1 and h < (1 << 24) else np.uint64
+        sums = rows.sum(axis=0, dtype=acc).reshape(w, c).sum(axis=0, dtype=np.uint64).astype(np.float64)
+        sums /= np.iinfo(data.dtype).max
+    else:
+        sums = rows.sum(axis=0, dtype=np.float64).reshape(w, c).sum(axis=0)
+    return [float(v) for v in sums / max(1, h * w)]
 
 
 def constant_color(data: np.ndarray) -> list[float] | None:
     """The stored colour when every pixel has it (computePixelStats' ``min == max``), else None."""
     px = data.reshape(-1, data.shape[-1])
-    if not np.all(px == px[0]):
+    if not np.all(px[:data.shape[1]] == px[0]) or not np.all(px == px[0]):  # the first row settles most images
         return None
     return [float(v) for v in _normalised(px[:1])[0]]
 

@@ -96,7 +96,8 @@ def _read(path: str, ro: ReadOptions, reporter: Reporter, keep_half: bool = Fals
           hash_source: bool = False) -> io.Image:
     image = io.read_image(path, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan, keep_half=keep_half,
                           hash_source=hash_source)
-    bad = io.count_nonfinite(image.pixels) if ro.nan == "keep" else 0
+    integer = image.spec.pixel_type in ("uint8", "uint16") and not image.spec.channel_pixel_types
+    bad = io.count_nonfinite(image.pixels) if ro.nan == "keep" and not integer else 0  # decoded codes are finite
     if bad:
         reporter.warn(f"{path}: {bad} NaN/Inf value(s) kept; they spread through the filter "
                       "(--nan zero or --nan fail to change that)")
@@ -238,7 +239,9 @@ def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: R
 
     show_bar = many and not reporter.quiet and reporter.progress is not None
     run_options = {"keep_going": keep_going, "skip_existing": skip_existing, "workers": jobs,
-                   "prepare": prepare if session.on_gl else None}
+                   # GL compiles and allocates while the first image decodes; so does the CPU executor for MIP maps
+                   # (loading its kernels, about 0.3 s of a cold process, beside the read and the source's hash)
+                   "prepare": prepare if session.on_gl or mip_tile else None}
     if show_bar:
         with reporter.progress(len(job_list)) as bar:
             return batch.run(job_list, read_job, compute, write_job, progress=lambda job: bar.update(1),
