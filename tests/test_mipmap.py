@@ -19,7 +19,7 @@ from click.testing import CliRunner
 
 from pyramid_cli import io as pio
 from pyramid_cli.cli import main
-from pyramid_cli.mip import hash_extra, parse_wrap, pixel_sha1
+from pyramid_cli.mip import hash_extra, mip_sizes, parse_wrap, pixel_sha1
 
 BIN = Path(sys.executable).parent
 MAKETX, OIIOTOOL = str(BIN / "maketx"), str(BIN / "oiiotool")
@@ -76,19 +76,33 @@ def png8(tmp_path) -> Path:
 # ---------------------------------------------------------------------------------------------- wrap
 
 
-def test_periodic_wrap_is_seamless_at_every_level(tmp_path):
-    src, dst = tmp_path / "tile.exr", tmp_path / "tile.tx.exr"
-    write(src, tileable())
-    mipmap("--wrap", "periodic", "--tile", "16", src, dst)
-    levels = levels_of(dst)
-    assert len(levels) == 7
-    for k, level in enumerate(levels):
+def seam_ratio(levels) -> float:
+    """The largest jump across the wrap seam over the largest jump between neighbours inside, over levels/axes."""
+    worst = 0.0
+    for level in levels:
         for axis in (0, 1):
             if level.shape[axis] < 3:
                 continue
             inner = np.abs(np.diff(level, axis=axis)).max()
             seam = np.abs(np.take(level, 0, axis=axis) - np.take(level, -1, axis=axis)).max()
-            assert seam <= inner + 1e-3, f"level {k} axis {axis}: seam {seam} > interior {inner}"
+            worst = max(worst, seam / inner)
+    return float(worst)
+
+
+@pytest.mark.parametrize("h, w, bound", [(32, 64, 1.01), (37, 51, 1.25)])
+def test_periodic_wrap_is_seamless_at_every_level(tmp_path, h, w, bound):
+    """Where levels halve exactly the seam is no larger than the largest interior step. At odd sizes (samples
+    37/18 px apart) the seam pair is one more pair of neighbouring samples of the same periodic signal and may
+    sit where the slope peaks (8 % over the interior's largest step here), while a seam that does not wrap
+    jumps twice as far (clamp: 1.97×), which the test tells apart."""
+    src, dst, clamped = tmp_path / "tile.exr", tmp_path / "tile.tx.exr", tmp_path / "clamp.tx.exr"
+    write(src, tileable(h, w))
+    mipmap("--wrap", "periodic", "--tile", "16", "--type", "float", src, dst)
+    levels = levels_of(dst)
+    assert [lv.shape[:2] for lv in levels] == mip_sizes((h, w))
+    assert seam_ratio(levels) <= bound
+    mipmap("--wrap", "clamp", "--tile", "16", "--type", "float", src, clamped)
+    assert seam_ratio(levels_of(clamped)) > 1.5
 
 
 @pytest.mark.parametrize("wrap, border, attr", [("black", "zero", "black,black"), ("clamp", "clamp", "clamp,clamp"),
