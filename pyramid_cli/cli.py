@@ -451,7 +451,8 @@ def collapse(inputs, output_path, synthesis, border, **opts) -> None:
 @click.option("--round", "rounding", type=click.Choice(["down", "up"]), default="down", show_default=True,
               help="Level sizes. down: maketx's and OpenEXR's max(1, ⌊n/2⌋); a level that is not exactly half "
                    "the one above is resampled with the --analysis filter's own kernel stretched to the ratio, "
-                   "so every level covers the whole texture domain and keeps the mean. up: ⌈n/2⌉, the "
+                   "so every level covers the whole texture domain and keeps the mean (exactly under --wrap periodic or "
+                   "mirror). up: ⌈n/2⌉, the "
                    "analysis pyramid's levels (an odd size is padded by the border, so coarse levels cover a "
                    "little more than the image and lookups drift toward the top left).")
 @click.option("--resize", is_flag=True, help="maketx's --resize: level 0 resampled up to the next power of two "
@@ -486,7 +487,7 @@ def mipmap(ctx: click.Context, paths, analysis, tile, wrap, swrap, twrap, consta
     Example:
       pyramid mipmap albedo.exr albedo.tx.exr
       pyramid mipmap albedo.png albedo.tx                       # 8-bit sRGB .tx, like maketx
-      pyramid mipmap --wrap periodic --analysis cubic 'tex/*.png' -o 'tx/{stem}.tx'
+      pyramid mipmap --wrap periodic --analysis box4 'tex/*.png' -o 'tx/{stem}.tx'
       pyramid mipmap --constant-color-detect --tile 64 'tex/*.exr' -o 'tx/{stem}.tx.exr'
       pyramid mipmap --monochrome-detect --resize mask.png mask.tx      # 1 channel, powers of two
       pyramid mipmap 'tex/albedo.<UDIM>.exr' -o 'tx/albedo.<UDIM>.tx.exr'
