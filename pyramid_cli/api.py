@@ -1,7 +1,8 @@
 """The Python API: ``import pyramid_cli as pyr``.
 
 Functions on numpy arrays (``apply``, ``blur``, ``pyramid``, ``laplacian``,
-``collapse``, ``mipmap``, and the methods built on them: ``fill``, ``blend``), image files (``read_image``, ``write_image``,
+``collapse``, ``mipmap``, and the methods built on them: ``fill``, ``blend``), image files
+(``read_image``, ``write_image``,
 ``process_files``), and :class:`~pyramid_cli.session.Session`, which owns one
 executor for many calls. They describe jobs as :mod:`pyramid_cli.work` values and
 run them through the same session and pipeline as the ``pyramid`` command.
@@ -311,7 +312,7 @@ def fill(array, *, mask=None, holes: str | None = None, levels: int | None = Non
     >>> filled = pyr.fill(ramp, mask=known)
     >>> bool(np.all(filled[known == 1] == ramp[known == 1]).item())
     True
-    >>> filled[2].round(2).tolist()
+    >>> [round(float(v), 2) for v in filled[2]]
     [0.0, 0.12, 0.2, 0.32, 0.48, 0.64, 0.8, 0.88, 1.0]
     """
     from .methods import fill_inputs, fill_output

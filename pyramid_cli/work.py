@@ -200,7 +200,7 @@ class Fill(Work):
     def plan(self, sizes, strategy="cost"):
         from .methods import fill_plan
 
-        return fill_plan(tuple(sizes[0]), self.levels, self.analysis, self.synthesis, self.premultiplied,
+        return fill_plan(tuple(sizes[0][:2]), self.levels, self.analysis, self.synthesis, self.premultiplied,
                          self.border, strategy)
 
     def reference(self, images):
