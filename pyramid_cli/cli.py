@@ -483,6 +483,93 @@ def mipmap(ctx: click.Context, paths, analysis, tile, wrap, swrap, twrap, consta
     _process(paths, work, opts, mip_tile=tile)
 
 
+@main.command()
+@click.argument("input_path", metavar="INPUT")
+@click.argument("output_path", metavar="OUTPUT")
+@click.option("--mask", type=click.Path(dir_okay=False), help="Weight image: 1 known, 0 a hole, between partly "
+              "known (one channel, or one per channel; stored values, no sRGB decoding). Implies --holes mask.")
+@click.option("--holes", type=_choice(["alpha", "mask", "nan"]), default=None,
+              help="Where the weights come from: the alpha channel (default without --mask), --mask, or every "
+                   "pixel with a NaN/Inf is a hole.")
+@click.option("--levels", "-m", type=click.IntRange(0, 16), default=None,
+              help="Pull steps (default: down to 1×1, so every hole is filled).")
+@click.option("--analysis", default="box4", show_default=True,
+              help=f"The pull's filter: {', '.join(catalogue.ANALYSIS_FILTERS)}, or a ⊗↓ expression.")
+@click.option("--synthesis", default="doosabin", show_default=True,
+              help=f"The push's filter: {', '.join(catalogue.SYNTHESIS_FILTERS)}, or a ⊗↑ expression.")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object (pixels filled, levels, executor).")
+@border_option
+@io_options
+def fill(input_path, output_path, mask, holes, levels, analysis, synthesis, as_json, border, **opts) -> None:
+    """Fill holes from the pixels around them by pull-push (Kraus, GRAPP 2009).
+
+    The known pixels are pulled down the analysis pyramid as premultiplied colours with
+    their weights, then every level is composited over the expanded coarser one: holes of
+    any size get a smooth fill, pixels of full weight stay bit for bit. The output is
+    opaque (alpha 1, as oiiotool --fillholes writes it). An image without a known pixel
+    is bad pixel data (exit 5).
+
+    \b
+    Example:
+      pyramid fill bake.png bake_padded.png                 # holes where alpha < 1
+      pyramid fill --mask valid.png plate.exr patched.exr    # holes where the mask is 0
+      pyramid fill --holes nan depth.exr depth_filled.exr    # holes at NaN/Inf pixels
+      pyramid fill --analysis box --json in.exr out.exr
+    """
+    from .methods_files import fill_file
+
+    reporter = _reporter(opts)
+    if as_json:
+        reporter.quiet = True
+    ro, wo = _read_write(opts)
+    with _session(opts, reporter) as session:
+        info = fill_file(input_path, output_path, session, mask=mask, holes=holes, levels=levels, analysis=analysis,
+                         synthesis=synthesis, border=border, read=ro, write=wo, reporter=reporter)
+    if as_json:
+        click.echo(json.dumps(info, ensure_ascii=False))
+
+
+@main.command()
+@click.argument("a_path", metavar="A")
+@click.argument("b_path", metavar="B")
+@click.argument("mask_path", metavar="MASK")
+@click.argument("output_path", metavar="OUTPUT")
+@click.option("--levels", "-m", type=click.IntRange(0, 16), default=None,
+              help="Laplacian levels (default: as many as the size allows, down to 1×1).")
+@click.option("--analysis", default=catalogue.ANALYSIS_DEFAULT, show_default=True,
+              help=f"{', '.join(catalogue.ANALYSIS_FILTERS)}, or a ⊗↓ expression.")
+@click.option("--synthesis", default=catalogue.SYNTHESIS_DEFAULT, show_default=True,
+              help=f"{', '.join(catalogue.SYNTHESIS_FILTERS)}, or a ⊗↑ expression.")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object (size, levels, executor).")
+@border_option
+@io_options
+def blend(a_path, b_path, mask_path, output_path, levels, analysis, synthesis, as_json, border, **opts) -> None:
+    """Join A and B along MASK without a seam (Burt & Adelson's multiresolution spline, 1983).
+
+    Each Laplacian band of A and B is blended with the same level of the mask's analysis
+    pyramid, and the bands are collapsed: fine detail meets over a narrow seam, coarse
+    shading over a wide one. MASK is 1 where A shows and 0 where B shows (one channel,
+    or one per channel; stored values, no sRGB decoding). A, B and MASK have one size.
+
+    \b
+    Example:
+      pyramid blend apple.png orange.png left_half.png orapple.png
+      pyramid blend --levels 5 plate.exr patch.exr matte.exr comp.exr
+      pyramid blend --analysis quadratic --synthesis cubic --json a.exr b.exr m.png out.exr
+    """
+    from .methods_files import blend_files
+
+    reporter = _reporter(opts)
+    if as_json:
+        reporter.quiet = True
+    ro, wo = _read_write(opts)
+    with _session(opts, reporter) as session:
+        info = blend_files(a_path, b_path, mask_path, output_path, session, levels=levels, analysis=analysis,
+                           synthesis=synthesis, border=border, read=ro, write=wo, reporter=reporter)
+    if as_json:
+        click.echo(json.dumps(info, ensure_ascii=False))
+
+
 @main.command("farm-template", context_settings={"ignore_unknown_options": True, "allow_interspersed_args": False})
 @click.option("--frames", required=True, metavar="RANGE", help="The job's frames, e.g. 1001-1240 or 1001-1240x2.")
 @click.option("--chunk", type=click.IntRange(1), default=10, show_default=True,

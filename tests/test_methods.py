@@ -3,6 +3,7 @@ from the papers' equations (Kraus 2009; Burt & Adelson 1983), and the properties
 
 from __future__ import annotations
 
+import json
 import os
 import tempfile
 from pathlib import Path
@@ -265,3 +266,87 @@ def test_apple_orange_has_no_seam():
     near = float(np.median([jump(a, c) for c in range(40, 48)] + [jump(b, c) for c in range(49, 57)]))
     assert jump(cut, col) > 4 * near  # the hard cut: a visible edge
     assert jump(out, col) < 1.3 * near  # the blend: no larger than the textures' own steps
+
+
+# ------------------------------------------------------------------ the command line
+def _invoke(*args):
+    from click.testing import CliRunner
+
+    from pyramid_cli.cli import main
+
+    return CliRunner().invoke(main, [str(a) for a in args])
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    from pyramid_cli.demo import apple_orange
+
+    d = tmp_path_factory.mktemp("methods")
+    a, b, m = apple_orange(64)
+    rgba = np.concatenate([a, np.ones(a.shape[:2] + (1,), np.float32)], axis=2)
+    rgba[20:40, 10:50] = 0
+    rgba[5, 5, 3] = 0.5
+    rgba[5, 5, :3] *= 0.5
+    nan = a.copy()
+    nan[30:34, 30:40] = np.nan
+    for name, px in [("a.exr", a), ("b.exr", b), ("m.exr", m), ("holes.exr", rgba), ("nan.exr", nan),
+                     ("empty.exr", np.zeros((8, 8, 4), np.float32))]:
+        pyr.write_image(d / name, px)
+    return d
+
+
+@pytest.mark.parametrize("command", ["fill", "blend"])
+def test_help_has_examples(command):
+    r = _invoke(command, "--help")
+    assert r.exit_code == 0 and "Example" in r.output
+
+
+def test_cli_fill_alpha_equals_the_api_and_is_opaque(files, tmp_path):
+    out = tmp_path / "filled.exr"
+    r = _invoke("fill", files / "holes.exr", out, "--json", "--backend", "cpu")
+    assert r.exit_code == 0, r.output
+    info = json.loads(r.output)
+    assert info["empty"] == 20 * 40 and info["partial"] == 1 and info["levels"] == 6
+    src = pyr.read_image(files / "holes.exr").pixels
+    got = pyr.read_image(out).pixels
+    np.testing.assert_allclose(got, pyr.fill(src, backend="reference"), rtol=0, atol=1e-5)
+    assert np.all(got[..., 3] == 1)
+    known = src[..., 3] == 1
+    np.testing.assert_array_equal(got[known], src[known])
+
+
+def test_cli_fill_mask_and_nan(files, tmp_path):
+    r = _invoke("fill", "--mask", files / "m.exr", files / "a.exr", tmp_path / "m.exr", "-q")
+    assert r.exit_code == 0 and r.output == ""
+    a = pyr.read_image(files / "a.exr").pixels
+    m = pyr.read_image(files / "m.exr").pixels[..., 0]
+    np.testing.assert_allclose(pyr.read_image(tmp_path / "m.exr").pixels, pyr.fill(a, mask=m, backend="reference"),
+                               rtol=0, atol=1e-5)
+    r = _invoke("fill", "--holes", "nan", files / "nan.exr", tmp_path / "n.exr")
+    assert r.exit_code == 0, r.output
+    assert np.all(np.isfinite(pyr.read_image(tmp_path / "n.exr").pixels))
+
+
+@pytest.mark.parametrize("args, code, message", [
+    (["fill", "{d}/empty.exr", "{o}"], 5, "no known pixel"),
+    (["fill", "{d}/a.exr", "{o}"], 2, "no alpha channel"),
+    (["fill", "--holes", "nan", "--nan", "zero", "{d}/nan.exr", "{o}"], 2, "--nan zero"),
+    (["fill", "{d}/missing.exr", "{o}"], 3, "missing.exr"),
+    (["blend", "{d}/a.exr", "{d}/holes.exr", "{d}/m.exr", "{o}"], 3, "channel"),
+])
+def test_cli_errors_are_one_line_with_their_exit_code(files, tmp_path, args, code, message):
+    r = _invoke(*[a.format(d=files, o=tmp_path / "x.exr") for a in args])
+    assert r.exit_code == code, r.output
+    assert message in r.output and "Traceback" not in r.output
+    assert not (tmp_path / "x.exr").exists()
+
+
+def test_cli_blend_equals_the_api(files, tmp_path):
+    r = _invoke("blend", files / "a.exr", files / "b.exr", files / "m.exr", tmp_path / "o.exr", "--levels", "3",
+                "--json")
+    assert r.exit_code == 0, r.output
+    assert json.loads(r.output)["levels"] == 3
+    a, b = pyr.read_image(files / "a.exr").pixels, pyr.read_image(files / "b.exr").pixels
+    m = pyr.read_image(files / "m.exr").pixels
+    np.testing.assert_allclose(pyr.read_image(tmp_path / "o.exr").pixels,
+                               pyr.blend(a, b, m, levels=3, backend="reference"), rtol=0, atol=1e-5)
