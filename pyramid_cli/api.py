@@ -344,7 +344,9 @@ def blend(a, b, mask, *, levels: int | None = None, analysis: str = catalogue.AN
     mask : array_like
         H×W (or H×W×1) weights in [0, 1], or H×W×C one per channel: 1 takes A, 0 takes B.
     levels : int, optional
-        Laplacian levels; default as many as the size allows (down to 1×1).
+        Laplacian levels; default as many as the size allows while the coarsest level keeps 16
+        pixels on its shorter side (:func:`pyramid_cli.methods.blend_levels`; 4 at 256×256, 7 at
+        3840×2160): deeper bands would mix the two images' mean colours across the whole frame.
     analysis, synthesis : str
         ⊗↓ and ⊗↑ filters (§4, §5); the defaults are the paper's Figure 3b.
     border, backend, session

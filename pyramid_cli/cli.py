@@ -535,7 +535,8 @@ def fill(input_path, output_path, mask, holes, levels, analysis, synthesis, as_j
 @click.argument("mask_path", metavar="MASK")
 @click.argument("output_path", metavar="OUTPUT")
 @click.option("--levels", "-m", type=click.IntRange(0, 16), default=None,
-              help="Laplacian levels (default: as many as the size allows, down to 1×1).")
+              help="Laplacian levels (default: as many as the size allows while the coarsest level keeps 16 "
+                   "pixels on its shorter side: 4 at 256×256, 7 at 3840×2160).")
 @click.option("--analysis", default=catalogue.ANALYSIS_DEFAULT, show_default=True,
               help=f"{', '.join(catalogue.ANALYSIS_FILTERS)}, or a ⊗↓ expression.")
 @click.option("--synthesis", default=catalogue.SYNTHESIS_DEFAULT, show_default=True,

@@ -108,9 +108,19 @@ def blend_plan(size: tuple[int, int], levels: int, analysis: str = catalogue.ANA
     return b.build(f"blend: {levels} level(s), {analysis} ⊗↓ / {synthesis} ⊗↑", outputs=[x])
 
 
+BLEND_COARSEST = 16  # the default blend stops before its coarsest level's shorter side drops below this
+
+
 def blend_levels(size: tuple[int, int]) -> int:
-    """The default ``--levels`` of a blend: as many as the size allows (down to 1×1)."""
-    return mip_levels(size)
+    """The default ``--levels`` of a blend: as many as the size allows while the coarsest level keeps at
+    least :data:`BLEND_COARSEST` pixels on its shorter side (at least one level where the image has two
+    pixels). Deeper bands are wider than the image: their blend mixes the two images' mean colours across
+    the whole frame (a tint far from the seam) instead of joining them along it."""
+    n, short = 0, min(size)
+    while short >= 2 * BLEND_COARSEST:
+        short = -(-short // 2)
+        n += 1
+    return max(n, min(1, mip_levels(size)))
 
 
 # ------------------------------------------------------------------ inputs and outputs
@@ -196,4 +206,4 @@ def mask_channels(mask: np.ndarray, image: np.ndarray, where: str = "") -> np.nd
 
 
 __all__ = ["fill_plan", "blend_plan", "blend_levels", "fill_inputs", "fill_output", "mask_channels", "PULL_SCALE",
-           "FILL_ANALYSIS", "FILL_SYNTHESIS", "HOLES"]
+           "FILL_ANALYSIS", "FILL_SYNTHESIS", "HOLES", "BLEND_COARSEST"]

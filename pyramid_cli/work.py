@@ -227,7 +227,9 @@ class Blend(Work):
     label = "blend"
 
     def count(self, size: Size) -> int:
-        return geometry.mip_levels(size) if self.levels is None else self.levels
+        from .methods import blend_levels
+
+        return blend_levels(tuple(size)) if self.levels is None else self.levels
 
     def check(self, sizes, where=""):
         if len({tuple(s[:2]) for s in sizes}) > 1:
