@@ -431,6 +431,9 @@ def collapse(inputs, output_path, synthesis, border, **opts) -> None:
 @click.option("--twrap", metavar="MODE", help="The t (vertical) wrap mode; must equal s's.")
 @click.option("--constant-color-detect", "constant_detect", is_flag=True,
               help="A constant-colour image becomes one tile of that colour, as maketx's flag does.")
+@click.option("--fill", "fill_holes", is_flag=True, help="Fill the texels of alpha < 1 (empty space around UV "
+              "islands) by pull-push first, so no level darkens toward the empty colour; the texture becomes opaque "
+              "and its texels of alpha 1 stay as they are (pyramid fill).")
 @click.option("--round", "rounding", type=click.Choice(["up", "down"]), default="up", show_default=True,
               help="Level sizes: up ⌈n/2⌉ by the --analysis filter; down ⌊n/2⌋ (maketx's) by area resampling "
                    "that covers the whole level above (no --analysis).")
@@ -438,8 +441,8 @@ def collapse(inputs, output_path, synthesis, border, **opts) -> None:
 @io_options
 @batch_options
 @click.pass_context
-def mipmap(ctx: click.Context, paths, analysis, tile, wrap, swrap, twrap, constant_detect, rounding, border,
-           **opts) -> None:
+def mipmap(ctx: click.Context, paths, analysis, tile, wrap, swrap, twrap, constant_detect, fill_holes, rounding,
+           border, **opts) -> None:
     """Write a tiled MIP-mapped texture down to 1×1 (what maketx makes, with better filters).
 
     OpenEXR (.exr) holds the levels as its own MIP levels, TIFF (.tx, .tif) as
@@ -461,6 +464,7 @@ def mipmap(ctx: click.Context, paths, analysis, tile, wrap, swrap, twrap, consta
       pyramid mipmap --wrap periodic --analysis cubic 'tex/*.png' -o 'tx/{stem}.tx'
       pyramid mipmap --constant-color-detect --tile 64 'tex/*.exr' -o 'tx/{stem}.tx.exr'
       pyramid mipmap 'tex/albedo.<UDIM>.exr' -o 'tx/albedo.<UDIM>.tx.exr'
+      pyramid mipmap --fill bake.png bake.tx                    # pad UV islands first: no dark bleeding
     """
     from .mip import TextureLevels, border_for_wrap, parse_wrap
 
@@ -479,7 +483,7 @@ def mipmap(ctx: click.Context, paths, analysis, tile, wrap, swrap, twrap, consta
         raise UsageError("--round down resamples by area (each texel covers its share of the level above); "
                          "--analysis applies to --round up only")
     work = TextureLevels(levels=None, analysis=analysis, border=border, constant_detect=constant_detect,
-                         round_down=rounding == "down")
+                         round_down=rounding == "down", fill=fill_holes)
     _process(paths, work, opts, mip_tile=tile)
 
 

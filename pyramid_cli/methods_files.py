@@ -72,6 +72,19 @@ def fill_file(input_path: str, output_path: str, session: Session, *, mask: str 
     return info
 
 
+def fill_texture(image: io.Image, session: Session, border: str = "clamp", where: str = "") -> io.Image:
+    """``pyramid mipmap --fill``: the texture filled by pull-push where its alpha is below 1 (the empty
+    texels around UV islands), opaque, before its MIP levels are made. Texels of alpha 1 are unchanged.
+    ``border`` is the MIP chain's (a tileable texture's holes fill from across its edges)."""
+    px = np.asarray(image.pixels, dtype=np.float32)
+    if not image.premultiplied:
+        raise UsageError(f"{where}: --fill takes the holes from the alpha channel, and this texture has none")
+    alpha = image.spec.alpha_channel
+    colour, weight, premultiplied = fill_inputs(px, "alpha", None, alpha, where=where)
+    (filled,) = session.run(Fill(premultiplied=premultiplied, border=border), [colour, weight])
+    return io.Image(np.ascontiguousarray(fill_output(filled, px, "alpha", alpha), dtype=np.float32), image.spec)
+
+
 def _levels(work, size) -> int:
     from .geometry import mip_levels
 
@@ -104,4 +117,4 @@ def blend_files(a_path: str, b_path: str, mask_path: str, output_path: str, sess
             "synthesis": synthesis, "border": border, "executor": session.ran}
 
 
-__all__ = ["fill_file", "blend_files"]
+__all__ = ["fill_file", "blend_files", "fill_texture"]

@@ -350,3 +350,62 @@ def test_cli_blend_equals_the_api(files, tmp_path):
     m = pyr.read_image(files / "m.exr").pixels
     np.testing.assert_allclose(pyr.read_image(tmp_path / "o.exr").pixels,
                                pyr.blend(a, b, m, levels=3, backend="reference"), rtol=0, atol=1e-5)
+
+
+# ------------------------------------------------------------------ mipmap --fill
+def _uv_islands(path):
+    """An 8-bit sRGB RGBA texture: three islands of different colours (alpha 255) on empty texels (alpha 0)."""
+    import OpenImageIO as oiio
+
+    h, w = 96, 80
+    px = np.zeros((h, w, 4), np.uint8)
+    y, x = np.mgrid[0:h, 0:w]
+    islands = [((y - 25) ** 2 + (x - 22) ** 2 < 300, (200, 60, 40)), ((y > 55) & (y < 90) & (x > 8) & (x < 40),
+               (40, 170, 90)), ((y - 40) ** 2 / 4 + (x - 62) ** 2 < 150, (230, 200, 60))]
+    for where, rgb in islands:
+        px[where] = (*rgb, 255)
+    px[..., :3] += (np.arange(w) % 7).astype(np.uint8)[None, :, None] * (px[..., 3:] > 0)  # some texture
+    out = oiio.ImageOutput.create(str(path))
+    assert out.open(str(path), oiio.ImageSpec(w, h, 4, "uint8"))
+    out.write_image(px)
+    out.close()
+    return px
+
+
+def _levels_of(path):
+    import OpenImageIO as oiio
+
+    inp = oiio.ImageInput.open(str(path))
+    levels, m = [], 0
+    while inp.seek_subimage(0, m):  # a "Plain Texture" TIFF's subimages read as MIP levels
+        levels.append(inp.read_image(0, m, 0, 4, "uint8"))
+        m += 1
+    inp.close()
+    return levels
+
+
+def test_mipmap_fill_keeps_known_texels_and_levels_off_the_hole_colour(tmp_path):
+    src = tmp_path / "bake.png"
+    px = _uv_islands(src)
+    for name, extra in [("plain.tx", []), ("filled.tx", ["--fill"])]:
+        r = _invoke("mipmap", *extra, src, tmp_path / name, "--tile", "16", "-q", "--backend", "cpu")
+        assert r.exit_code == 0, r.output
+    plain, filled = _levels_of(tmp_path / "plain.tx"), _levels_of(tmp_path / "filled.tx")
+    assert len(plain) == len(filled) > 5
+    known = px[..., 3] == 255
+    np.testing.assert_array_equal(filled[0][known], px[known])  # level 0's known texels, byte for byte
+    assert np.all(filled[0][..., 3] == 255)
+    lo = px[known][:, :3].min(axis=0).astype(float)
+    hi = px[known][:, :3].max(axis=0).astype(float)
+    for k in range(1, len(filled)):
+        mean_filled = filled[k][..., :3].reshape(-1, 3).mean(axis=0)
+        mean_plain = plain[k][..., :3].reshape(-1, 3).mean(axis=0)
+        assert np.all(mean_filled >= lo - 1) and np.all(mean_filled <= hi + 1), (k, mean_filled)
+        island_mean = px[known][:, :3].mean(axis=0)
+        # the chain without --fill darkens toward the empty texels' black; --fill stays near the islands' colours
+        assert np.abs(mean_filled - island_mean).max() < 0.5 * np.abs(mean_plain - island_mean).max(), k
+
+
+def test_mipmap_fill_needs_an_alpha_channel(files, tmp_path):
+    r = _invoke("mipmap", "--fill", files / "a.exr", tmp_path / "a.tx.exr")
+    assert r.exit_code == 2 and "alpha" in r.output
