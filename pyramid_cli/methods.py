@@ -149,8 +149,8 @@ def fill_inputs(pixels: np.ndarray, holes: str = "alpha", mask: np.ndarray | Non
         if ch is None or not 0 <= ch < a3.shape[2] or a3.shape[2] < 2:
             raise UsageError(f"{prefix}--holes alpha needs an alpha channel ({a3.shape[2]} channel(s)); "
                              "use --mask or --holes nan")
-        colour = np.delete(a3, ch, axis=2).astype(np.float32)
-        weight = np.clip(a3[:, :, ch:ch + 1].astype(np.float32), 0, 1)
+        colour = np.ascontiguousarray(a3[:, :, [c for c in range(a3.shape[2]) if c != ch]], dtype=np.float32)
+        weight = np.clip(a3[:, :, ch:ch + 1], 0, 1, dtype=np.float32)
         premultiplied = True
     elif holes == "mask":
         if mask is None:
@@ -160,9 +160,11 @@ def fill_inputs(pixels: np.ndarray, holes: str = "alpha", mask: np.ndarray | Non
         if m.shape[:2] != a3.shape[:2] or m.shape[2] not in (1, a3.shape[2]):
             raise UsageError(f"{prefix}the mask is {m.shape[1]}x{m.shape[0]} with {m.shape[2]} channel(s); the image "
                              f"is {a3.shape[1]}x{a3.shape[0]} with {a3.shape[2]}: one channel or one per channel")
-        colour = a3.astype(np.float32)
+        colour = np.ascontiguousarray(a3, dtype=np.float32)
         weight = np.clip(np.nan_to_num(m, nan=0.0), 0, 1)
         premultiplied = False
+        if not np.all(np.isfinite(colour[np.broadcast_to(weight > 0, colour.shape)])):
+            raise DataError(f"{prefix}NaN/Inf in a known pixel; use --holes nan to treat them as holes")
     elif holes == "nan":
         known = np.all(np.isfinite(a3), axis=2, keepdims=True)
         colour = np.where(known, a3, 0).astype(np.float32)
@@ -172,10 +174,9 @@ def fill_inputs(pixels: np.ndarray, holes: str = "alpha", mask: np.ndarray | Non
         raise UsageError(f"holes must be one of {', '.join(HOLES)}, not {holes!r}")
     if not np.any(weight > 0):
         raise DataError(f"{prefix}no known pixel to fill from (every weight is 0)")
-    if not premultiplied and not np.all(np.isfinite(colour[np.broadcast_to(weight > 0, colour.shape)])):
-        raise DataError(f"{prefix}NaN/Inf in a known pixel; use --holes nan to treat them as holes")
-    weight = np.ascontiguousarray(np.broadcast_to(weight, colour.shape), dtype=np.float32)
-    return np.ascontiguousarray(colour), weight, premultiplied
+    if weight.shape[2] != colour.shape[2]:  # every pass is per channel: one weight per colour channel
+        weight = np.repeat(weight, colour.shape[2], axis=2)
+    return colour, np.ascontiguousarray(weight, dtype=np.float32), premultiplied
 
 
 def fill_output(filled: np.ndarray, pixels: np.ndarray, holes: str = "alpha",
@@ -187,8 +188,10 @@ def fill_output(filled: np.ndarray, pixels: np.ndarray, holes: str = "alpha",
     if holes == "alpha":
         channels = a.shape[2]
         ch = alpha_channel if alpha_channel is not None else channels - 1
-        out = np.insert(f3, ch, np.float32(1), axis=2)
-        return out.astype(np.float32)
+        out = np.empty(f3.shape[:2] + (channels,), dtype=np.float32)
+        out[:, :, [c for c in range(channels) if c != ch]] = f3
+        out[:, :, ch] = 1
+        return out
     return f3[:, :, 0] if a.ndim == 2 else f3
 
 
