@@ -262,7 +262,7 @@ def mipmap(array, *, analysis: str = catalogue.MIP_ANALYSIS_DEFAULT, border: str
 
 
 def fill(array, *, mask=None, holes: str | None = None, levels: int | None = None, analysis: str = "box4",
-         synthesis: str = "doosabin", border: str = "clamp", backend: str = "auto",
+         synthesis: str = "doosabin", keep_alpha: bool = False, border: str = "clamp", backend: str = "auto",
          session: Session | None = None) -> np.ndarray:
     """Fill holes by pull-push (Kraus, "The Pull-Push Algorithm Revisited", GRAPP 2009).
 
@@ -288,6 +288,9 @@ def fill(array, *, mask=None, holes: str | None = None, levels: int | None = Non
     analysis, synthesis : str
         The pull's ⊗↓ filter (default the 4×4 box, §4.2) and the push's ⊗↑ filter (default
         Doo-Sabin, §5.3), or one-step expressions.
+    keep_alpha : bool
+        With ``holes="alpha"``: return the input's alpha beside the filled colours, which are
+        then straight (not multiplied by alpha), instead of an opaque image.
     border, backend, session
         As in :func:`apply`.
 
@@ -295,7 +298,7 @@ def fill(array, *, mask=None, holes: str | None = None, levels: int | None = Non
     -------
     numpy.ndarray
         float32, the input's shape; the alpha channel (``holes="alpha"``) is 1 everywhere,
-        as ``oiiotool --fillholes`` writes it.
+        as ``oiiotool --fillholes`` writes it (or the input's, with ``keep_alpha``).
 
     Raises
     ------
@@ -319,11 +322,14 @@ def fill(array, *, mask=None, holes: str | None = None, levels: int | None = Non
     from .work import Fill
 
     holes = holes or ("mask" if mask is not None else "alpha")
+    if keep_alpha and holes != "alpha":
+        raise ValueError(f"keep_alpha keeps the alpha the holes come from; with holes={holes!r} every channel "
+                         "is filled")
     pixels = as_pixels(array)
     colour, weight, premultiplied = fill_inputs(pixels, holes, None if mask is None else as_pixels(mask, "mask"))
     work = Fill(levels=levels, analysis=analysis, synthesis=synthesis, premultiplied=premultiplied, border=border)
     (out,) = _run(work, [colour, weight], session, backend)
-    return fill_output(out, pixels, holes)
+    return fill_output(out, pixels, holes, keep_alpha=keep_alpha)
 
 
 def blend(a, b, mask, *, levels: int | None = None, analysis: str = catalogue.ANALYSIS_DEFAULT,

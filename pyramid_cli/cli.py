@@ -501,17 +501,20 @@ def mipmap(ctx: click.Context, paths, analysis, tile, wrap, swrap, twrap, consta
               help=f"The pull's filter: {', '.join(catalogue.ANALYSIS_FILTERS)}, or a ⊗↓ expression.")
 @click.option("--synthesis", default="doosabin", show_default=True,
               help=f"The push's filter: {', '.join(catalogue.SYNTHESIS_FILTERS)}, or a ⊗↑ expression.")
+@click.option("--keep-alpha", is_flag=True, help="Keep the input's alpha and store the filled colours beside it "
+              "unassociated (straight), instead of an opaque image: a PNG keeps its cut-out with colour under it.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object (pixels filled, levels, executor).")
 @border_option
 @io_options
-def fill(input_path, output_path, mask, holes, levels, analysis, synthesis, as_json, border, **opts) -> None:
+def fill(input_path, output_path, mask, holes, levels, analysis, synthesis, keep_alpha, as_json, border,
+         **opts) -> None:
     """Fill holes from the pixels around them by pull-push (Kraus, GRAPP 2009).
 
     The known pixels are pulled down the analysis pyramid as premultiplied colours with
     their weights, then every level is composited over the expanded coarser one: holes of
     any size get a smooth fill, pixels of full weight stay bit for bit. The output is
-    opaque (alpha 1, as oiiotool --fillholes writes it). An image without a known pixel
-    is bad pixel data (exit 5).
+    opaque (alpha 1, as oiiotool --fillholes writes it) unless --keep-alpha. An image
+    without a known pixel is bad pixel data (exit 5).
 
     \b
     Example:
@@ -519,6 +522,7 @@ def fill(input_path, output_path, mask, holes, levels, analysis, synthesis, as_j
       pyramid fill --mask valid.png plate.exr patched.exr    # holes where the mask is 0
       pyramid fill --holes nan depth.exr depth_filled.exr    # holes at NaN/Inf pixels
       pyramid fill --analysis box --json in.exr out.exr
+      pyramid fill --keep-alpha decal.png decal_dilated.png    # colour under the cut-out
     """
     from .methods_files import fill_file
 
@@ -528,7 +532,8 @@ def fill(input_path, output_path, mask, holes, levels, analysis, synthesis, as_j
     ro, wo = _read_write(opts)
     with _session(opts, reporter) as session:
         info = fill_file(input_path, output_path, session, mask=mask, holes=holes, levels=levels, analysis=analysis,
-                         synthesis=synthesis, border=border, read=ro, write=wo, reporter=reporter)
+                         synthesis=synthesis, keep_alpha=keep_alpha, border=border, read=ro, write=wo,
+                         reporter=reporter)
     if as_json:
         click.echo(json.dumps(info, ensure_ascii=False))
 

@@ -180,9 +180,10 @@ def fill_inputs(pixels: np.ndarray, holes: str = "alpha", mask: np.ndarray | Non
 
 
 def fill_output(filled: np.ndarray, pixels: np.ndarray, holes: str = "alpha",
-                alpha_channel: int | None = None) -> np.ndarray:
+                alpha_channel: int | None = None, keep_alpha: bool = False) -> np.ndarray:
     """The filled colours in the input's layout: an alpha channel (``holes`` alpha) is put back as 1
-    (opaque, as ``oiiotool --fillholes`` writes it); a 2-D input comes back 2-D."""
+    (opaque, as ``oiiotool --fillholes`` writes it), or with ``keep_alpha`` as the input's alpha beside
+    the filled straight (unassociated) colours; a 2-D input comes back 2-D."""
     a = np.asarray(pixels)
     f3 = filled[:, :, None] if filled.ndim == 2 else filled
     if holes == "alpha":
@@ -190,7 +191,7 @@ def fill_output(filled: np.ndarray, pixels: np.ndarray, holes: str = "alpha",
         ch = alpha_channel if alpha_channel is not None else channels - 1
         out = np.empty(f3.shape[:2] + (channels,), dtype=np.float32)
         out[:, :, [c for c in range(channels) if c != ch]] = f3
-        out[:, :, ch] = 1
+        out[:, :, ch] = a[:, :, ch] if keep_alpha else 1
         return out
     return f3[:, :, 0] if a.ndim == 2 else f3
 

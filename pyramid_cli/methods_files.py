@@ -6,6 +6,8 @@ write options (:class:`~pyramid_cli.pipeline.ReadOptions`, ``WriteOptions``) and
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from . import io
@@ -35,15 +37,22 @@ def _read_mask(path: str, shape: tuple[int, ...], ro: ReadOptions) -> np.ndarray
 
 def fill_file(input_path: str, output_path: str, session: Session, *, mask: str | None = None,
               holes: str | None = None, levels: int | None = None, analysis: str = "box4",
-              synthesis: str = "doosabin", border: str = "clamp", read: ReadOptions | None = None,
-              write: WriteOptions | None = None, reporter: Reporter | None = None) -> dict:
-    """Pull-push fill of one image file (:func:`pyramid_cli.api.fill`); returns what ``--json`` prints."""
+              synthesis: str = "doosabin", keep_alpha: bool = False, border: str = "clamp",
+              read: ReadOptions | None = None, write: WriteOptions | None = None,
+              reporter: Reporter | None = None) -> dict:
+    """Pull-push fill of one image file (:func:`pyramid_cli.api.fill`); returns what ``--json`` prints.
+
+    ``keep_alpha`` writes the input's alpha beside the filled colours, stored unassociated (as they
+    are: what a PNG's straight alpha means; in EXR, for readers that take its colour as unassociated)."""
     ro, wo, reporter = read or ReadOptions(), write or WriteOptions(), reporter or Reporter()
     holes = holes or ("mask" if mask else "alpha")
     if holes == "mask" and not mask:
         raise UsageError("--holes mask needs --mask IMAGE")
     if mask and holes != "mask":
         raise UsageError(f"--mask gives the weights; it cannot be combined with --holes {holes}")
+    if keep_alpha and holes != "alpha":
+        raise UsageError(f"--keep-alpha keeps the alpha the holes come from; with --holes {holes} every channel "
+                         "is filled")
     if holes == "nan" and ro.nan != "keep":
         raise UsageError(f"--holes nan fills the NaN/Inf pixels; --nan {ro.nan} would remove them first")
     io.check_write_options(output_path, wo.pixel_type, wo.compression)
@@ -57,8 +66,9 @@ def fill_file(input_path: str, output_path: str, session: Session, *, mask: str 
     work = Fill(levels=levels, analysis=analysis, synthesis=synthesis, premultiplied=premultiplied, border=border)
     _announce_compiles(session, work, [colour, weight], reporter)
     (filled,) = session.run(work, [colour, weight])
-    out = fill_output(filled, px, holes, alpha)
-    io.write_image(output_path, io.Image(np.ascontiguousarray(out, dtype=np.float32), image.spec),
+    out = fill_output(filled, px, holes, alpha, keep_alpha)
+    spec = dataclasses.replace(image.spec, alpha_mode="none") if keep_alpha else image.spec  # colours as they are
+    io.write_image(output_path, io.Image(np.ascontiguousarray(out, dtype=np.float32), spec),
                    **wo.for_inputs([input_path] + ([mask] if mask else [])))
     h, w = out.shape[:2]
     w0 = weight[..., 0]

@@ -409,3 +409,43 @@ def test_mipmap_fill_keeps_known_texels_and_levels_off_the_hole_colour(tmp_path)
 def test_mipmap_fill_needs_an_alpha_channel(files, tmp_path):
     r = _invoke("mipmap", "--fill", files / "a.exr", tmp_path / "a.tx.exr")
     assert r.exit_code == 2 and "alpha" in r.output
+
+
+def test_keep_alpha_returns_the_input_alpha_beside_straight_filled_colours():
+    rng = np.random.default_rng(9)
+    a = rng.random((15, 12, 4)).astype(np.float32)
+    alpha = (rng.random((15, 12)) < 0.5).astype(np.float32)
+    alpha[2, 2] = 0.25
+    a[..., 3] = alpha
+    a[..., :3] *= alpha[..., None]
+    opaque = pyr.fill(a, backend="cpu")
+    kept = pyr.fill(a, keep_alpha=True, backend="cpu")
+    np.testing.assert_array_equal(kept[..., 3], alpha)
+    np.testing.assert_array_equal(kept[..., :3], opaque[..., :3])
+    with pytest.raises(ValueError, match="keep_alpha"):
+        pyr.fill(a[..., :3], mask=alpha, keep_alpha=True)
+
+
+def test_cli_keep_alpha_png_keeps_the_cut_out_with_colour_under_it(tmp_path):
+    import OpenImageIO as oiio
+
+    src = tmp_path / "decal.png"
+    px = _uv_islands(src)
+    for name, extra in [("opaque.png", []), ("kept.png", ["--keep-alpha"])]:
+        r = _invoke("fill", *extra, src, tmp_path / name, "-q", "--backend", "cpu")
+        assert r.exit_code == 0, r.output
+
+    def codes(path):  # the stored codes, as they are (OpenImageIO would associate alpha on read)
+        config = oiio.ImageSpec()
+        config.attribute("oiio:UnassociatedAlpha", 1)
+        inp = oiio.ImageInput.open(str(path), config)
+        out = np.asarray(inp.read_image(0, 0, 0, 4, "uint8"))
+        inp.close()
+        return out
+
+    opaque, kept = codes(tmp_path / "opaque.png"), codes(tmp_path / "kept.png")
+    np.testing.assert_array_equal(kept[..., 3], px[..., 3])          # the cut-out as it was
+    np.testing.assert_array_equal(kept[..., :3], opaque[..., :3])    # the fill's colours under it, everywhere
+    known = px[..., 3] == 255
+    np.testing.assert_array_equal(kept[known], px[known])
+    assert np.all(opaque[..., 3] == 255) and kept[~known][:, :3].any()
