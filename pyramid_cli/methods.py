@@ -167,7 +167,7 @@ def fill_inputs(pixels: np.ndarray, holes: str = "alpha", mask: np.ndarray | Non
             raise DataError(f"{prefix}NaN/Inf in a known pixel; use --holes nan to treat them as holes")
     elif holes == "nan":
         known = np.all(np.isfinite(a3), axis=2, keepdims=True)
-        colour = np.where(known, a3, 0).astype(np.float32)
+        colour = np.where(known, a3, np.float32(0)).astype(np.float32)
         weight = known.astype(np.float32)
         premultiplied = True
     else:

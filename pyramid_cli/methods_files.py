@@ -56,7 +56,8 @@ def fill_file(input_path: str, output_path: str, session: Session, *, mask: str 
     if holes == "nan" and ro.nan != "keep":
         raise UsageError(f"--holes nan fills the NaN/Inf pixels; --nan {ro.nan} would remove them first")
     io.check_write_options(output_path, wo.pixel_type, wo.compression)
-    image = io.read_image(input_path, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan)
+    # a half file stays half until fill_inputs copies it to float32 (one conversion, not two)
+    image = io.read_image(input_path, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan, keep_half=True)
     px = image.pixels
     alpha = image.spec.alpha_channel if image.premultiplied else None
     if holes == "alpha" and alpha is None:
