@@ -449,3 +449,12 @@ def test_cli_keep_alpha_png_keeps_the_cut_out_with_colour_under_it(tmp_path):
     known = px[..., 3] == 255
     np.testing.assert_array_equal(kept[known], px[known])
     assert np.all(opaque[..., 3] == 255) and kept[~known][:, :3].any()
+
+
+def test_plan_report_and_estimate_describe_pointwise_passes():
+    from pyramid_cli.plan import estimate_seconds, render, to_json
+
+    p = methods.blend_plan((9, 7), 2)
+    text = render(p)
+    assert "pointwise blend(" in text and "pointwise" in json.dumps(to_json(p))
+    assert estimate_seconds(p) > 0
