@@ -21,7 +21,12 @@ covers in 2-D: Gortler's pull filter ``h̃ = [½ 1 ½]²`` sums to 4):
 - push, k = m−1 … 0: ``c̄_k = p_k + (1 − w_k)·S(c̄_{k+1})`` (``over``): each level composited
   over the expanded, already complete coarser one by its own weight.
 
-A known pixel of weight 1 comes out as ``p₀ + 0·S(…) = c`` exactly. **Blending** (Burt & Adelson,
+A known pixel of weight 1 comes out as ``p₀ + 0·S(…) = c`` exactly. (Only the 2009 paper's
+abstract, which stresses "the correct normalization of the employed filters", could be retrieved
+for this implementation: the equations are Gortler et al.'s in premultiplied form, with the
+normalisation their pull filter implies; ``K`` was also checked by measurement, see README.)
+
+**Blending** (Burt & Adelson,
 "A Multiresolution Spline With Application to Image Mosaics", ACM ToG 2(4), 1983, eq. 3–4):
 ``LS_k = GM_k·LA_k + (1 − GM_k)·LB_k`` for the Laplacian bands of A and B and the Gaussian
 (analysis) pyramid GM of the mask, then the collapse ``S_k = LS_k + expand(S_{k+1})``.
