@@ -27,7 +27,7 @@ for this implementation: the equations are Gortler et al.'s in premultiplied for
 normalisation their pull filter implies; ``K`` was also checked by measurement, see README.)
 
 **Blending** (Burt & Adelson,
-"A Multiresolution Spline With Application to Image Mosaics", ACM ToG 2(4), 1983, eq. 3–4):
+"A Multiresolution Spline With Application to Image Mosaics", ACM ToG 2(4), 1983):
 ``LS_k = GM_k·LA_k + (1 − GM_k)·LB_k`` for the Laplacian bands of A and B and the Gaussian
 (analysis) pyramid GM of the mask, then the collapse ``S_k = LS_k + expand(S_{k+1})``.
 """
