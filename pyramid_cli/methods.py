@@ -7,7 +7,7 @@ executor (emulator, CPU, GL) runs the whole method without read-back between lev
 float64 oracle, written from the papers' equations and not from these plans, is
 :mod:`pyramid_cli.methods_reference`.
 
-**Pull-push** (Gortler et al., "The Lumigraph", SIGGRAPH 1996, §3.4; corrected and normalised in
+**Pull-push** (Gortler et al., "The Lumigraph", SIGGRAPH 1996; corrected and normalised in
 M. Kraus, "The Pull-Push Algorithm Revisited", GRAPP 2009,
 https://www.scitepress.org/papers/2009/17726/17726.pdf). Level 0 holds premultiplied colours
 ``p₀ = w₀·c`` and weights ``w₀ ∈ [0, 1]``. With ``A`` the analysis filter (normalised: its
