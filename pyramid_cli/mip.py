@@ -35,6 +35,7 @@ class TextureLevels(Levels):
 
     constant_detect: bool = False
     round_down: bool = False  # maketx's level sizes ⌊n/2⌋, by area resampling (:func:`area_levels`)
+    fill: bool = False        # pull-push texels of alpha < 1 first (pyramid_cli.methods_files.fill_texture)
 
     @property
     def filter_name(self) -> str:
