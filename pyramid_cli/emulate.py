@@ -11,7 +11,32 @@ import numpy as np
 
 from .border import Border, fold
 from .geometry import base_index
-from .plan import Plan, ResamplePass, Tap
+from .plan import Plan, PointwisePass, ResamplePass, Tap
+
+
+def pointwise(op: str, srcs: list[np.ndarray], param: float = 1.0) -> np.ndarray:
+    """The formulas of :data:`pyramid_cli.plan.model.POINTWISE_OPS`, elementwise on arrays of one shape."""
+    k = float(param)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        if op == "mul":
+            a, b = srcs
+            return a * b
+        if op == "pull_colour":
+            a, b = srcs
+            return np.where(b > 0, a * (np.minimum(1.0, k * b) / np.where(b > 0, b, 1.0)), 0.0)
+        if op == "pull_weight":
+            (a,) = srcs
+            return np.minimum(1.0, k * a)
+        if op == "divide":
+            a, b = srcs
+            return np.where(b > 0, a / np.where(b > 0, b, 1.0), 0.0)
+        if op == "over":
+            a, b, c = srcs
+            return a + (1.0 - b) * c
+        if op == "blend":
+            a, b, c = srcs
+            return c * a + (1.0 - c) * b
+    raise ValueError(f"unknown pointwise op {op!r}")
 
 
 def sample(src: np.ndarray, guard_lo: tuple[int, int], rows: np.ndarray, cols: np.ndarray,
@@ -94,6 +119,9 @@ def _execute(plan: Plan, image) -> list[np.ndarray]:
     for ps in plan.passes:
         if isinstance(ps, ResamplePass):
             stored[ps.target] = resample(stored[ps.source], ps, plan.images[ps.source].border)
+            continue
+        if isinstance(ps, PointwisePass):
+            stored[ps.target] = pointwise(ps.op, [stored[s] for s in ps.srcs], ps.param)
             continue
         target = plan.images[ps.target]
         h, w = target.stored

@@ -48,6 +48,7 @@ class TextureLevels(Levels):
     resize: bool = False           # maketx's --resize: level 0 up to powers of two first (rounding "down" only)
     nchannels: int | None = None   # maketx's --nchannels: keep or pad to this many channels (:func:`channel_plan`)
     monochrome_detect: bool = False  # maketx's --monochrome-detect: R = G = B everywhere → one channel
+    fill: bool = False        # pull-push texels of alpha < 1 first (pyramid_cli.methods_files.fill_texture)
 
     @property
     def keeps_input(self) -> bool:  # type: ignore[override]

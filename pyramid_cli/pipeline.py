@@ -209,6 +209,10 @@ def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: R
 
     def compute(job_image):
         job, image = job_image
+        if mip_tile and getattr(work, "fill", False):  # mipmap --fill: pull-push before the MIP chain (issue 17)
+            from .methods_files import fill_texture
+
+            image = fill_texture(image, session, work.border, where=job.input)
         if not announced:
             announced.append(True)
             _announce_compiles(session, work, [image.pixels], reporter)

@@ -78,6 +78,55 @@ class Pass:
         return sum(len(t) for t in self.phases.values()) / len(self.phases)
 
 
+# The per-pixel operations of a :class:`PointwisePass` (the nonlinear steps of the pyramid methods:
+# pull-push hole filling, Kraus 2009 after Gortler et al. 1996; multiresolution blending, Burt &
+# Adelson 1983). Each reads its sources at the same pixel and channel; ``k`` is the pass's ``param``.
+# One fact each; the executors (emulate, cpu, gl) implement these formulas literally, in float32.
+POINTWISE_OPS: dict[str, tuple[int, str]] = {
+    "mul": (2, "a·b: colour times weight (premultiplying by a weight image)"),
+    "pull_colour": (2, "a·min(1, k·b)/b where b > 0, else 0: a pulled (filtered) premultiplied colour a with its "
+                       "filtered weight b, renormalised so that its weight becomes min(1, k·b)"),
+    "pull_weight": (1, "min(1, k·a): a filtered weight scaled by k (the fine pixels a coarse one covers) and "
+                       "clamped to 1"),
+    "divide": (2, "a/b where b > 0, else 0: premultiplied colour back to colour"),
+    "over": (3, "a + (1 − b)·c: premultiplied colour a of weight b over the colour c (the push blend)"),
+    "blend": (3, "c·a + (1 − c)·b: a where the mask c is 1, b where it is 0 (Burt & Adelson's per-level blend)"),
+}
+
+
+@dataclass
+class PointwisePass:
+    """Per-pixel arithmetic over several images of one size, at the same logical pixel and channel.
+
+    ``op`` names one of :data:`POINTWISE_OPS` and ``srcs`` its operands in order (``a, b, c``);
+    ``param`` is the constant ``k`` of the ops that take one. No source is read past its extent,
+    so border modes never apply, and every source and the target have no guard band.
+    """
+
+    label: str
+    target: int
+    op: str
+    srcs: tuple[int, ...]
+    param: Fraction = Fraction(1)
+    why: str = ""
+
+    def __post_init__(self):
+        arity = POINTWISE_OPS[self.op][0]  # KeyError: an unknown op is a planner bug
+        assert len(self.srcs) == arity, f"{self.op} takes {arity} source(s), not {len(self.srcs)}"
+
+    def sources(self) -> set[int]:
+        return set(self.srcs)
+
+    @property
+    def fetches(self) -> float:
+        """Texel reads per fragment: one per operand."""
+        return float(len(self.srcs))
+
+    def reads(self, rows: tuple[int, int], cols: tuple[int, int]) -> dict[int, tuple[tuple[int, int], tuple[int, int]]]:
+        """Each source is read over the output rectangle itself (0-based half-open logical rows, columns)."""
+        return {s: (tuple(rows), tuple(cols)) for s in self.srcs}
+
+
 @dataclass
 class ResamplePass:
     """Separable resampling of one axis by a banded table of exact weights (MIP levels, DESIGN.md §5).
@@ -126,7 +175,7 @@ class ResamplePass:
 @dataclass
 class Plan:
     images: list[Image]
-    passes: list[Pass | ResamplePass]
+    passes: list[Pass | ResamplePass | PointwisePass]
     expression: str
     paper_fetches: float | None = None
     outputs: list[int] = field(default_factory=list)  # images read back, in order; default: the last
@@ -165,6 +214,14 @@ def check(p: Plan) -> None:
             assert len(ps.starts) == len(ps.weights) == dst.size[ps.axis]
             assert src.size[1 - ps.axis] == dst.size[1 - ps.axis]
             assert all(len(row) == ps.width for row in ps.weights)
+            continue
+        if isinstance(ps, PointwisePass):
+            size = p.images[ps.target].size
+            for s in ps.srcs:
+                assert s < ps.target, f"pass {ps.label}: source {s} is not written before {ps.target}"
+                assert p.images[s].size == size, f"pass {ps.label}: source {s} is not {size}"
+                assert not any(p.images[s].guard), f"pass {ps.label}: source {s} has a guard band"
+            assert not any(p.images[ps.target].guard), f"pass {ps.label}: pointwise target with a guard band"
             continue
         for taps in ps.phases.values():
             for t in taps:

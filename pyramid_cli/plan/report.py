@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from .. import cost
 from .estimate import estimate_seconds, pass_seconds
-from .model import Plan, ResamplePass, Tap
+from .model import Plan, PointwisePass, ResamplePass, Tap
 
 
 def _tap_json(t: Tap) -> dict:
@@ -23,6 +23,11 @@ def to_json(p: Plan) -> dict:
         img = p.images[ps.target]
         if isinstance(ps, ResamplePass):
             passes.append(_resample_json(p, ps, model))
+            continue
+        if isinstance(ps, PointwisePass):
+            passes.append({"label": ps.label, "size": [img.size[1], img.size[0]], "pointwise": ps.op,
+                           "sources": list(ps.srcs), "param": str(ps.param), "fetches": ps.fetches,
+                           "estimate_s": pass_seconds(p.images, ps, model)})
             continue
         entry = {"label": ps.label, "size": [img.size[1], img.size[0]], "guard": list(img.guard),
                  "period": [ps.period[1], ps.period[0]], "stride": [ps.stride[1], ps.stride[0]],
@@ -76,6 +81,11 @@ def render(p: Plan) -> str:
         t, l, b, r = img.guard
         guard = f" + guard t{t} l{l} b{b} r{r}" if any(img.guard) else ""
         srcs = ", ".join("input" if s == 0 else f"pass {s}" for s in sorted(ps.sources()))
+        if isinstance(ps, PointwisePass):
+            operands = ", ".join("input" if s == 0 else f"image {s}" for s in ps.srcs)
+            lines.append(f"pass {n}  {ps.label}: {img.size[1]}×{img.size[0]}, pointwise {ps.op}({operands})"
+                         + (f", K = {ps.param}" if ps.op.startswith("pull") else ""))
+            continue
         lines.append(f"pass {n}  {ps.label}: {img.size[1]}×{img.size[0]}{guard}, reads {srcs}, "
                      f"{ps.fetches:g} fetch(es) per fragment")
         if ps.why:
