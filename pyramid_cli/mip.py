@@ -70,9 +70,13 @@ class TextureLevels(Levels):
 
     @property
     def filter_name(self) -> str:
-        """The filter and rule, as the hash and ImageHistory name them: ``quadratic`` or ``quadratic/up``."""
-        name = self.analysis if self.rounding == "down" else f"{self.analysis}/up"
-        return name + ("/resize" if self.resize else "")
+        """The filter, rule and whatever else changes the texels, as the SHA-1's appended text and
+        ImageHistory name them: ``quadratic``, ``quadratic/up``, ``quadratic/resize/nchannels=1/fill`` …
+        (the hash is of the source's pixels, so two files that differ below must differ here)."""
+        flags = (["up"] if self.rounding == "up" else []) + (["resize"] if self.resize else [])
+        flags += [f"nchannels={self.nchannels}"] if self.nchannels is not None else []
+        flags += (["monochrome-detect"] if self.monochrome_detect else []) + (["fill"] if self.fill else [])
+        return "/".join([self.analysis, *flags])
 
     def count(self, size) -> int:
         size = tuple(size[:2])
@@ -377,11 +381,12 @@ def texture_metadata(border: str, analysis: str, sha1: str | None = None, oiio_v
     from . import __version__
 
     tool = f"pyramid mipmap (bilinear-pyramid {__version__})"
-    name, *flags = analysis.split("/")  # TextureLevels.filter_name: "quadratic", "quadratic/up", ".../resize"
+    name, *flags = analysis.split("/")  # TextureLevels.filter_name: "quadratic", "quadratic/up/resize", …
+    options = "".join(f" --{f.replace('=', ' ')}" for f in flags if f != "up")
     meta = {"wrapmodes": wrapmodes(border),
             "Software": f"OpenImageIO {oiio_version} : {tool}" if oiio_version else tool,
             "Exif:ImageHistory": f"pyramid mipmap --analysis {name} --round {'up' if 'up' in flags else 'down'}"
-                                 f"{' --resize' if 'resize' in flags else ''} --wrap {BORDER_TO_WRAP[border]}"}
+                                 f"{options} --wrap {BORDER_TO_WRAP[border]}"}
     if sha1:
         meta["oiio:SHA-1"] = sha1
     return meta

@@ -540,3 +540,15 @@ def test_resize_makes_maketxs_power_of_two_levels(tmp_path, sources):
     r = CliRunner().invoke(main, ["mipmap", *CPU, "--resize", "--round", "up", str(sources["rgb"]),
                                   str(tmp_path / "up.exr")])
     assert r.exit_code == 2 and "--resize" in r.output
+
+
+def test_options_that_change_the_texels_change_the_sha1(tmp_path, sources):
+    """The hash is of the source's pixels (as maketx's), so what changes the levels goes into its appended text:
+    OpenImageIO's ImageCache treats two files with one SHA-1 as the same texture."""
+    hashes = {}
+    for args in ([], ["--nchannels", "1"], ["--resize"], ["--round", "up"], ["--fill"], ["--monochrome-detect"]):
+        out = tmp_path / f"t{len(hashes)}.exr"
+        mipmap(*args, sources["rgba"], out)
+        hashes[" ".join(args)] = attributes(out)["oiio:SHA-1"]
+        assert " ".join(args) in attributes(out)["Exif:ImageHistory"]
+    assert len(set(hashes.values())) == len(hashes), hashes
