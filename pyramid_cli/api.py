@@ -248,17 +248,28 @@ def collapse(bands: Sequence, *, synthesis: str = catalogue.SYNTHESIS_DEFAULT, b
     return out
 
 
-def mipmap(array, *, analysis: str = catalogue.MIP_ANALYSIS_DEFAULT, border: str = "clamp", backend: str = "auto",
-           session: Session | None = None) -> list[np.ndarray]:
-    """MIP levels down to 1×1, level 0 first (sizes ⌈n/2⌉, as ``pyramid mipmap`` writes them).
+def mipmap(array, *, analysis: str = catalogue.MIP_ANALYSIS_DEFAULT, border: str = "clamp", rounding: str = "down",
+           backend: str = "auto", session: Session | None = None) -> list[np.ndarray]:
+    """MIP levels down to 1×1, level 0 first, as ``pyramid mipmap`` writes them.
+
+    ``rounding`` "down" (maketx's and OpenEXR's sizes ``max(1, ⌊n/2⌋)``): a level that halves
+    exactly is the paper's ⊗↓ (§4) of the one above; any other is resampled with the same
+    filter's kernel stretched to the ratio, covering the whole texture domain
+    (:mod:`pyramid_cli.plan.resample`). "up": the analysis pyramid's ``⌈n/2⌉`` (:func:`pyramid`).
 
     Examples
     --------
     >>> import numpy as np, pyramid_cli as pyr
-    >>> [lv.shape for lv in pyr.mipmap(np.ones((4, 8, 4)))]
-    [(4, 8, 4), (2, 4, 4), (1, 2, 4), (1, 1, 4)]
+    >>> [lv.shape for lv in pyr.mipmap(np.ones((5, 8, 4)))]
+    [(5, 8, 4), (2, 4, 4), (1, 2, 4), (1, 1, 4)]
+    >>> [lv.shape for lv in pyr.mipmap(np.ones((5, 8, 4)), rounding="up")]
+    [(5, 8, 4), (3, 4, 4), (2, 2, 4), (1, 1, 4)]
     """
-    return list(pyramid(array, analysis=analysis, levels=None, border=border, backend=backend, session=session))
+    from .mip import TextureLevels
+
+    pixels = as_pixels(array)
+    work = TextureLevels(levels=None, analysis=analysis, border=border, rounding=rounding)
+    return [array if pixels is array else pixels, *_run(work, [pixels], session, backend)[1:]]
 
 
 def fill(array, *, mask=None, holes: str | None = None, levels: int | None = None, analysis: str = "box4",

@@ -132,13 +132,19 @@ def _size(ctx, param, value):
               help="cost: per filter, the paper's decomposition or one fused pass, whichever is faster by the "
                    "cost model calibrated by bench/calibrate.py (pyramid_cli/cost_model.json); paper: always "
                    "the paper's; fused: always one pass per filter (what the CPU executor runs).")
-def plan_command(expression, size, as_json: bool, strategy: str) -> None:
+@click.option("--mipmap", "mip_round", type=click.Choice(["down", "up"]), default=None,
+              help="Plan `pyramid mipmap --round ROUND` with EXPRESSION (a one-step ⊗↓) as its --analysis: "
+                   "every level's passes, the paper's where a level halves exactly, resampling tables elsewhere.")
+@click.option("--border", type=_choice(BORDERS), default="clamp", show_default=True,
+              help="How written operators read past their input's edges (mipmap: the --wrap mode).")
+def plan_command(expression, size, as_json: bool, strategy: str, mip_round: str | None, border: str) -> None:
     """Show the render passes and bilinear taps that compute EXPRESSION.
 
     \b
     Example:
       pyramid plan 'quadratic *v g' --size 1920x1080
       pyramid plan --json 'h_Doo-Sabin ⊗↑ g' --size 64x64
+      pyramid plan --mipmap down 'quadratic *v g' --size 1001x777
 
     \b
     Tap positions are [x, y] in source texels relative to the source pixel the
@@ -147,7 +153,18 @@ def plan_command(expression, size, as_json: bool, strategy: str) -> None:
     from .plan import check, plan, render, to_json
 
     w, h = size
-    p = plan(expression, (h, w), strategy)
+    if mip_round is not None:
+        from .expr import Apply, Input, Named, Op, to_text
+        from .mip import TextureLevels
+
+        named = (isinstance(expression, Apply) and expression.op is Op.DOWN and isinstance(expression.filter, Named)
+                 and isinstance(expression.arg, Input) and expression.stride == 1 and expression.power == 1)
+        analysis = expression.filter.key if named else to_text(expression)
+        p = TextureLevels(analysis=analysis, border=border, rounding=mip_round).plan(((h, w),), strategy)
+        if p is None:
+            raise UsageError(f"a {w}x{h} image is its own MIP map: there are no levels to plan")
+    else:
+        p = plan(expression, (h, w), strategy, border)
     check(p)
     click.echo(json.dumps(to_json(p), ensure_ascii=False) if as_json else render(p))
 
@@ -434,15 +451,25 @@ def collapse(inputs, output_path, synthesis, border, **opts) -> None:
 @click.option("--fill", "fill_holes", is_flag=True, help="Fill the texels of alpha < 1 (empty space around UV "
               "islands) by pull-push first, so no level darkens toward the empty colour; the texture becomes opaque "
               "and its texels of alpha 1 stay as they are (pyramid fill).")
-@click.option("--round", "rounding", type=click.Choice(["up", "down"]), default="up", show_default=True,
-              help="Level sizes: up ⌈n/2⌉ by the --analysis filter; down ⌊n/2⌋ (maketx's) by area resampling "
-                   "that covers the whole level above (no --analysis).")
+@click.option("--round", "rounding", type=click.Choice(["down", "up"]), default="down", show_default=True,
+              help="Level sizes. down: maketx's and OpenEXR's max(1, ⌊n/2⌋); a level that is not exactly half "
+                   "the one above is resampled with the --analysis filter's own kernel stretched to the ratio, "
+                   "so every level covers the whole texture domain and keeps the mean (exactly under --wrap "
+                   "periodic or mirror). up: ⌈n/2⌉, the analysis pyramid's levels (an odd size is padded by the "
+                   "border, so coarse levels cover a little more than the image and lookups drift toward the "
+                   "top left).")
+@click.option("--resize", is_flag=True, help="maketx's --resize: level 0 resampled up to the next power of two "
+              "on each axis first (as a bilinear lookup of the source reads it), then the levels from it.")
+@click.option("--nchannels", type=click.IntRange(1, 64), metavar="N", help="maketx's --nchannels: keep the first N "
+              "channels, or append channels of zeros up to N.")
+@click.option("--monochrome-detect", "monochrome_detect", is_flag=True, help="maketx's flag: an RGB image (no "
+              "alpha) whose three channels are equal at every pixel becomes a one-channel (Y) texture.")
 @border_option
 @io_options
 @batch_options
 @click.pass_context
 def mipmap(ctx: click.Context, paths, analysis, tile, wrap, swrap, twrap, constant_detect, fill_holes, rounding,
-           border, **opts) -> None:
+           resize, nchannels, monochrome_detect, border, **opts) -> None:
     """Write a tiled MIP-mapped texture down to 1×1 (what maketx makes, with better filters).
 
     OpenEXR (.exr) holds the levels as its own MIP levels, TIFF (.tx, .tif) as
@@ -453,16 +480,19 @@ def mipmap(ctx: click.Context, paths, analysis, tile, wrap, swrap, twrap, consta
     carries maketx's metadata: oiio:AverageColor, oiio:ConstantColor (constant
     images), oiio:SHA-1 of the source pixels, wrapmodes, textureformat.
 
-    Level sizes are ⌈n/2⌉ (OpenEXR's round-up mode), as ⊗↓ gives; --round down
-    gives maketx's ⌊n/2⌋ by area resampling that covers the whole domain. --wrap (maketx's
-    names) and --border (ours) say the same thing; different s and t modes are refused.
+    Level sizes are maketx's max(1, ⌊n/2⌋): a level that halves exactly runs the
+    paper's filter, any other is resampled with the same filter's kernel so that it
+    covers the whole texture domain (see `pyramid plan --mipmap`); --round up keeps the
+    analysis pyramid's ⌈n/2⌉ instead. --wrap (maketx's names) and --border (ours) say
+    the same thing; different s and t modes are refused.
 
     \b
     Example:
       pyramid mipmap albedo.exr albedo.tx.exr
       pyramid mipmap albedo.png albedo.tx                       # 8-bit sRGB .tx, like maketx
-      pyramid mipmap --wrap periodic --analysis cubic 'tex/*.png' -o 'tx/{stem}.tx'
+      pyramid mipmap --wrap periodic --analysis box4 'tex/*.png' -o 'tx/{stem}.tx'
       pyramid mipmap --constant-color-detect --tile 64 'tex/*.exr' -o 'tx/{stem}.tx.exr'
+      pyramid mipmap --monochrome-detect --resize mask.png mask.tx      # 1 channel, powers of two
       pyramid mipmap 'tex/albedo.<UDIM>.exr' -o 'tx/albedo.<UDIM>.tx.exr'
       pyramid mipmap --fill bake.png bake.tx                    # pad UV islands first: no dark bleeding
     """
@@ -479,11 +509,9 @@ def mipmap(ctx: click.Context, paths, analysis, tile, wrap, swrap, twrap, consta
     output = opts.get("template") or (paths[-1] if len(paths) > 1 else "")
     if tile % 16 and output.lower().endswith((".tx", ".tif", ".tiff")):
         raise UsageError(f"--tile {tile}: TIFF tiles must be a multiple of 16 ({output})")
-    if rounding == "down" and ctx.get_parameter_source("analysis") is click.core.ParameterSource.COMMANDLINE:
-        raise UsageError("--round down resamples by area (each texel covers its share of the level above); "
-                         "--analysis applies to --round up only")
     work = TextureLevels(levels=None, analysis=analysis, border=border, constant_detect=constant_detect,
-                         round_down=rounding == "down", fill=fill_holes)
+                         rounding=rounding, resize=resize, nchannels=nchannels, monochrome_detect=monochrome_detect,
+                         fill=fill_holes)
     _process(paths, work, opts, mip_tile=tile)
 
 

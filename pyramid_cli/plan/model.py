@@ -128,9 +128,54 @@ class PointwisePass:
 
 
 @dataclass
+class ResamplePass:
+    """Separable resampling of one axis by a banded table of exact weights (MIP levels, DESIGN.md §5).
+
+    Output index ``j`` (0-based, along ``axis``: 0 rows, 1 columns) of the target is
+    ``Σₖ weights[j][k] · src[starts[j] + k]`` along that axis, every other index unchanged;
+    source indices outside ``0..n−1`` fold by the source's border mode (:func:`pyramid_cli.border.fold`:
+    clamp, mirror, wrap, or zero). Every row of the table has the same width (zeros pad the short ones),
+    so an executor runs one table-driven loop for every output, whatever the ratio of the sizes.
+    Source and target have no guard bands: the source is a boundary (the plan's input or a
+    level), read through its border mode. :mod:`pyramid_cli.plan.resample` derives the tables.
+    """
+
+    label: str
+    target: int
+    source: int
+    axis: int                                  # 0: rows, 1: columns
+    starts: tuple[int, ...]                    # per output index: the first source index read (0-based)
+    weights: tuple[tuple[Fraction, ...], ...]  # per output index: the weights of starts[j], starts[j] + 1, …
+    why: str = ""
+
+    def sources(self) -> set[int]:
+        return {self.source}
+
+    @property
+    def width(self) -> int:
+        """Texels each output reads (the table's row width)."""
+        return len(self.weights[0]) if self.weights else 0
+
+    @property
+    def fetches(self) -> float:
+        """Texel reads per fragment: the mean number of nonzero weights per output."""
+        return sum(sum(1 for w in row if w) for row in self.weights) / max(1, len(self.weights))
+
+    def reads(self, rows: tuple[int, int], cols: tuple[int, int]) -> dict[int, tuple[tuple[int, int], tuple[int, int]]]:
+        """Source rectangle (0-based half-open logical rows, columns) an output rectangle reads; along
+        ``axis`` it may extend past the source (those reads fold by its border mode)."""
+        span = (rows, cols)[self.axis]
+        if span[0] >= span[1]:
+            read = (0, 0)
+        else:
+            read = (min(self.starts[span[0]:span[1]]), max(self.starts[span[0]:span[1]]) + self.width)
+        return {self.source: (read, cols) if self.axis == 0 else (rows, read)}
+
+
+@dataclass
 class Plan:
     images: list[Image]
-    passes: list[Pass]
+    passes: list[Pass | ResamplePass | PointwisePass]
     expression: str
     paper_fetches: float | None = None
     outputs: list[int] = field(default_factory=list)  # images read back, in order; default: the last
@@ -162,6 +207,14 @@ def check(p: Plan) -> None:
     for k, im in enumerate(p.images):
         assert im.border == "clamp" or not any(im.guard), f"image {k}: border {im.border} with a guard band"
     for ps in p.passes:
+        if isinstance(ps, ResamplePass):
+            src, dst = p.images[ps.source], p.images[ps.target]
+            assert ps.source < ps.target and ps.axis in (0, 1)
+            assert not any(src.guard) and not any(dst.guard), "resampling reads and writes images without guards"
+            assert len(ps.starts) == len(ps.weights) == dst.size[ps.axis]
+            assert src.size[1 - ps.axis] == dst.size[1 - ps.axis]
+            assert all(len(row) == ps.width for row in ps.weights)
+            continue
         if isinstance(ps, PointwisePass):
             size = p.images[ps.target].size
             for s in ps.srcs:

@@ -28,6 +28,7 @@ from ..plan import Image, Pass, PointwisePass
 
 VERTEX = "fullscreen.vert.glsl"
 FRAGMENT = "pass.frag.glsl"
+RESAMPLE = "resample.frag.glsl"
 
 
 class ShaderCompileError(BackendError):
@@ -272,6 +273,12 @@ def fragment_source(s: PassShape) -> str:
     return _inject(_inject(text, "TAPS", _tap_lines(s)), "AFFINE_TAPS", [])
 
 
+def resample_fragment_source(axis: int) -> str:
+    """The fragment shader of a :class:`~pyramid_cli.plan.ResamplePass` along ``axis`` (0 rows, 1 columns):
+    one table-driven loop for every table (the weights are a texture, not code)."""
+    return _inject(load(RESAMPLE), "DEFINES", [f"#define AXIS {1 - axis}  // GL vectors are (column, row)"])
+
+
 # ------------------------------------------------------------------ pointwise passes
 POINTWISE = "pointwise.frag.glsl"
 
@@ -325,4 +332,4 @@ def compile_error(log: str, stage: str, source: str) -> ShaderCompileError:
 
 __all__ = ["PointwiseShape", "pointwise_shape", "pointwise_fragment_source",
            "PassShape", "ShapeTap", "affine_taps", "ShaderCompileError", "shape", "sources", "vertex_source",
-           "fragment_source", "numbered", "compile_error", "load"]
+           "fragment_source", "resample_fragment_source", "numbered", "compile_error", "load"]
