@@ -2,7 +2,7 @@
 
 ``import pyramid_cli as pyr`` gives the Python API (:mod:`pyramid_cli.api`):
 ``pyr.apply``, ``pyr.blur``, ``pyr.pyramid``, ``pyr.laplacian``, ``pyr.collapse``,
-``pyr.mipmap``, ``pyr.read_image``, ``pyr.write_image``, ``pyr.process_files`` and
+``pyr.mipmap``, ``pyr.fill``, ``pyr.blend``, ``pyr.read_image``, ``pyr.write_image``, ``pyr.process_files`` and
 ``pyr.Session``. They load on first use, so importing the core (parser, algebra,
 planner) pulls in no third-party module.
 """
@@ -13,7 +13,7 @@ __version__ = "0.1.0"
 
 _API = ("apply", "blur", "pyramid", "laplacian", "collapse", "mipmap", "read_image", "write_image",
         "process_files", "as_pixels", "Session", "Work", "Filter", "Blur", "SigmaBlur", "Levels", "Laplacian",
-        "Collapse")
+        "Collapse", "fill", "blend")
 __all__ = list(_API)
 
 

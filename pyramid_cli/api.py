@@ -1,7 +1,8 @@
 """The Python API: ``import pyramid_cli as pyr``.
 
 Functions on numpy arrays (``apply``, ``blur``, ``pyramid``, ``laplacian``,
-``collapse``, ``mipmap``), image files (``read_image``, ``write_image``,
+``collapse``, ``mipmap``, and the methods built on them: ``fill``, ``blend``), image files
+(``read_image``, ``write_image``,
 ``process_files``), and :class:`~pyramid_cli.session.Session`, which owns one
 executor for many calls. They describe jobs as :mod:`pyramid_cli.work` values and
 run them through the same session and pipeline as the ``pyramid`` command.
@@ -292,17 +293,152 @@ def collapse(bands: Sequence, *, synthesis: str = catalogue.SYNTHESIS_DEFAULT, b
     return out
 
 
-def mipmap(array, *, analysis: str = catalogue.MIP_ANALYSIS_DEFAULT, border: str = "clamp", backend: str = "auto",
-           session: Session | None = None) -> list[np.ndarray]:
-    """MIP levels down to 1×1, level 0 first (sizes ⌈n/2⌉, as ``pyramid mipmap`` writes them).
+def mipmap(array, *, analysis: str = catalogue.MIP_ANALYSIS_DEFAULT, border: str = "clamp", rounding: str = "down",
+           backend: str = "auto", session: Session | None = None) -> list[np.ndarray]:
+    """MIP levels down to 1×1, level 0 first, as ``pyramid mipmap`` writes them.
+
+    ``rounding`` "down" (maketx's and OpenEXR's sizes ``max(1, ⌊n/2⌋)``): a level that halves
+    exactly is the paper's ⊗↓ (§4) of the one above; any other is resampled with the same
+    filter's kernel stretched to the ratio, covering the whole texture domain
+    (:mod:`pyramid_cli.plan.resample`). "up": the analysis pyramid's ``⌈n/2⌉`` (:func:`pyramid`).
 
     Examples
     --------
     >>> import numpy as np, pyramid_cli as pyr
-    >>> [lv.shape for lv in pyr.mipmap(np.ones((4, 8, 4)))]
-    [(4, 8, 4), (2, 4, 4), (1, 2, 4), (1, 1, 4)]
+    >>> [lv.shape for lv in pyr.mipmap(np.ones((5, 8, 4)))]
+    [(5, 8, 4), (2, 4, 4), (1, 2, 4), (1, 1, 4)]
+    >>> [lv.shape for lv in pyr.mipmap(np.ones((5, 8, 4)), rounding="up")]
+    [(5, 8, 4), (3, 4, 4), (2, 2, 4), (1, 1, 4)]
     """
-    return list(pyramid(array, analysis=analysis, levels=None, border=border, backend=backend, session=session))
+    from .mip import TextureLevels
+
+    pixels = as_pixels(array)
+    work = TextureLevels(levels=None, analysis=analysis, border=border, rounding=rounding)
+    return [array if pixels is array else pixels, *_run(work, [pixels], session, backend)[1:]]
+
+
+def fill(array, *, mask=None, holes: str | None = None, levels: int | None = None, analysis: str = "box4",
+         synthesis: str = "doosabin", keep_alpha: bool = False, border: str = "clamp", backend: str = "auto",
+         session: Session | None = None) -> np.ndarray:
+    """Fill holes by pull-push (Kraus, "The Pull-Push Algorithm Revisited", GRAPP 2009).
+
+    Known pixels are pulled down the analysis pyramid as premultiplied colours with their
+    weights (a coarse weight is 4× the filtered weight, clamped to 1), then each level is
+    composited over the expanded coarser one by its weight (§4 ⊗↓ and §5 ⊗↑ filters of
+    Kraus & Strengert 2007). Pixels of weight 1 come out unchanged; holes get a smooth
+    interpolation of what surrounds them.
+
+    Parameters
+    ----------
+    array : array_like
+        H×W or H×W×C pixels, linear light; with an alpha channel premultiplied (as
+        :func:`read_image` gives them).
+    mask : array_like, optional
+        Weights in [0, 1] (H×W, or H×W×C one per channel): 1 known, 0 a hole. Implies
+        ``holes="mask"``.
+    holes : {"alpha", "mask", "nan"}, optional
+        Where the weights come from: the alpha channel (the last of 2 or 4 channels; the
+        default without ``mask``), ``mask``, or every pixel with a NaN/Inf is a hole.
+    levels : int, optional
+        Pull steps; default down to 1×1 (so every hole is filled, however large).
+    analysis, synthesis : str
+        The pull's ⊗↓ filter (default the 4×4 box, §4.2) and the push's ⊗↑ filter (default
+        Doo-Sabin, §5.3), or one-step expressions.
+    keep_alpha : bool
+        With ``holes="alpha"``: return the input's alpha beside the filled colours, which are
+        then straight (not multiplied by alpha), instead of an opaque image.
+    border, backend, session
+        As in :func:`apply`.
+
+    Returns
+    -------
+    numpy.ndarray
+        float32, the input's shape; the alpha channel (``holes="alpha"``) is 1 everywhere,
+        as ``oiiotool --fillholes`` writes it (or the input's, with ``keep_alpha``).
+
+    Raises
+    ------
+    ValueError
+        No alpha channel for ``holes="alpha"``, a mask of another size.
+    pyramid_cli.errors.DataError
+        No known pixel at all.
+
+    Examples
+    --------
+    >>> import numpy as np, pyramid_cli as pyr
+    >>> ramp = np.tile(np.linspace(0, 1, 9), (5, 1))
+    >>> known = np.ones_like(ramp); known[1:4, 2:7] = 0
+    >>> filled = pyr.fill(ramp, mask=known)
+    >>> bool(np.all(filled[known == 1] == ramp[known == 1]).item())
+    True
+    >>> [round(float(v), 2) for v in filled[2]]
+    [0.0, 0.12, 0.2, 0.32, 0.48, 0.64, 0.8, 0.88, 1.0]
+    """
+    from .methods import fill_inputs, fill_output
+    from .work import Fill
+
+    holes = holes or ("mask" if mask is not None else "alpha")
+    if keep_alpha and holes != "alpha":
+        raise ValueError(f"keep_alpha keeps the alpha the holes come from; with holes={holes!r} every channel "
+                         "is filled")
+    pixels = as_pixels(array)
+    colour, weight, premultiplied = fill_inputs(pixels, holes, None if mask is None else as_pixels(mask, "mask"))
+    work = Fill(levels=levels, analysis=analysis, synthesis=synthesis, premultiplied=premultiplied, border=border)
+    (out,) = _run(work, [colour, weight], session, backend)
+    return fill_output(out, pixels, holes, keep_alpha=keep_alpha)
+
+
+def blend(a, b, mask, *, levels: int | None = None, analysis: str = catalogue.ANALYSIS_DEFAULT,
+          synthesis: str = catalogue.SYNTHESIS_DEFAULT, border: str = "clamp", backend: str = "auto",
+          session: Session | None = None) -> np.ndarray:
+    """Join ``a`` and ``b`` along ``mask`` without a seam (Burt & Adelson, "A Multiresolution Spline With
+    Application to Image Mosaics", ACM ToG 1983).
+
+    Each Laplacian band of A and B (:func:`laplacian`) is blended with the same level of the
+    mask's analysis pyramid (:func:`pyramid`), ``GM·LA + (1 − GM)·LB``, and the bands are
+    collapsed (:func:`collapse`): fine detail joins over a narrow seam, coarse shading over a
+    wide one.
+
+    Parameters
+    ----------
+    a, b : array_like
+        H×W or H×W×C pixels of one shape.
+    mask : array_like
+        H×W (or H×W×1) weights in [0, 1], or H×W×C one per channel: 1 takes A, 0 takes B.
+    levels : int, optional
+        Laplacian levels; default as many as the size allows while the coarsest level keeps 16
+        pixels on its shorter side (:func:`pyramid_cli.methods.blend_levels`; 4 at 256×256, 7 at
+        3840×2160): deeper bands would mix the two images' mean colours across the whole frame.
+    analysis, synthesis : str
+        ⊗↓ and ⊗↑ filters (§4, §5); the defaults are the paper's Figure 3b.
+    border, backend, session
+        As in :func:`apply`.
+
+    Returns
+    -------
+    numpy.ndarray
+        float32, the shape of ``a``.
+
+    Examples
+    --------
+    >>> import numpy as np, pyramid_cli as pyr
+    >>> a, b = np.zeros((16, 16)), np.ones((16, 16))
+    >>> left = np.zeros((16, 16)); left[:, :8] = 1
+    >>> pyr.blend(a, b, left, levels=2)[8, ::3].round(3)
+    array([0.   , 0.094, 0.328, 0.672, 0.906, 1.   ], dtype=float32)
+    """
+    from .methods import mask_channels
+    from .work import Blend
+
+    pa, pb = as_pixels(a, "a"), as_pixels(b, "b")
+    if pa.shape != pb.shape:
+        raise ValueError(f"a has shape {pa.shape} and b {pb.shape}: they must have one shape")
+    m = mask_channels(as_pixels(mask, "mask"), pa)
+    if levels is not None and levels < 0:
+        raise ValueError(f"levels must be 0 or more, not {levels}")
+    work = Blend(levels=levels, analysis=analysis, synthesis=synthesis, border=border)
+    (out,) = _run(work, [pa, pb, m], session, backend)
+    return out
 
 
 # ------------------------------------------------------------------ files
@@ -370,6 +506,6 @@ def process_files(work: Work, inputs: Sequence[str], output: str | None = None, 
     return report.exit_code
 
 
-__all__ = ["apply", "blur", "pyramid", "laplacian", "collapse", "mipmap", "read_image", "write_image",
+__all__ = ["fill", "blend", "apply", "blur", "pyramid", "laplacian", "collapse", "mipmap", "read_image", "write_image",
            "process_files", "as_pixels", "Session", "Work", "Filter", "Blur", "SigmaBlur", "Levels", "Laplacian",
            "Collapse"]

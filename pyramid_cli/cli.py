@@ -132,16 +132,23 @@ def _size(ctx, param, value):
               help="cost: per filter, the paper's decomposition or one fused pass, whichever is faster by the "
                    "cost model calibrated by bench/calibrate.py (pyramid_cli/cost_model.json); paper: always "
                    "the paper's; fused: always one pass per filter (what the CPU executor runs).")
+@click.option("--mipmap", "mip_round", type=click.Choice(["down", "up"]), default=None,
+              help="Plan `pyramid mipmap --round ROUND` with EXPRESSION (a one-step ⊗↓) as its --analysis: "
+                   "every level's passes, the paper's where a level halves exactly, resampling tables elsewhere.")
+@click.option("--border", type=_choice(BORDERS), default="clamp", show_default=True,
+              help="How written operators read past their input's edges (mipmap: the --wrap mode).")
 @click.option("--memory", metavar="SIZE", default=None,
               help="Also say how a file of this size runs in this working-set budget (e.g. 512M): whole, or "
                    "streamed in bands of how many rows (RGBA float; see pyramid apply --memory).")
-def plan_command(expression, size, as_json: bool, strategy: str, memory: str | None) -> None:
+def plan_command(expression, size, as_json: bool, strategy: str, mip_round: str | None, border: str,
+                 memory: str | None) -> None:
     """Show the render passes and bilinear taps that compute EXPRESSION.
 
     \b
     Example:
       pyramid plan 'quadratic *v g' --size 1920x1080
       pyramid plan --json 'h_Doo-Sabin ⊗↑ g' --size 64x64
+      pyramid plan --mipmap down 'quadratic *v g' --size 1001x777
       pyramid plan 'gauss7' --size 32768x32768 --memory 1G
 
     \b
@@ -151,7 +158,18 @@ def plan_command(expression, size, as_json: bool, strategy: str, memory: str | N
     from .plan import check, plan, render, to_json
 
     w, h = size
-    p = plan(expression, (h, w), strategy)
+    if mip_round is not None:
+        from .expr import Apply, Input, Named, Op, to_text
+        from .mip import TextureLevels
+
+        named = (isinstance(expression, Apply) and expression.op is Op.DOWN and isinstance(expression.filter, Named)
+                 and isinstance(expression.arg, Input) and expression.stride == 1 and expression.power == 1)
+        analysis = expression.filter.key if named else to_text(expression)
+        p = TextureLevels(analysis=analysis, border=border, rounding=mip_round).plan(((h, w),), strategy)
+        if p is None:
+            raise UsageError(f"a {w}x{h} image is its own MIP map: there are no levels to plan")
+    else:
+        p = plan(expression, (h, w), strategy, border)
     check(p)
     choice = None
     if memory is not None:
@@ -471,15 +489,28 @@ def collapse(inputs, output_path, synthesis, border, **opts) -> None:
 @click.option("--twrap", metavar="MODE", help="The t (vertical) wrap mode; must equal s's.")
 @click.option("--constant-color-detect", "constant_detect", is_flag=True,
               help="A constant-colour image becomes one tile of that colour, as maketx's flag does.")
-@click.option("--round", "rounding", type=click.Choice(["up", "down"]), default="up", show_default=True,
-              help="Level sizes: up ⌈n/2⌉ by the --analysis filter; down ⌊n/2⌋ (maketx's) by area resampling "
-                   "that covers the whole level above (no --analysis).")
+@click.option("--fill", "fill_holes", is_flag=True, help="Fill the texels of alpha < 1 (empty space around UV "
+              "islands) by pull-push first, so no level darkens toward the empty colour; the texture becomes opaque "
+              "and its texels of alpha 1 stay as they are (pyramid fill).")
+@click.option("--round", "rounding", type=click.Choice(["down", "up"]), default="down", show_default=True,
+              help="Level sizes. down: maketx's and OpenEXR's max(1, ⌊n/2⌋); a level that is not exactly half "
+                   "the one above is resampled with the --analysis filter's own kernel stretched to the ratio, "
+                   "so every level covers the whole texture domain and keeps the mean (exactly under --wrap "
+                   "periodic or mirror). up: ⌈n/2⌉, the analysis pyramid's levels (an odd size is padded by the "
+                   "border, so coarse levels cover a little more than the image and lookups drift toward the "
+                   "top left).")
+@click.option("--resize", is_flag=True, help="maketx's --resize: level 0 resampled up to the next power of two "
+              "on each axis first (as a bilinear lookup of the source reads it), then the levels from it.")
+@click.option("--nchannels", type=click.IntRange(1, 64), metavar="N", help="maketx's --nchannels: keep the first N "
+              "channels, or append channels of zeros up to N.")
+@click.option("--monochrome-detect", "monochrome_detect", is_flag=True, help="maketx's flag: an RGB image (no "
+              "alpha) whose three channels are equal at every pixel becomes a one-channel (Y) texture.")
 @border_option
 @io_options
 @batch_options
 @click.pass_context
-def mipmap(ctx: click.Context, paths, analysis, tile, wrap, swrap, twrap, constant_detect, rounding, border,
-           **opts) -> None:
+def mipmap(ctx: click.Context, paths, analysis, tile, wrap, swrap, twrap, constant_detect, fill_holes, rounding,
+           resize, nchannels, monochrome_detect, border, **opts) -> None:
     """Write a tiled MIP-mapped texture down to 1×1 (what maketx makes, with better filters).
 
     OpenEXR (.exr) holds the levels as its own MIP levels, TIFF (.tx, .tif) as
@@ -490,17 +521,21 @@ def mipmap(ctx: click.Context, paths, analysis, tile, wrap, swrap, twrap, consta
     carries maketx's metadata: oiio:AverageColor, oiio:ConstantColor (constant
     images), oiio:SHA-1 of the source pixels, wrapmodes, textureformat.
 
-    Level sizes are ⌈n/2⌉ (OpenEXR's round-up mode), as ⊗↓ gives; --round down
-    gives maketx's ⌊n/2⌋ by area resampling that covers the whole domain. --wrap (maketx's
-    names) and --border (ours) say the same thing; different s and t modes are refused.
+    Level sizes are maketx's max(1, ⌊n/2⌋): a level that halves exactly runs the
+    paper's filter, any other is resampled with the same filter's kernel so that it
+    covers the whole texture domain (see `pyramid plan --mipmap`); --round up keeps the
+    analysis pyramid's ⌈n/2⌉ instead. --wrap (maketx's names) and --border (ours) say
+    the same thing; different s and t modes are refused.
 
     \b
     Example:
       pyramid mipmap albedo.exr albedo.tx.exr
       pyramid mipmap albedo.png albedo.tx                       # 8-bit sRGB .tx, like maketx
-      pyramid mipmap --wrap periodic --analysis cubic 'tex/*.png' -o 'tx/{stem}.tx'
+      pyramid mipmap --wrap periodic --analysis box4 'tex/*.png' -o 'tx/{stem}.tx'
       pyramid mipmap --constant-color-detect --tile 64 'tex/*.exr' -o 'tx/{stem}.tx.exr'
+      pyramid mipmap --monochrome-detect --resize mask.png mask.tx      # 1 channel, powers of two
       pyramid mipmap 'tex/albedo.<UDIM>.exr' -o 'tx/albedo.<UDIM>.tx.exr'
+      pyramid mipmap --fill bake.png bake.tx                    # pad UV islands first: no dark bleeding
     """
     from .mip import TextureLevels, border_for_wrap, parse_wrap
 
@@ -515,12 +550,103 @@ def mipmap(ctx: click.Context, paths, analysis, tile, wrap, swrap, twrap, consta
     output = opts.get("template") or (paths[-1] if len(paths) > 1 else "")
     if tile % 16 and output.lower().endswith((".tx", ".tif", ".tiff")):
         raise UsageError(f"--tile {tile}: TIFF tiles must be a multiple of 16 ({output})")
-    if rounding == "down" and ctx.get_parameter_source("analysis") is click.core.ParameterSource.COMMANDLINE:
-        raise UsageError("--round down resamples by area (each texel covers its share of the level above); "
-                         "--analysis applies to --round up only")
     work = TextureLevels(levels=None, analysis=analysis, border=border, constant_detect=constant_detect,
-                         round_down=rounding == "down")
+                         rounding=rounding, resize=resize, nchannels=nchannels, monochrome_detect=monochrome_detect,
+                         fill=fill_holes)
     _process(paths, work, opts, mip_tile=tile)
+
+
+@main.command()
+@click.argument("input_path", metavar="INPUT")
+@click.argument("output_path", metavar="OUTPUT")
+@click.option("--mask", type=click.Path(dir_okay=False), help="Weight image: 1 known, 0 a hole, between partly "
+              "known (one channel, or one per channel; stored values, no sRGB decoding). Implies --holes mask.")
+@click.option("--holes", type=_choice(["alpha", "mask", "nan"]), default=None,
+              help="Where the weights come from: the alpha channel (default without --mask), --mask, or every "
+                   "pixel with a NaN/Inf is a hole.")
+@click.option("--levels", "-m", type=click.IntRange(0, 16), default=None,
+              help="Pull steps (default: down to 1×1, so every hole is filled).")
+@click.option("--analysis", default="box4", show_default=True,
+              help=f"The pull's filter: {', '.join(catalogue.ANALYSIS_FILTERS)}, or a ⊗↓ expression.")
+@click.option("--synthesis", default="doosabin", show_default=True,
+              help=f"The push's filter: {', '.join(catalogue.SYNTHESIS_FILTERS)}, or a ⊗↑ expression.")
+@click.option("--keep-alpha", is_flag=True, help="Keep the input's alpha and store the filled colours beside it "
+              "unassociated (straight), instead of an opaque image: a PNG keeps its cut-out with colour under it.")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object (pixels filled, levels, executor).")
+@border_option
+@io_options
+def fill(input_path, output_path, mask, holes, levels, analysis, synthesis, keep_alpha, as_json, border,
+         **opts) -> None:
+    """Fill holes from the pixels around them by pull-push (Kraus, GRAPP 2009).
+
+    The known pixels are pulled down the analysis pyramid as premultiplied colours with
+    their weights, then every level is composited over the expanded coarser one: holes of
+    any size get a smooth fill, pixels of full weight stay bit for bit. The output is
+    opaque (alpha 1, as oiiotool --fillholes writes it) unless --keep-alpha. An image
+    without a known pixel is bad pixel data (exit 5).
+
+    \b
+    Example:
+      pyramid fill bake.png bake_padded.png                 # holes where alpha < 1
+      pyramid fill --mask valid.png plate.exr patched.exr    # holes where the mask is 0
+      pyramid fill --holes nan depth.exr depth_filled.exr    # holes at NaN/Inf pixels
+      pyramid fill --analysis box --json in.exr out.exr
+      pyramid fill --keep-alpha decal.png decal_dilated.png    # colour under the cut-out
+    """
+    from .methods_files import fill_file
+
+    reporter = _reporter(opts)
+    if as_json:
+        reporter.quiet = True
+    ro, wo = _read_write(opts)
+    with _session(opts, reporter) as session:
+        info = fill_file(input_path, output_path, session, mask=mask, holes=holes, levels=levels, analysis=analysis,
+                         synthesis=synthesis, keep_alpha=keep_alpha, border=border, read=ro, write=wo,
+                         reporter=reporter)
+    if as_json:
+        click.echo(json.dumps(info, ensure_ascii=False))
+
+
+@main.command()
+@click.argument("a_path", metavar="A")
+@click.argument("b_path", metavar="B")
+@click.argument("mask_path", metavar="MASK")
+@click.argument("output_path", metavar="OUTPUT")
+@click.option("--levels", "-m", type=click.IntRange(0, 16), default=None,
+              help="Laplacian levels (default: as many as the size allows while the coarsest level keeps 16 "
+                   "pixels on its shorter side: 4 at 256×256, 7 at 3840×2160).")
+@click.option("--analysis", default=catalogue.ANALYSIS_DEFAULT, show_default=True,
+              help=f"{', '.join(catalogue.ANALYSIS_FILTERS)}, or a ⊗↓ expression.")
+@click.option("--synthesis", default=catalogue.SYNTHESIS_DEFAULT, show_default=True,
+              help=f"{', '.join(catalogue.SYNTHESIS_FILTERS)}, or a ⊗↑ expression.")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object (size, levels, executor).")
+@border_option
+@io_options
+def blend(a_path, b_path, mask_path, output_path, levels, analysis, synthesis, as_json, border, **opts) -> None:
+    """Join A and B along MASK without a seam (Burt & Adelson's multiresolution spline, 1983).
+
+    Each Laplacian band of A and B is blended with the same level of the mask's analysis
+    pyramid, and the bands are collapsed: fine detail meets over a narrow seam, coarse
+    shading over a wide one. MASK is 1 where A shows and 0 where B shows (one channel,
+    or one per channel; stored values, no sRGB decoding). A, B and MASK have one size.
+
+    \b
+    Example:
+      pyramid blend apple.png orange.png left_half.png orapple.png
+      pyramid blend --levels 5 plate.exr patch.exr matte.exr comp.exr
+      pyramid blend --analysis quadratic --synthesis cubic --json a.exr b.exr m.png out.exr
+    """
+    from .methods_files import blend_files
+
+    reporter = _reporter(opts)
+    if as_json:
+        reporter.quiet = True
+    ro, wo = _read_write(opts)
+    with _session(opts, reporter) as session:
+        info = blend_files(a_path, b_path, mask_path, output_path, session, levels=levels, analysis=analysis,
+                           synthesis=synthesis, border=border, read=ro, write=wo, reporter=reporter)
+    if as_json:
+        click.echo(json.dumps(info, ensure_ascii=False))
 
 
 @main.command("farm-template", context_settings={"ignore_unknown_options": True, "allow_interspersed_args": False})

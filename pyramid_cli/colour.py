@@ -129,8 +129,14 @@ def _decode_integer(data: np.ndarray, srgb: bool, colour: np.ndarray, alpha: int
         px[..., colour] = srgb_to_linear(px[..., colour])
         _premultiply(px, alpha, colour)
         return px.astype(np.float32)
-    out = np.empty(data.shape, dtype=np.float32)
     a = linear[data[..., alpha]] if alpha >= 0 and straight else None
+    if a is None and all(colour):  # gathers through a float32 table (the same single rounding), no strides,
+        table = decoded.astype(np.float32)  # in bands of rows so the index conversion stays in cache
+        out = np.empty(data.shape, dtype=np.float32)
+        for y in range(0, data.shape[0], 64):
+            np.take(table, data[y:y + 64], out=out[y:y + 64])
+        return out
+    out = np.empty(data.shape, dtype=np.float32)
     for c in range(data.shape[2]):
         codes = data[..., c]
         if colour[c]:
@@ -171,15 +177,27 @@ def _srgb8_tables() -> tuple[np.ndarray, np.ndarray]:
     return thresholds, codes
 
 
+SRGB8_BAND = 1 << 16  # values encoded per step: the temporaries stay in cache instead of faulting in fresh pages
+
+
 def _srgb8(x: np.ndarray) -> np.ndarray:
-    """:func:`_encode_integer` of ``linear_to_srgb(x)`` for 8 bits without dither, from float32 ``x``."""
+    """:func:`_encode_integer` of ``linear_to_srgb(x)`` for 8 bits without dither, from float32 ``x``.
+
+    Done in bands of :data:`SRGB8_BAND` values: whole-image temporaries (a uint32 index, a float32 gather,
+    masks: several bytes per value) cost more in page faults than the table lookups themselves.
+    """
     thresholds, codes = _srgb8_tables()
     x = np.ascontiguousarray(x, dtype=np.float32)
-    k = codes[x.view(np.uint32) >> 12]
-    with np.errstate(invalid="ignore"):
-        k += (x >= thresholds[np.minimum(k, 254)]) & (k < 255)
-    k[np.isnan(x)] = 0
-    return k
+    out = np.empty(x.shape, dtype=np.uint8)
+    flat, res = x.reshape(-1), out.reshape(-1)
+    for i in range(0, flat.size, SRGB8_BAND):
+        v = flat[i:i + SRGB8_BAND]
+        k = codes[v.view(np.uint32) >> 12]
+        with np.errstate(invalid="ignore"):
+            k += (v >= thresholds[np.minimum(k, 254)]) & (k < 255)
+        k[np.isnan(v)] = 0
+        res[i:i + SRGB8_BAND] = k
+    return out
 
 
 def _encode_integer(values: np.ndarray, out_type: str, dither: bool,

@@ -35,6 +35,61 @@ def _exposure(pixels: np.ndarray) -> np.ndarray:
     return pixels / hi if hi > 1 else pixels
 
 
+def apple_orange(size: int = 256) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Burt & Adelson's classic test, made procedurally: a streaked red apple and a dimpled orange of one
+    size and place (linear light, float32 H×W×3), and the mask taking the left half from the apple."""
+    y, x = np.mgrid[0:size, 0:size].astype(np.float64) / size
+    dx, dy = x - 0.5, y - 0.52
+    r = np.hypot(dx, dy) / 0.38
+    inside = r < 1
+    nz = np.sqrt(np.clip(1 - r ** 2, 0, 1))
+    light = np.clip((-0.45 * dx / 0.38 - 0.55 * dy / 0.38 + 0.7 * nz) / np.sqrt(0.45 ** 2 + 0.55 ** 2 + 0.49), 0, 1)
+    background = (0.55 + 0.25 * y)[..., None] * np.array([0.75, 0.8, 0.9])
+    angle = np.arctan2(dy, dx)
+    streaks = 1 + 0.18 * np.sin(23 * angle + 4 * r) * nz
+    apple = (0.15 + 0.85 * light)[..., None] * streaks[..., None] * np.array([0.55, 0.04, 0.03])
+    dimples = 1 + 0.12 * np.sin(97 * x + 3 * np.sin(41 * y)) * np.sin(89 * y + 3 * np.sin(37 * x))
+    orange = (0.15 + 0.85 * light)[..., None] * dimples[..., None] * np.array([0.85, 0.3, 0.02])
+    highlight = (np.clip(light, 0, 1) ** 40)[..., None] * 0.6
+    a = np.where(inside[..., None], apple + highlight, background)
+    b = np.where(inside[..., None], orange + 0.5 * highlight, background)
+    mask = (x < 0.5).astype(np.float32)
+    return a.astype(np.float32), b.astype(np.float32), mask
+
+
+def _methods(session: Session, outdir: str, like: io.ImageInfo) -> list[str]:
+    """The pyramid methods: the apple, the orange, the hard cut and the multiresolution blend; then the blend
+    with rectangular holes and filled, and with 2 % of its pixels kept and filled."""
+    from .methods import fill_inputs, fill_output, mask_channels
+    from .work import Blend, Fill
+
+    written = []
+    a, b, mask = apple_orange(256)
+    (blended,) = session.run(Blend(), [a, b, mask_channels(mask, a)])
+    cut = mask[..., None] * a + (1 - mask[..., None]) * b
+    path = os.path.join(outdir, "blend_apple_orange.png")
+    _png(path, contact_sheet([a, b, cut, blended]), like)
+    written.append(path)
+    px = blended  # the orapple, with holes cut into it
+    h, w = px.shape[:2]
+    rng = np.random.default_rng(17)
+    known = np.ones((h, w), dtype=np.float32)
+    for _ in range(12):  # rectangular holes of several sizes
+        hh, ww = rng.integers(4, h // 4), rng.integers(4, w // 4)
+        r0, c0 = rng.integers(0, h - hh), rng.integers(0, w - ww)
+        known[r0:r0 + hh, c0:c0 + ww] = 0
+    sparse = (rng.random((h, w)) < 0.02).astype(np.float32)
+    panels = []
+    for weights in (known, sparse):
+        colour, weight, pm = fill_inputs(px, "mask", weights)
+        (filled,) = session.run(Fill(premultiplied=pm), [colour, weight])
+        panels += [px * weights[..., None], fill_output(filled, px, "mask")]
+    path = os.path.join(outdir, "fill_holes.png")
+    _png(path, contact_sheet(panels), like)
+    written.append(path)
+    return written
+
+
 def main(outdir: str) -> None:
     os.makedirs(outdir, exist_ok=True)
     start = time.perf_counter()
@@ -63,6 +118,7 @@ def main(outdir: str) -> None:
         path = os.path.join(outdir, "zoneplate_analysis.png")
         _png(path, contact_sheet(panels), zp.spec)
         written.append(path)
+        written += _methods(session, outdir, zp.spec)
     print(f"demo: {len(written)} images in {outdir}/ ({session.name}, {time.perf_counter() - start:.1f} s):")
     for p in written:
         print(f"  {p}")

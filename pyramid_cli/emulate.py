@@ -11,7 +11,32 @@ import numpy as np
 
 from .border import Border, fold
 from .geometry import base_index
-from .plan import Plan, Tap
+from .plan import Plan, PointwisePass, ResamplePass, Tap
+
+
+def pointwise(op: str, srcs: list[np.ndarray], param: float = 1.0) -> np.ndarray:
+    """The formulas of :data:`pyramid_cli.plan.model.POINTWISE_OPS`, elementwise on arrays of one shape."""
+    k = float(param)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        if op == "mul":
+            a, b = srcs
+            return a * b
+        if op == "pull_colour":
+            a, b = srcs
+            return np.where(b > 0, a * (np.minimum(1.0, k * b) / np.where(b > 0, b, 1.0)), 0.0)
+        if op == "pull_weight":
+            (a,) = srcs
+            return np.minimum(1.0, k * a)
+        if op == "divide":
+            a, b = srcs
+            return np.where(b > 0, a / np.where(b > 0, b, 1.0), 0.0)
+        if op == "over":
+            a, b, c = srcs
+            return a + (1.0 - b) * c
+        if op == "blend":
+            a, b, c = srcs
+            return c * a + (1.0 - c) * b
+    raise ValueError(f"unknown pointwise op {op!r}")
 
 
 def sample(src: np.ndarray, guard_lo: tuple[int, int], rows: np.ndarray, cols: np.ndarray,
@@ -95,6 +120,12 @@ def _execute(plan: Plan, image) -> list[np.ndarray]:
         stored[index] = np.asarray(px, dtype=np.float64)
     channels = stored[plan.inputs[0]].shape[2:]
     for ps in plan.passes:
+        if isinstance(ps, ResamplePass):
+            stored[ps.target] = resample(stored[ps.source], ps, plan.images[ps.source].border)
+            continue
+        if isinstance(ps, PointwisePass):
+            stored[ps.target] = pointwise(ps.op, [stored[s] for s in ps.srcs], ps.param)
+            continue
         target = plan.images[ps.target]
         h, w = target.stored
         top, left = target.guard[0], target.guard[1]
@@ -115,6 +146,24 @@ def _execute(plan: Plan, image) -> list[np.ndarray]:
             out[np.ix_(ri, ci)] = acc
         stored[ps.target] = out
     return stored
+
+
+def resample_table(ps: ResamplePass, n_in: int, border: str, dtype=np.float64) -> tuple[np.ndarray, np.ndarray]:
+    """A :class:`ResamplePass`'s table for an executor: (indices, weights), both (n_out, width); indices are
+    0-based source indices folded by ``border``, a read of zero ("zero" border) index 0 with weight 0."""
+    idx = np.asarray(ps.starts, dtype=np.int64)[:, None] + np.arange(ps.width)[None, :]
+    folded = fold(idx + 1, n_in, Border.parse(border)) - 1
+    weights = np.array([[float(w) for w in row] for row in ps.weights], dtype=dtype)
+    weights[folded < 0] = 0
+    return np.maximum(folded, 0), weights
+
+
+def resample(src: np.ndarray, ps: ResamplePass, border: str) -> np.ndarray:
+    """One :class:`ResamplePass` on a stored source (no guard bands), float64."""
+    idx, weights = resample_table(ps, src.shape[ps.axis], border)
+    picked = np.take(src, idx, axis=ps.axis)  # axis 0: (n_out, width, W, …); axis 1: (H, n_out, width, …)
+    extra = (None,) * (src.ndim - 1 - ps.axis)
+    return (picked * weights[(...,) + extra]).sum(axis=ps.axis + 1)
 
 
 def run_outputs(plan: Plan, image: np.ndarray) -> list[np.ndarray]:

@@ -55,7 +55,7 @@ import numpy as np
 
 from .errors import BackendError, DataError
 from .geometry import check_size
-from .plan import Plan
+from .plan import Plan, ResamplePass
 from .shaders import generate
 
 INSTALL_HINT = ("install the drivers: sudo apt-get install -y libegl1 libgl1 libgl1-mesa-dri libegl-mesa0, "
@@ -179,6 +179,7 @@ class GLExecutor:
         self._ctx = None
         self._programs: dict[generate.PassShape, _Program] = {}
         self._plan_programs: dict[int, tuple[Plan, list[_Program]]] = {}
+        self._tables: dict[tuple[int, int], tuple[ResamplePass, Any]] = {}
         self._free: dict[tuple[tuple[int, int], str], list[_Target]] = {}
         self._buffers: dict[tuple[tuple[int, ...], str], np.ndarray] = {}
         self.compiles = 0  # programs built so far (the cache's misses)
@@ -250,6 +251,7 @@ class GLExecutor:
         self._ctx = None
         self._programs.clear()
         self._plan_programs.clear()
+        self._tables.clear()
         self._free.clear()
         self._buffers.clear()
 
@@ -275,18 +277,48 @@ class GLExecutor:
         hit = self._plan_programs.get(id(plan))
         if hit is not None and hit[0] is plan:
             return hit[1]
-        programs = [self.program(ps, plan.images) for ps in plan.passes]
+        programs = [self.resample_program(ps.axis) if isinstance(ps, ResamplePass) else self.program(ps, plan.images)
+                    for ps in plan.passes]
         if len(self._plan_programs) >= 64:
             self._plan_programs.pop(next(iter(self._plan_programs)))
         self._plan_programs[id(plan)] = (plan, programs)  # holds the plan: its id stays unique
         return programs
 
-    def _build(self, key: generate.PassShape) -> _Program:
+    def resample_program(self, axis: int) -> _Program:
+        """The table-driven program of a :class:`ResamplePass` along ``axis`` (one per axis, any table)."""
+        key = ("resample", axis)
+        prog = self._programs.get(key)
+        if prog is None:
+            with self.current():
+                prog = self._programs[key] = self._build(key, generate.resample_fragment_source(axis))
+                prog.set("u_src", 0)
+                prog.set("u_table", 1)
+        return prog
+
+    def _table(self, plan: Plan, ps: ResamplePass):
+        """The pass's (index, weight) table as an RG32F texture (width × outputs), made once per plan and pass."""
+        key = (id(plan), id(ps))
+        hit = self._tables.get(key)
+        if hit is not None and hit[0] is ps:
+            return hit[1]
+        from .emulate import resample_table
+
+        idx, weights = resample_table(ps, plan.images[ps.source].size[ps.axis], plan.images[ps.source].border,
+                                      np.float32)
+        data = np.ascontiguousarray(np.stack([idx.astype(np.float32), weights], axis=-1))
+        tex = self.ctx.texture((ps.width, len(ps.starts)), 2, data.tobytes(), dtype="f4")
+        if len(self._tables) >= 256:
+            _, old = self._tables.pop(next(iter(self._tables)))
+            old.release()
+        self._tables[key] = (ps, tex)  # holds the pass: its id stays unique
+        return tex
+
+    def _build(self, key, frag: str | None = None) -> _Program:
         import moderngl
 
         ctx = self.ctx
         vert = generate.vertex_source()
-        frag = generate.fragment_source(key)
+        frag = frag if frag is not None else generate.fragment_source(key)
         try:
             program = ctx.program(vertex_shader=vert, fragment_shader=frag)
         except moderngl.Error as e:
@@ -296,7 +328,7 @@ class GLExecutor:
         self.compiles += 1
         uniforms = {name for name in program if isinstance(program[name], moderngl.Uniform)}
         prog = _Program(program, ctx.vertex_array(program, []), uniforms)
-        for k in range(key.n_sources):
+        for k in range(getattr(key, "n_sources", 0)):
             prog.set(f"u_src{k}", k)  # slot k reads texture unit k
         return prog
 
@@ -422,7 +454,10 @@ class GLExecutor:
             raise ValueError(f"outputs are float32 or float16, not {dtype}")
         arrays = self._inputs(plan, images)
         if not self.fits(plan):
-            return self.run_tiled(plan, arrays, dtype)
+            from .tiles import tileable
+
+            if tileable(plan):
+                return self.run_tiled(plan, arrays, dtype)
         flat = arrays[0].ndim == 2
         arrays = [a[:, :, None] if flat else a for a in arrays]
         self.check(plan)
@@ -527,10 +562,13 @@ class GLExecutor:
         Nothing is rendered. Called while the image is still being decoded, it moves the
         shader compiles and the page faults of fresh textures off the critical path.
         """
-        if not self.fits(plan):  # runs in tiles: the programs are all there is to prepare
+        from .tiles import tileable
+
+        if not self.fits(plan) and tileable(plan):  # runs in tiles: the programs are all there is to prepare
             with self.current():
                 self.programs(plan)
             return
+        self.check(plan)
         dtype = PRECISIONS[self.precision]
         with self.current():
             self.programs(plan)
@@ -558,6 +596,21 @@ class GLExecutor:
             stored = target_image.stored
             tex_size = texture_size(stored)
             target = self._acquire(tex_size, dtype)
+            if isinstance(ps, ResamplePass):
+                held[ps.source].texture.use(location=0)
+                self._table(plan, ps).use(location=1)
+                prog.set("u_width", ps.width)
+                prog.set("u_out_extent", (stored[1], stored[0]))
+                wr, wc = _written(stored, tex_size)
+                target.fbo.use()              # bind first: ctx.viewport is stored with the bound framebuffer
+                ctx.viewport = (0, 0, wc, wr)
+                prog.vao.render(vertices=3)
+                if clock and clock.per_pass:
+                    clock.lap(ctx, "passes")
+                held[ps.target] = target
+                for s in done:
+                    self._release(held.pop(s))
+                continue
             for k, src in enumerate(generate.sources(ps)):
                 im, t = plan.images[src], held[src]
                 t.texture.use(location=k)

@@ -221,6 +221,10 @@ class ImageInfo:
     tile : tuple of int or None
         ``(tile width, tile height)`` of a tiled file, None for scanlines; a
         tiled input is written back tiled (EXR, TIFF).
+    pixel_hash : hashlib object or None
+        Under ``read_image(hash_source=True)``: the unfinished SHA-1 of the stored
+        pixels as maketx's ``computePixelHashSHA1`` hashes them
+        (:func:`pyramid_cli.mip.sha1_state`), computed while they were in memory.
     """
 
     path: str
@@ -238,6 +242,7 @@ class ImageInfo:
     origin: tuple[int, int] = (0, 0)
     display_window: tuple[int, int, int, int] | None = None
     tile: tuple[int, int] | None = None
+    pixel_hash: Any = field(default=None, repr=False, compare=False)  # read_image(hash_source=True)
 
 
 @dataclass
@@ -377,7 +382,7 @@ def output_pixel_type(fmt: str, pixel_type: str) -> str:
 
 def read_image(path: str | os.PathLike[str], *, colorspace: str = "auto",
                alpha: str = "auto", nan: str = "keep", subimage: int | None = None,
-               keep_half: bool = False) -> Image:
+               keep_half: bool = False, hash_source: bool = False) -> Image:
     """Read an image into linear, premultiplied float32 pixels.
 
     Parameters
@@ -404,6 +409,9 @@ def read_image(path: str | os.PathLike[str], *, colorspace: str = "auto",
     keep_half : bool
         Return a half file's pixels as float16 (exactly what it stores, half
         the memory of float32) when no colour or alpha conversion applies.
+    hash_source : bool
+        Also hash the stored pixels before any conversion, as maketx does for
+        ``oiio:SHA-1`` (``spec.pixel_hash``; :func:`pyramid_cli.mip.finish_sha1`).
 
     Returns
     -------
@@ -428,13 +436,19 @@ def read_image(path: str | os.PathLike[str], *, colorspace: str = "auto",
     check_input_file(p)
     with _readable_name(p) as name:
         data, spec, fmt = _read_pixels(name, subimage, keep_half, shown=p)
-    info = _describe(spec, fmt, p, colorspace, alpha)
+    pixel_hash = None
+    if hash_source:  # before the conversions below, some of which work in place
+        from .mip import sha1_state
+
+        pixel_hash = sha1_state(data)
+    info = _describe(spec, fmt, p, colorspace, alpha, pixel_hash)
     pixels = _decode(data, info)
-    _apply_nan_policy(pixels, nan, info, p)
+    _apply_nan_policy(pixels, nan, info, p, floats=data.dtype.kind == "f")
     return Image(pixels=pixels, spec=info)
 
 
-def _describe(spec: oiio.ImageSpec, fmt: str, p: str, colorspace: str, alpha: str) -> ImageInfo:
+def _describe(spec: oiio.ImageSpec, fmt: str, p: str, colorspace: str, alpha: str,
+              pixel_hash: Any = None) -> ImageInfo:
     """What :func:`read_image` says of a file from its header (the encoding and alpha mode it decodes by)."""
     names = [str(n) for n in spec.channelnames] or _default_names(spec.nchannels)
     pixel_type = _type_name(spec.format)
@@ -482,6 +496,7 @@ def _describe(spec: oiio.ImageSpec, fmt: str, p: str, colorspace: str, alpha: st
         origin=(spec.x, spec.y),
         display_window=None if display == (spec.x, spec.y, spec.width, spec.height) else display,
         tile=(int(spec.tile_width), int(spec.tile_height)) if tiled else None,
+        pixel_hash=pixel_hash,
     )
 
 
@@ -511,10 +526,12 @@ def _decode(px: np.ndarray, info: ImageInfo) -> np.ndarray:
     return px if px.dtype == np.float16 else px.astype(np.float32, copy=False)
 
 
-def _apply_nan_policy(pixels: np.ndarray, nan: str, info: ImageInfo, p: str, row: int = 0) -> int:
+def _apply_nan_policy(pixels: np.ndarray, nan: str, info: ImageInfo, p: str, row: int = 0,
+                      floats: bool = True) -> int:
     """``nan="fail"``: DataError naming the first non-finite value; ``"zero"``: replaced in place.
-    Returns the count found (``row``: where ``pixels`` starts in the image, for the message)."""
-    bad = count_nonfinite(pixels)
+    Returns the count found (``row``: where ``pixels`` starts in the image, for the message; ``floats``
+    False: decoded from integers, always finite, not scanned)."""
+    bad = count_nonfinite(pixels) if floats else 0
     if bad and nan == "fail":
         y, x, c = (int(v) for v in np.argwhere(~np.isfinite(pixels))[0])
         names = info.channel_names
@@ -1260,6 +1277,9 @@ def _encode(path, image: Image, *, pixel_type=None, colorspace=None, alpha=None,
             and not (fmt in _NO_ALPHA_FORMATS and alpha_channel >= 0)):
         # The common 8-bit sRGB file without alpha: encoded by table, a channel at a time.
         colour = _colour_mask(nch, alpha_channel, names)
+        if all(colour):  # one pass over the whole array: no strided per-channel copies (1.6× faster at 4K)
+            return _output_spec(info, fmt, out_type, names, alpha_channel, nch, width, height, encoding, mode,
+                                pixel_type, compression), _srgb8(pixels)
         data = np.empty(pixels.shape, dtype=np.uint8)
         for c in range(nch):
             data[..., c] = _srgb8(pixels[..., c]) if colour[c] else \
@@ -1536,7 +1556,8 @@ class ImageStream:
         elif self._read_type == "float":
             data = np.asarray(data, dtype=np.float32)
         px = _decode(data, self.info)
-        self.nonfinite += _apply_nan_policy(px, self.nan, self.info, self.path, y0)
+        self.nonfinite += _apply_nan_policy(px, self.nan, self.info, self.path, y0,
+                                            floats=self._read_type not in ("uint8", "uint16"))
         return px
 
 

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import catalogue
 from .errors import UsageError
 from .work import Levels
 
@@ -25,44 +26,202 @@ WRAP_NAMES = tuple(WRAP_TO_BORDER)
 SHA1_BLOCK = 256
 
 
+ROUNDING = ("down", "up")  # level sizes max(1, ⌊n/2⌋) (maketx's, the default) or ⌈n/2⌉ (⊗↓'s)
+
+
 @dataclass(frozen=True, kw_only=True)
 class TextureLevels(Levels):
-    """A MIP chain down to 1×1 (:class:`pyramid_cli.work.Levels`) with maketx's ``--constant-color-detect``.
+    """A MIP chain down to 1×1 (:class:`pyramid_cli.work.Levels`) as a renderer reads it.
 
-    ``constant_detect``: an image whose pixels are all the same becomes one tile of that colour before
-    the levels are made (:func:`shrink_constant`).
+    ``rounding`` "down" (the default): maketx's and OpenEXR's level sizes ``max(1, ⌊n/2⌋)``;
+    levels that halve exactly use the paper's ``analysis`` filter, the others are resampled with
+    the same filter's continuous kernel so that every level covers the whole texture domain
+    (:mod:`pyramid_cli.plan.resample`, :func:`pyramids.mip_plan`). "up": the analysis pyramid's
+    sizes ``⌈n/2⌉`` (odd sizes padded by the border), :class:`Levels` as it is.
+    ``constant_detect``: an image whose pixels are all the same becomes one tile of that colour
+    before the levels are made (:func:`shrink_constant`).
     """
 
+    analysis: str = catalogue.MIP_ANALYSIS_DEFAULT
     constant_detect: bool = False
-    round_down: bool = False  # maketx's level sizes ⌊n/2⌋, by area resampling (:func:`area_levels`)
+    rounding: str = "down"
+    resize: bool = False           # maketx's --resize: level 0 up to powers of two first (rounding "down" only)
+    nchannels: int | None = None   # maketx's --nchannels: keep or pad to this many channels (:func:`channel_plan`)
+    monochrome_detect: bool = False  # maketx's --monochrome-detect: R = G = B everywhere → one channel
+    fill: bool = False        # pull-push texels of alpha < 1 first (pyramid_cli.methods_files.fill_texture)
+
+    @property
+    def keeps_input(self) -> bool:  # type: ignore[override]
+        """Level 0 is the input, except when it is resized."""
+        return not self.resize
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.rounding not in ROUNDING:
+            raise UsageError(f"unknown rounding {self.rounding!r} (down or up)")
+        if self.rounding == "down":
+            from .pyramids import mip_axis_weights
+
+            mip_axis_weights(self.analysis)  # refuses a filter the rule cannot resample (exit 2)
+        elif self.resize:
+            raise UsageError("--resize makes maketx's power-of-two levels: it needs --round down")
+        if self.nchannels is not None and self.nchannels < 1:
+            raise UsageError(f"--nchannels {self.nchannels}: at least 1")
 
     @property
     def filter_name(self) -> str:
-        """The filter that makes the levels: ``"area"`` when rounding down, else ``analysis``."""
-        return "area" if self.round_down else self.analysis
+        """The filter, rule and whatever else changes the texels, as the SHA-1's appended text and
+        ImageHistory name them: ``quadratic``, ``quadratic/up``, ``quadratic/resize/nchannels=1/fill`` …
+        (the hash is of the source's pixels, so two files that differ below must differ here)."""
+        flags = (["up"] if self.rounding == "up" else []) + (["resize"] if self.resize else [])
+        flags += [f"nchannels={self.nchannels}"] if self.nchannels is not None else []
+        flags += (["monochrome-detect"] if self.monochrome_detect else []) + (["fill"] if self.fill else [])
+        return "/".join([self.analysis, *flags])
+
+    def count(self, size) -> int:
+        size = tuple(size[:2])
+        if self.resize:
+            from .plan.resample import ceil2
+
+            return len(mip_sizes((ceil2(size[0]), ceil2(size[1]))))  # level 0 is made too
+        return len(mip_sizes(size, self.rounding)) - 1
+
+    def plan(self, sizes, strategy="cost"):
+        if self.rounding == "up":
+            return super().plan(sizes, strategy)
+        from .pyramids import mip_plan
+
+        if not self.count(sizes[0]):
+            return None
+        return mip_plan(tuple(sizes[0][:2]), self.analysis, self.border, strategy, self.resize)
+
+    def reference(self, images):
+        if self.rounding == "up":
+            return super().reference(images)
+        levels = mip_reference(images[0], self.analysis, self.border, self.resize)
+        return levels if self.resize else levels[1:]
 
 
-def area_weights(n: int, m: int) -> np.ndarray:
-    """The (m, n) matrix resampling n samples to m by area: output j averages input over [j·n/m, (j+1)·n/m)."""
-    scale = n / m
-    lo = np.arange(m)[:, None] * scale
-    i = np.arange(n)[None, :]
-    overlap = np.clip(np.minimum(lo + scale, i + 1) - np.maximum(lo, i), 0, None)
-    return overlap / scale
+def channel_plan(nchannels: int, names: list[str], alpha: int, wanted: int | None,
+                 monochrome_detect: bool, monochrome: bool) -> tuple[int, list[str], int] | None:
+    """maketx's channel changes before the levels: ``--monochrome-detect`` (3 channels, no alpha, R = G = B at
+    every pixel → one channel named Y) unless ``--nchannels`` is given, then ``--nchannels`` (keep the first
+    ``wanted``; more appends channels of zeros named as OpenImageIO names them: R G B A channel4 …, an added
+    A is not treated as alpha here, it stays an ordinary channel of zeros).
 
-
-def area_levels(pixels: np.ndarray) -> list[np.ndarray]:
-    """MIP levels 1.. down to 1×1 with maketx's sizes ``max(1, ⌊n/2⌋)``, each the area average of the one above.
-
-    Every output texel covers its exact share of the level above (no sample of the domain is dropped
-    or counted twice for odd sizes), so every level keeps the image's mean. Computed in float64.
+    Returns (channels kept from the source, new names, new alpha index) or None when nothing changes.
+    ``monochrome`` says whether the pixels are monochrome (checked by the caller only when it matters).
     """
-    levels, x = [], pixels.astype(np.float64)
-    while x.shape[0] > 1 or x.shape[1] > 1:
-        h, w = x.shape[:2]
-        x = np.einsum("ji,ikc->jkc", area_weights(h, max(1, h // 2)), x)
-        x = np.einsum("lk,jkc->jlc", area_weights(w, max(1, w // 2)), x)
-        levels.append(x.astype(np.float32))
+    if wanted is None and monochrome_detect and nchannels == 3 and alpha < 0 and monochrome:
+        return 1, ["Y"], -1
+    if wanted is None or wanted == nchannels:
+        return None
+    default = ["R", "G", "B", "A"]
+    new = [names[c] if c < nchannels else (default[c] if c < 4 else f"channel{c}") for c in range(wanted)]
+    return min(wanted, nchannels), new, alpha if alpha < wanted else -1
+
+
+def is_monochrome(pixels: np.ndarray) -> bool:
+    """Every pixel's three channels equal (ImageBufAlgo::isMonochrome with threshold 0)."""
+    return pixels.shape[-1] == 3 and bool(np.all(pixels[..., 0] == pixels[..., 1])
+                                          and np.all(pixels[..., 0] == pixels[..., 2]))
+
+
+def apply_channels(pixels: np.ndarray, kept: int, total: int) -> np.ndarray:
+    """The first ``kept`` channels, padded with zeros to ``total`` channels."""
+    if kept == total == pixels.shape[-1]:
+        return pixels
+    out = np.zeros(pixels.shape[:2] + (total,), dtype=pixels.dtype)
+    out[..., :kept] = pixels[..., :kept]
+    return out
+
+
+def mip_sizes(size: tuple[int, int], rounding: str = "down") -> list[tuple[int, int]]:
+    """Level sizes (rows, columns) down to 1×1: ``max(1, ⌊n/2⌋)`` ("down") or ``⌈n/2⌉`` ("up")."""
+    out = [tuple(size)]
+    while out[-1][0] > 1 or out[-1][1] > 1:
+        h, w = out[-1]
+        out.append((max(1, h // 2), max(1, w // 2)) if rounding == "down" else ((h + 1) // 2, (w + 1) // 2))
+    return out
+
+
+# ------------------------------------------------------------------ the float64 reference of domain-true levels
+def _kernel_1d(analysis: str) -> tuple[np.ndarray, np.ndarray] | None:
+    """(offsets d, weights w_d) of a named analysis mask, f[r] = Σ w_d g[2r − d], straight from the paper's
+    index formula ``d = ⌊i − n/2⌋`` (1-based i) and the mask's row sums; None for expressions."""
+    from . import catalogue
+
+    if analysis not in catalogue.ANALYSIS_FILTERS:
+        return None
+    mask = np.array([[float(v) for v in row] for row in catalogue.mask(analysis).mask])
+    n = mask.shape[0]
+    return np.floor(np.arange(1, n + 1) - n / 2).astype(int), mask.sum(axis=1)
+
+
+def resample_matrix(d: np.ndarray, w: np.ndarray, n_in: int, n_out: int, border: str) -> np.ndarray:
+    """(n_out, n_in) float64 matrix resampling an axis with the continuous kernel of the weights ``w_d``.
+
+    Independent of the planner's exact tables (:mod:`pyramid_cli.plan.resample`, whose docstring
+    derives the kernel): here the kernel's integral ``F(u)`` is a piecewise-linear function through its
+    breakpoints, and each texel's weight is ``F`` at the end of its footprint minus ``F`` at its start,
+    ``u = (x − (j + ½)·s)/s`` for input position x and ``s = n_in/n_out``; reads past the edges fold by
+    ``border`` into the matrix's columns (zero drops them).
+    """
+    from .border import Border, fold
+
+    if n_in == n_out == 1:
+        return np.ones((1, 1))
+    dd = np.arange(d.max(), d.min() - 1, -1)  # every offset, the kernel's pieces left to right
+    wd = np.array([w[d == k].sum() for k in dd])
+    lo = -dd / 2.0  # piece of weight w_d: [−d/2, (1 − d)/2) in output units, density 2·w_d
+    xs = np.concatenate([lo, [lo[-1] + 0.5]])
+    cum = np.concatenate([[0.0], np.cumsum(wd)])
+    s = n_in / n_out
+    reach = int(np.ceil(np.abs(xs).max() * s)) + 2
+    i = np.arange(-reach, n_in + reach)
+    c = (np.arange(n_out)[:, None] + 0.5) * s
+    ext = np.interp((i[None, :] + 1 - c) / s, xs, cum) - np.interp((i[None, :] - c) / s, xs, cum)
+    cols = fold(i + 1, n_in, Border.parse(border))
+    out = np.zeros((n_out, n_in + 1))
+    np.add.at(out.T, cols, ext.T)  # folded column 0 means "outside, reads zero"
+    return out[:, 1:]
+
+
+def bilinear_matrix(n_in: int, n_out: int, border: str) -> np.ndarray:
+    """(n_out, n_in) float64 matrix of a bilinear lookup at the texel centres of ``n_out`` samples spread over
+    the same domain (independent of :func:`pyramid_cli.plan.resample.bilinear_table`); reads fold by ``border``."""
+    from .border import Border, fold
+
+    x = (np.arange(n_out) + 0.5) * n_in / n_out - 0.5
+    i0 = np.floor(x).astype(int)
+    out = np.zeros((n_out, n_in + 1))
+    for i, w in ((i0, 1 - (x - i0)), (i0 + 1, x - i0)):
+        np.add.at(out, (np.arange(n_out), fold(i + 1, n_in, Border.parse(border))), w)
+    return out[:, 1:]
+
+
+def mip_reference(pixels: np.ndarray, analysis: str, border: str = "clamp", resize: bool = False) -> list[np.ndarray]:
+    """Levels 0..1×1 with maketx's sizes, every level resampled from the one above by ``analysis``'s
+    continuous kernel (at exact halvings that is the filter itself), in float64; with ``resize``, level 0
+    is first resampled up to powers of two by a bilinear lookup."""
+    from .pyramids import mip_axis_weights
+
+    kern = _kernel_1d(analysis)
+    if kern is None:  # an expression: its separated 1-D weights (the planner's source, no other exists)
+        rows, _ = mip_axis_weights(analysis)
+        kern = (np.array([d for d, _ in rows]), np.array([float(v) for _, v in rows]))
+    x = np.asarray(pixels, dtype=np.float64)
+    if resize:
+        h, w = (1 << max(0, n - 1).bit_length() for n in x.shape[:2])
+        x = np.einsum("ji,ik...->jk...", bilinear_matrix(x.shape[0], h, border), x)
+        x = np.einsum("lk,jk...->jl...", bilinear_matrix(x.shape[1], w, border), x)
+    levels = [x]
+    for h, w in mip_sizes(x.shape[:2])[1:]:
+        a = resample_matrix(*kern, x.shape[0], h, border)
+        b = resample_matrix(*kern, x.shape[1], w, border)
+        x = np.einsum("ji,ik...->jk...", a, x)
+        x = np.einsum("lk,jk...->jl...", b, x)
+        levels.append(x)
     return levels
 
 
@@ -72,7 +231,7 @@ def shrink_constant(pixels: np.ndarray, tile: int) -> np.ndarray | None:
     None when the pixels are not all the same (compared exactly, as maketx compares min and max).
     """
     flat = pixels.reshape(-1, pixels.shape[-1])
-    if not np.all(flat == flat[0]):
+    if not np.all(flat[:pixels.shape[1]] == flat[0]) or not np.all(flat == flat[0]):  # the first row, then all
         return None
     h, w = min(tile, pixels.shape[0]), min(tile, pixels.shape[1])
     return np.ascontiguousarray(np.broadcast_to(flat[0], (h, w, pixels.shape[-1])))
@@ -121,15 +280,26 @@ def _normalised(data: np.ndarray) -> np.ndarray:
 
 
 def average_color(data: np.ndarray) -> list[float]:
-    """Per-channel mean of the stored values (computePixelStats' ``avg``: integers as 0..1, encoding as stored)."""
-    px = _normalised(data).reshape(-1, data.shape[-1])
-    return [float(v) for v in px.mean(axis=0)]
+    """Per-channel mean of the stored values (computePixelStats' ``avg``: integers as 0..1, encoding as stored).
+
+    Summed down the rows first (one vectorised pass over the image as an (H, W·C) array: integers exactly in
+    integer accumulators, floats in float64), then across the row's columns.
+    """
+    h, w, c = data.shape
+    rows = data.reshape(h, w * c)
+    if np.issubdtype(data.dtype, np.integer):
+        acc = np.uint32 if data.dtype.itemsize == 1 and h < (1 << 24) else np.uint64
+        sums = rows.sum(axis=0, dtype=acc).reshape(w, c).sum(axis=0, dtype=np.uint64).astype(np.float64)
+        sums /= np.iinfo(data.dtype).max
+    else:
+        sums = rows.sum(axis=0, dtype=np.float64).reshape(w, c).sum(axis=0)
+    return [float(v) for v in sums / max(1, h * w)]
 
 
 def constant_color(data: np.ndarray) -> list[float] | None:
     """The stored colour when every pixel has it (computePixelStats' ``min == max``), else None."""
     px = data.reshape(-1, data.shape[-1])
-    if not np.all(px == px[0]):
+    if not np.all(px[:data.shape[1]] == px[0]) or not np.all(px == px[0]):  # the first row settles most images
         return None
     return [float(v) for v in _normalised(px[:1])[0]]
 
@@ -139,23 +309,55 @@ def format_floats(values: list[float]) -> str:
     return ",".join(f"{v:g}" for v in values)
 
 
+def stored_floats(data: np.ndarray) -> np.ndarray:
+    """Stored values as OpenImageIO converts them to float32: integers times ``float32(1/max)``
+    (``convert_type``, bit for bit), half widened, float as is."""
+    if np.issubdtype(data.dtype, np.integer):
+        return data.astype(np.float32) * np.float32(1 / np.iinfo(data.dtype).max)
+    return data.astype(np.float32, copy=False)
+
+
+def sha1_state(data: np.ndarray, block: int = SHA1_BLOCK, threads: int = 2):
+    """The unfinished SHA-1 of ``computePixelHashSHA1(buf, extra, ROI::All(), block)`` over stored pixels.
+
+    ``data`` is (H, W, C) as the file stores it (uint8, uint16, float16 or float32); each ``block`` rows
+    are converted to float32 as OpenImageIO converts them (:func:`stored_floats`: what maketx hashes,
+    since it works in float) and hashed in ``threads`` threads. Up to ``block`` rows: the SHA-1 of the
+    bytes; more: the SHA-1 of the concatenated upper-case hex digests of each block. :func:`finish_sha1`
+    appends ``extra`` and gives the digest, so the state can be computed from the pixels as they are read.
+    """
+    if block <= 0 or block >= data.shape[0]:
+        return hashlib.sha1(np.ascontiguousarray(stored_floats(data)).tobytes())
+
+    def digest(y: int) -> bytes:
+        return hashlib.sha1(np.ascontiguousarray(stored_floats(data[y:y + block]))).hexdigest().upper().encode()
+
+    starts = range(0, data.shape[0], block)
+    if threads > 1 and len(starts) > 1:
+        from concurrent.futures import ThreadPoolExecutor
+
+        with ThreadPoolExecutor(max_workers=threads) as pool:  # hashlib and numpy release the GIL
+            digests = list(pool.map(digest, starts))
+    else:
+        digests = [digest(y) for y in starts]
+    return hashlib.sha1(b"".join(digests))
+
+
+def finish_sha1(state, extra: str = "") -> str:
+    """The upper-case hex SHA-1 of a :func:`sha1_state` with ``extra`` appended (the state is not changed)."""
+    sha = state.copy()
+    sha.update(extra.encode())
+    return sha.hexdigest().upper()
+
+
 def pixel_sha1(data: np.ndarray, extra: str = "", block: int = SHA1_BLOCK) -> str:
     """OpenImageIO's ``computePixelHashSHA1(buf, extra, ROI::All(), block)`` of stored pixels ``data``.
 
     ``data`` is (H, W, C) as maketx holds the source: float32 of the stored values (integers as
-    0..1, no colour conversion), bytes in native order. Up to
-    ``block`` rows: the SHA-1 of the bytes then ``extra``. More: the SHA-1 of the concatenated
-    upper-case hex digests of each ``block`` rows, then ``extra``.
+    0..1, no colour conversion), bytes in native order; other stored types are converted as
+    OpenImageIO converts them (:func:`sha1_state`).
     """
-    data = np.ascontiguousarray(data)
-    extra_bytes = extra.encode()
-    if block <= 0 or block >= data.shape[0]:
-        return hashlib.sha1(data.tobytes() + extra_bytes).hexdigest().upper()
-    sha = hashlib.sha1()
-    for y in range(0, data.shape[0], block):
-        sha.update(hashlib.sha1(data[y:y + block].tobytes()).hexdigest().upper().encode())
-    sha.update(extra_bytes)
-    return sha.hexdigest().upper()
+    return finish_sha1(sha1_state(data, block), extra)
 
 
 def hash_extra(border: str, analysis: str) -> str:
@@ -179,10 +381,12 @@ def texture_metadata(border: str, analysis: str, sha1: str | None = None, oiio_v
     from . import __version__
 
     tool = f"pyramid mipmap (bilinear-pyramid {__version__})"
+    name, *flags = analysis.split("/")  # TextureLevels.filter_name: "quadratic", "quadratic/up/resize", …
+    options = "".join(f" --{f.replace('=', ' ')}" for f in flags if f != "up")
     meta = {"wrapmodes": wrapmodes(border),
             "Software": f"OpenImageIO {oiio_version} : {tool}" if oiio_version else tool,
-            "Exif:ImageHistory": f"pyramid mipmap {'--round down' if analysis == 'area' else '--analysis ' + analysis}"
-                                 f" --wrap {BORDER_TO_WRAP[border]}"}
+            "Exif:ImageHistory": f"pyramid mipmap --analysis {name} --round {'up' if 'up' in flags else 'down'}"
+                                 f"{options} --wrap {BORDER_TO_WRAP[border]}"}
     if sha1:
         meta["oiio:SHA-1"] = sha1
     return meta

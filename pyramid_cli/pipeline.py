@@ -92,9 +92,12 @@ def _announce_compiles(session: Session, work: Work, images, reporter: Reporter)
                         "later runs load them from the cache in a fraction of a second)")
 
 
-def _read(path: str, ro: ReadOptions, reporter: Reporter, keep_half: bool = False) -> io.Image:
-    image = io.read_image(path, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan, keep_half=keep_half)
-    bad = io.count_nonfinite(image.pixels) if ro.nan == "keep" else 0
+def _read(path: str, ro: ReadOptions, reporter: Reporter, keep_half: bool = False,
+          hash_source: bool = False) -> io.Image:
+    image = io.read_image(path, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan, keep_half=keep_half,
+                          hash_source=hash_source)
+    integer = image.spec.pixel_type in ("uint8", "uint16") and not image.spec.channel_pixel_types
+    bad = io.count_nonfinite(image.pixels) if ro.nan == "keep" and not integer else 0  # decoded codes are finite
     if bad:
         reporter.warn(f"{path}: {bad} NaN/Inf value(s) kept; they spread through the filter "
                       "(--nan zero or --nan fail to change that)")
@@ -167,6 +170,27 @@ def process(paths: list[str], template: str | None, work: Work, session: Session
     return report
 
 
+def _texture_channels(image: io.Image, work, path: str, reporter: Reporter) -> io.Image:
+    """maketx's ``--monochrome-detect`` and ``--nchannels`` on a texture's source (:func:`mip.channel_plan`)."""
+    import dataclasses
+
+    from .mip import apply_channels, channel_plan, is_monochrome
+
+    spec, px = image.spec, image.pixels
+    n = px.shape[2]
+    mono = work.monochrome_detect and n == 3 and spec.alpha_channel < 0 and is_monochrome(px)
+    change = channel_plan(n, list(spec.channel_names), spec.alpha_channel, work.nchannels, work.monochrome_detect,
+                          mono)
+    if change is None:
+        return image
+    kept, names, alpha = change
+    reporter.detail(f"{path}: {n} channel(s) → {len(names)} ({', '.join(names)})"
+                    + (": monochrome" if mono and work.nchannels is None else ""))
+    new = dataclasses.replace(spec, channel_names=names, alpha_channel=alpha,
+                              alpha_mode=spec.alpha_mode if alpha >= 0 else "none", channel_pixel_types=[])
+    return io.Image(apply_channels(px, kept, len(names)), new)
+
+
 def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: ReadOptions, write: WriteOptions,
              reporter: Reporter, keep_going: bool = False, skip_existing: bool = False, jobs: int = 2,
              mip_tile: int | None = None, many: bool = True) -> batch.Report:
@@ -180,7 +204,7 @@ def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: R
 
     def read_job(job):
         io.check_write_options(job.output, wo.pixel_type, wo.compression)  # refused before any work
-        image = _read(job.input, ro, reporter, keep_half=not mip_tile)
+        image = _read(job.input, ro, reporter, keep_half=not mip_tile, hash_source=bool(mip_tile))
         if mip_tile and getattr(work, "constant_detect", False):
             from .mip import shrink_constant
 
@@ -188,6 +212,8 @@ def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: R
             if small is not None and small.shape != image.pixels.shape:
                 reporter.detail(f"{job.input}: constant colour, made from one {small.shape[1]}×{small.shape[0]} tile")
                 image = io.Image(small, image.spec)
+        if mip_tile and (getattr(work, "nchannels", None) or getattr(work, "monochrome_detect", False)):
+            image = _texture_channels(image, work, job.input, reporter)
         work.check((image.pixels.shape[:2],), where=job.input)
         return job, image
 
@@ -195,11 +221,10 @@ def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: R
 
     def compute(job_image):
         job, image = job_image
-        if mip_tile and getattr(work, "round_down", False):  # maketx's sizes: area resampling in numpy
-            from .mip import area_levels
+        if mip_tile and getattr(work, "fill", False):  # mipmap --fill: pull-push before the MIP chain (issue 17)
+            from .methods_files import fill_texture
 
-            pixels = image.pixels.astype(np.float32)
-            return [io.Image(px, image.spec) for px in [pixels, *area_levels(pixels)]]
+            image = fill_texture(image, session, work.border, where=job.input)
         if not announced:
             announced.append(True)
             _announce_compiles(session, work, [image.pixels], reporter)
@@ -212,24 +237,27 @@ def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: R
     def write_job(job, images):
         options = wo.for_inputs([job.input])
         if mip_tile:
-            from .mip import hash_extra, texture_metadata
+            from .mip import finish_sha1, hash_extra, texture_metadata
 
             border = getattr(work, "border", "clamp")
             analysis = getattr(work, "filter_name", getattr(work, "analysis", ""))
-            meta = texture_metadata(border, analysis, io.source_sha1(job.input, hash_extra(border, analysis)),
-                                    io.oiio_version())
+            state = images[0].spec.pixel_hash  # hashed as it was read: the file is not read again
+            extra = hash_extra(border, analysis)
+            sha1 = finish_sha1(state, extra) if state is not None else io.source_sha1(job.input, extra)
+            meta = texture_metadata(border, analysis, sha1, io.oiio_version())
             io.write_levels(job.output, images, mode="mipmap", tile=mip_tile, meta=meta, **options)
         else:
             io.write_image(job.output, images[0], **options)
         if not show_bar:
             h, w = images[0].pixels.shape[:2]
             levels = f", {len(images)} MIP levels" if mip_tile else ""
-            ran = "numpy" if getattr(work, "round_down", False) else session.ran
-            reporter.result(f"wrote {job.output} ({w}×{h}{levels}, {ran})")
+            reporter.result(f"wrote {job.output} ({w}×{h}{levels}, {session.ran})")
 
     show_bar = many and not reporter.quiet and reporter.progress is not None
     run_options = {"keep_going": keep_going, "skip_existing": skip_existing, "workers": jobs,
-                   "prepare": prepare if session.on_gl else None}
+                   # GL compiles and allocates while the first image decodes; so does the CPU executor for MIP maps
+                   # (loading its kernels, about 0.3 s of a cold process, beside the read and the source's hash)
+                   "prepare": prepare if session.on_gl or mip_tile else None}
     if show_bar:
         with reporter.progress(len(job_list)) as bar:
             return batch.run(job_list, read_job, compute, write_job, progress=lambda job: bar.update(1),

@@ -136,6 +136,70 @@ def blur_plan(size: tuple[int, int], levels: int, analysis: str = A0, synthesis:
     return plan_steps(step_list, size, crops, text=text, strategy=strategy, border=border)
 
 
+@lru_cache(maxsize=64)
+def mip_axis_weights(analysis: str):
+    """The 1-D weights (rows, columns) of a one-step separable ⊗↓ filter, ``((d, w_d), …)`` each, for
+    :func:`mip_plan`; UsageError (exit 2) for an analysis that maketx's level sizes cannot use."""
+    st = steps(_one_step(analysis, Op.DOWN))
+    split = algebra.split_step(algebra.step_of(*st[0])) if len(st) == 1 and st[0][2] == 1 else None
+    if split is None:
+        raise UsageError(f"--analysis {analysis!r}: maketx's level sizes (--round down) need one separable ⊗↓ "
+                         "step (box, box4, quadratic, cubic or a separable mask); use --round up for others")
+    return tuple(tuple(sorted(axis[0].items())) for axis in split)
+
+
+@lru_cache(maxsize=32)  # batches re-use a plan per image size
+def mip_plan(size: tuple[int, int], analysis: str = catalogue.MIP_ANALYSIS_DEFAULT, border: str = "clamp",
+             strategy: str = "cost", resize: bool = False) -> Plan:
+    """MIP levels 1..1×1 with maketx's sizes ``max(1, ⌊n/2⌋)``, every level covering the whole texture domain.
+
+    A level that halves both sizes exactly runs the paper's ⊗↓ passes of ``analysis`` (§4). Any other
+    level runs one :class:`~pyramid_cli.plan.ResamplePass` per axis that changes: the same filter's
+    continuous kernel stretched to the level's ratio (:mod:`pyramid_cli.plan.resample`; at an exact
+    halving its weights are the paper's). An axis of one pixel stays as it is.
+
+    ``resize`` (maketx's ``--resize``): level 0 is first resampled up to powers of two, as a bilinear
+    lookup reads the source (:func:`pyramid_cli.plan.resample.bilinear_table`); it is then output 0.
+    """
+    from .mip import mip_sizes
+    from .plan.resample import axis_table, bilinear_table, ceil2
+
+    weights = mip_axis_weights(analysis)
+    down = steps(_one_step(analysis, Op.DOWN))
+    b = Builder(size, strategy, border)
+    outs, current = [], 0
+    if resize:
+        for axis, n in enumerate(size):
+            if ceil2(n) != n:
+                current = b.resample(current, axis, *bilinear_table(n, ceil2(n)),
+                                     f"level 0: resized to a power of two, {('rows', 'columns')[axis]} "
+                                     f"{n}→{ceil2(n)} (bilinear)")
+        size = (ceil2(size[0]), ceil2(size[1]))
+        if current == 0:  # already powers of two: level 0 is a copy of the input
+            current = b.combine([(0, Fraction(1))], "level 0 (already powers of two)")
+        outs.append(current)
+    sizes = mip_sizes(size)
+    for k in range(1, len(sizes)):
+        (h, w), (h2, w2) = sizes[k - 1], sizes[k]
+        if h == 2 * h2 and w == 2 * w2:
+            first = len(b.passes)
+            current = _run_steps(b, current, down)
+            for ps in b.passes[first:]:
+                ps.label = f"level {k} {w2}×{h2}: {ps.label} (exact halving: the paper's passes)"
+        else:
+            for axis, (n, m) in enumerate(((h, h2), (w, w2))):
+                if n == m:
+                    continue
+                name = ("rows", "columns")[axis]
+                starts, table = axis_table(weights[axis], n, m)
+                ratio = "exact ×2" if n == 2 * m else f"×{n / m:.4g}"
+                current = b.resample(current, axis, starts, table,
+                                     f"level {k} {w2}×{h2}: {analysis} kernel resampled, {name} {n}→{m} ({ratio})")
+        outs.append(current)
+    text = f"mipmap: {len(sizes) - 1} level(s) to 1×1, maketx's sizes, {analysis} ⊗↓"
+    return b.build(text + (", level 0 resized to powers of two" if resize else ""), outputs=outs)
+
+
 # ------------------------------------------------------------------ the same workflows by the reference
 def _ref(expr: Expr, x, border: str):
     from . import reference

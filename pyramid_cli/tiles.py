@@ -323,4 +323,9 @@ def run_arrays(executor, plan: Plan, images, *, band: int, width: int | None = N
     return out
 
 
-__all__ = ["Scheduler", "Emulator", "run_arrays"]
+def tileable(plan: Plan) -> bool:
+    """Whether every pass of ``plan`` has the tiling hook (``tile``; :mod:`pyramid_cli.plan.model`)."""
+    return all(hasattr(ps, "tile") for ps in plan.passes)
+
+
+__all__ = ["Scheduler", "Emulator", "run_arrays", "tileable"]

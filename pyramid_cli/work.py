@@ -185,4 +185,74 @@ class Collapse(Work):
         return [pyramids.collapse_reference(list(images), self.synthesis, self.border)]
 
 
-__all__ = ["Work", "Filter", "Blur", "SigmaBlur", "Levels", "Laplacian", "Collapse"]
+@dataclass(frozen=True, kw_only=True)
+class Fill(Work):
+    """Pull-push hole filling (Kraus 2009, :mod:`pyramid_cli.methods`): inputs colours and weights
+    (:func:`pyramid_cli.methods.fill_inputs` makes them from an image), output the filled colours."""
+
+    levels: int | None = None
+    analysis: str = "box4"
+    synthesis: str = "doosabin"
+    premultiplied: bool = True
+    n_inputs = 2
+    label = "fill"
+
+    def plan(self, sizes, strategy="cost"):
+        from .methods import fill_plan
+
+        return fill_plan(tuple(sizes[0][:2]), self.levels, self.analysis, self.synthesis, self.premultiplied,
+                         self.border, strategy)
+
+    def reference(self, images):
+        import numpy as np
+
+        from . import methods_reference
+
+        colour, weight = (np.asarray(a, dtype=np.float64) for a in images)
+        if self.premultiplied:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                colour = np.where(weight > 0, colour / np.where(weight > 0, weight, 1), 0.0)
+        return [methods_reference.fill(colour, weight, self.levels, self.analysis, self.synthesis, self.border)]
+
+
+@dataclass(frozen=True, kw_only=True)
+class Blend(Work):
+    """Multiresolution blending (Burt & Adelson 1983, :mod:`pyramid_cli.methods`): inputs A, B and the
+    mask (the same channel count), output the blend. ``levels`` None: as many as the size allows."""
+
+    levels: int | None = None
+    analysis: str = catalogue.ANALYSIS_DEFAULT
+    synthesis: str = catalogue.SYNTHESIS_DEFAULT
+    n_inputs = 3
+    label = "blend"
+
+    def count(self, size: Size) -> int:
+        from .methods import blend_levels
+
+        return blend_levels(tuple(size)) if self.levels is None else self.levels
+
+    def check(self, sizes, where=""):
+        if len({tuple(s[:2]) for s in sizes}) > 1:
+            from .errors import InputError
+
+            (h0, w0), (h1, w1), (h2, w2) = (tuple(s[:2]) for s in sizes)
+            raise InputError(f"{where + ': ' if where else ''}A is {w0}×{h0}, B {w1}×{h1} and the mask {w2}×{h2}: "
+                             "they must have one size")
+
+    def plan(self, sizes, strategy="cost"):
+        from .methods import blend_plan
+
+        size = tuple(sizes[0][:2])
+        return blend_plan(size, self.count(size), self.analysis, self.synthesis, self.border, strategy)
+
+    def reference(self, images):
+        import numpy as np
+
+        from . import methods_reference
+
+        a, b, m = (np.asarray(x, dtype=np.float64) for x in images)
+        return [methods_reference.blend(a, b, m, self.count(a.shape[:2]), self.analysis, self.synthesis,
+                                        self.border)]
+
+
+__all__ = ["Work", "Filter", "Blur", "SigmaBlur", "Levels", "Laplacian", "Collapse", "Fill", "Blend"]

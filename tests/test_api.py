@@ -12,6 +12,7 @@ from pyramid_cli import api, pyramids, reference
 from pyramid_cli.border import Border
 from pyramid_cli.errors import PyramidError
 from pyramid_cli.geometry import mip_levels
+from pyramid_cli.mip import mip_reference
 from pyramid_cli.parse import parse
 
 SIZES = [(1, 1), (1, 7), (5, 3), (17, 13), (129, 67)]
@@ -46,7 +47,8 @@ def cases(a):
         ("laplacian", lambda s: pyr.laplacian(a, 3, analysis="quadratic", synthesis="cubic", session=s),
          pyramids.laplacian_reference(f64, 3, "quadratic", "cubic")),
         ("collapse", lambda s: [pyr.collapse(pyramids.laplacian_reference(f64, 2), session=s)], [f64]),
-        ("mipmap", lambda s: pyr.mipmap(a, border="zero", session=s),
+        ("mipmap", lambda s: pyr.mipmap(a, border="zero", session=s), mip_reference(f64, "quadratic", "zero")),
+        ("mipmap up", lambda s: pyr.mipmap(a, border="zero", rounding="up", session=s),
          pyramids.levels_reference(f64, mip_levels(a.shape[:2]), "quadratic", "zero")),
     ]
 

@@ -19,7 +19,7 @@ from click.testing import CliRunner
 
 from pyramid_cli import io as pio
 from pyramid_cli.cli import main
-from pyramid_cli.mip import hash_extra, parse_wrap, pixel_sha1
+from pyramid_cli.mip import hash_extra, mip_sizes, parse_wrap, pixel_sha1
 
 BIN = Path(sys.executable).parent
 MAKETX, OIIOTOOL = str(BIN / "maketx"), str(BIN / "oiiotool")
@@ -76,19 +76,33 @@ def png8(tmp_path) -> Path:
 # ---------------------------------------------------------------------------------------------- wrap
 
 
-def test_periodic_wrap_is_seamless_at_every_level(tmp_path):
-    src, dst = tmp_path / "tile.exr", tmp_path / "tile.tx.exr"
-    write(src, tileable())
-    mipmap("--wrap", "periodic", "--tile", "16", src, dst)
-    levels = levels_of(dst)
-    assert len(levels) == 7
-    for k, level in enumerate(levels):
+def seam_ratio(levels) -> float:
+    """The largest jump across the wrap seam over the largest jump between neighbours inside, over levels/axes."""
+    worst = 0.0
+    for level in levels:
         for axis in (0, 1):
             if level.shape[axis] < 3:
                 continue
             inner = np.abs(np.diff(level, axis=axis)).max()
             seam = np.abs(np.take(level, 0, axis=axis) - np.take(level, -1, axis=axis)).max()
-            assert seam <= inner + 1e-3, f"level {k} axis {axis}: seam {seam} > interior {inner}"
+            worst = max(worst, seam / inner)
+    return float(worst)
+
+
+@pytest.mark.parametrize("h, w, bound", [(32, 64, 1.01), (37, 51, 1.25)])
+def test_periodic_wrap_is_seamless_at_every_level(tmp_path, h, w, bound):
+    """Where levels halve exactly the seam is no larger than the largest interior step. At odd sizes (samples
+    37/18 px apart) the seam pair is one more pair of neighbouring samples of the same periodic signal and may
+    sit where the slope peaks (8 % over the interior's largest step here), while a seam that does not wrap
+    jumps twice as far (clamp: 1.97×), which the test tells apart."""
+    src, dst, clamped = tmp_path / "tile.exr", tmp_path / "tile.tx.exr", tmp_path / "clamp.tx.exr"
+    write(src, tileable(h, w))
+    mipmap("--wrap", "periodic", "--tile", "16", "--type", "float", src, dst)
+    levels = levels_of(dst)
+    assert [lv.shape[:2] for lv in levels] == mip_sizes((h, w))
+    assert seam_ratio(levels) <= bound
+    mipmap("--wrap", "clamp", "--tile", "16", "--type", "float", src, clamped)
+    assert seam_ratio(levels_of(clamped)) > 1.5
 
 
 @pytest.mark.parametrize("wrap, border, attr", [("black", "zero", "black,black"), ("clamp", "clamp", "clamp,clamp"),
@@ -203,7 +217,7 @@ def test_8bit_srgb_png_gives_an_8bit_srgb_mipmapped_tiff(tmp_path, png8, ext):
     dst = tmp_path / f"albedo.{ext}"
     mipmap("--tile", "16", png8, dst)
     info = subprocess.run([OIIOTOOL, "--info", "-v", str(dst)], check=True, capture_output=True, text=True).stdout
-    assert "uint8 tiff" in info and "MIP-map levels: 48x64 24x32 12x16 6x8 3x4 2x2 1x1" in info, info
+    assert "uint8 tiff" in info and "MIP-map levels: 48x64 24x32 12x16 6x8 3x4 1x2 1x1" in info, info
     assert 'textureformat: "Plain Texture"' in info and "tile size: 16 x 16" in info
     assert "srgb" in attributes(dst)["oiio:ColorSpace"].lower()
     # Filtered in linear light and encoded back: the levels are the EXR's (linear half) levels, sRGB-encoded.
@@ -327,34 +341,40 @@ def maketx_sizes(path: Path) -> list[tuple[int, int]]:
 
 
 @pytest.mark.parametrize("shape", [(37, 50), (64, 48), (1, 9), (5, 3)])
-def test_round_down_gives_maketx_level_sizes_and_keeps_the_mean(tmp_path, shape):
+@pytest.mark.parametrize("analysis", ["box", "quadratic"])
+def test_default_sizes_are_maketx_and_every_level_keeps_the_mean(tmp_path, shape, analysis):
     src, ours, theirs = tmp_path / "in.exr", tmp_path / "ours.exr", tmp_path / "theirs.exr"
     g = np.random.default_rng(6).random(shape + (3,)).astype(np.float32)
     write(src, g)
-    mipmap("--round", "down", "--type", "float", src, ours)
+    mipmap("--wrap", "periodic", "--analysis", analysis, "--type", "float", src, ours)
     maketx(src, theirs)
     assert maketx_sizes(ours) == maketx_sizes(theirs)
     mean = g.astype(np.float64).mean(axis=(0, 1))
     for level in levels_of(ours):  # every texel covers its share: no part of the domain dropped or doubled
-        np.testing.assert_allclose(level.mean(axis=(0, 1)), mean, atol=1e-5)
+        np.testing.assert_allclose(level.mean(axis=(0, 1)), mean, rtol=1e-5)
     average = [float(v) for v in attributes(ours)["oiio:AverageColor"].split(",")]
-    np.testing.assert_allclose(levels_of(ours)[-1][0, 0], average, atol=1e-5)
+    np.testing.assert_allclose(levels_of(ours)[-1][0, 0], average, rtol=1e-5)
 
 
-def test_round_down_of_even_sizes_is_the_box_filter(tmp_path):
-    src, down, box = tmp_path / "in.exr", tmp_path / "down.exr", tmp_path / "box.exr"
+def test_round_up_keeps_the_analysis_pyramids_sizes_and_even_levels_agree(tmp_path):
+    src, down, up = tmp_path / "in.exr", tmp_path / "down.exr", tmp_path / "up.exr"
     write(src, np.random.default_rng(7).random((32, 16, 4)).astype(np.float32))
     mipmap("--round", "down", "--type", "float", src, down)
-    mipmap("--analysis", "box", "--type", "float", src, box)
-    for a, b in zip(levels_of(down), levels_of(box), strict=True):
+    mipmap("--round", "up", "--type", "float", src, up)
+    for a, b in zip(levels_of(down), levels_of(up), strict=True):  # powers of two: the same filter
         np.testing.assert_allclose(a, b, atol=1e-6)
+    odd = tmp_path / "odd.exr"
+    write(odd, np.random.default_rng(7).random((5, 7, 3)).astype(np.float32))
+    mipmap("--round", "up", "--type", "float", odd, up)
+    assert maketx_sizes(up) == [(5, 7), (3, 4), (2, 2), (1, 1)]
+    assert "--round up" in attributes(up)["Exif:ImageHistory"]
 
 
 def test_round_down_tx_reads_in_the_texture_system(tmp_path, png8):
     src = tmp_path / "odd.png"
     write(src, (np.random.default_rng(9).random((37, 50, 3)) * 255).astype(np.uint8), "uint8")
     dst = tmp_path / "odd.tx"
-    mipmap("--round", "down", "--tile", "16", src, dst)
+    mipmap("--tile", "16", src, dst)
     levels = levels_of(dst)
     assert [x.shape[:2] for x in levels] == [(37, 50), (18, 25), (9, 12), (4, 6), (2, 3), (1, 1)]
     ts = oiio.TextureSystem(shared=False)
@@ -367,12 +387,12 @@ def test_round_down_tx_reads_in_the_texture_system(tmp_path, png8):
     assert "--round down" in attributes(tmp_path / "odd.tx").get("Exif:ImageHistory", "--round down")
 
 
-def test_round_down_refuses_an_analysis(tmp_path):
+def test_round_down_refuses_an_analysis_it_cannot_resample(tmp_path):
     src = tmp_path / "in.exr"
     write(src, np.zeros((8, 8, 3), np.float32))
-    r = CliRunner().invoke(main, ["mipmap", *CPU, "--round", "down", "--analysis", "cubic", str(src),
-                                  str(tmp_path / "o.exr")])
-    assert r.exit_code == 2 and "--analysis applies to --round up only" in r.output, r.output
+    r = CliRunner().invoke(main, ["mipmap", *CPU, "--analysis", "box *v^2 g", str(src), str(tmp_path / "o.exr")])
+    assert r.exit_code == 2 and "need one separable ⊗↓ step" in r.output, r.output
+    assert not (tmp_path / "o.exr").exists()
 
 
 def test_exr_levels_that_halve_neither_way_are_refused(tmp_path):
@@ -389,3 +409,146 @@ def _flat(tmp_path: Path) -> Path:
     src = tmp_path / "flat.exr"
     write(src, np.zeros((4, 4, 3), np.float32))
     return src
+
+
+# ------------------------------------------------------------------------------------ against maketx
+
+
+def write_half(path: Path, pixels: np.ndarray) -> None:
+    write(path, pixels.astype(np.float16), "half")
+
+
+@pytest.mark.parametrize("shape", [(64, 32, 4), (16, 16, 3)])
+@pytest.mark.parametrize("backend", ["cpu", "gl"])
+def test_box_on_even_sizes_is_bit_identical_to_maketx_box(tmp_path, shape, backend):
+    """Half sources: a sum of four halves is exact in float32, so the order of the additions cannot
+    matter and both tools must store the same half values at every level (float32 sources differ by
+    one float32 ulp at most: each tool adds in its own order)."""
+    if backend == "gl":
+        from pyramid_cli import gl
+
+        ok, why = gl.available()
+        if not ok and not os.environ.get("CI"):
+            pytest.skip(why)
+    src, ours, theirs = tmp_path / "in.exr", tmp_path / "ours.exr", tmp_path / "theirs.exr"
+    write_half(src, np.random.default_rng(11).random(shape))
+    r = CliRunner().invoke(main, ["mipmap", "--backend", backend, "--analysis", "box", str(src), str(ours)])
+    assert r.exit_code == 0, r.output
+    maketx(src, theirs, "--filter", "box")
+    a, b = levels_of(ours, "half"), levels_of(theirs, "half")
+    assert [x.shape for x in a] == [x.shape for x in b]
+    for k, (x, y) in enumerate(zip(a, b, strict=True)):
+        assert np.array_equal(x.view(np.uint16), y.view(np.uint16)), f"level {k}"
+
+
+@pytest.mark.parametrize("shape", [(777, 1001), (3, 5), (1, 7), (7, 1), (2, 3),
+                                   pytest.param((1080, 1920), marks=pytest.mark.slow)])
+def test_level_count_and_sizes_are_maketxs(tmp_path, shape):
+    src, ours, theirs = tmp_path / "in.exr", tmp_path / "ours.tx", tmp_path / "theirs.tx"
+    write_half(src, np.random.default_rng(12).random(shape + (3,)))
+    mipmap(src, ours)
+    maketx(src, theirs)
+    assert maketx_sizes(ours) == maketx_sizes(theirs)
+
+
+def test_average_color_and_the_1x1_level_equal_maketxs_for_box_on_even_sizes(tmp_path):
+    src, ours, theirs = tmp_path / "in.exr", tmp_path / "ours.exr", tmp_path / "theirs.exr"
+    write(src, np.random.default_rng(13).random((64, 128, 3)).astype(np.float32))
+    mipmap("--analysis", "box", "--type", "float", src, ours)
+    maketx(src, theirs, "--filter", "box", "-d", "float")
+    a, b = attributes(ours), attributes(theirs)
+    assert set(b) - set(a) <= {"Exif:ImageHistory"}
+    np.testing.assert_allclose([float(v) for v in a["oiio:AverageColor"].split(",")],
+                               [float(v) for v in b["oiio:AverageColor"].split(",")], rtol=1e-6)
+    np.testing.assert_allclose(levels_of(ours)[-1], levels_of(theirs)[-1], rtol=1e-6)
+
+
+@pytest.mark.parametrize("pixel_type, rows", [("uint8", 40), ("uint16", 300), ("half", 520), ("float", 257)])
+def test_sha1_is_hashed_from_the_pixels_in_memory_as_maketx_hashes_the_file(tmp_path, monkeypatch, pixel_type,
+                                                                             rows):
+    """The source is read once: its stored values are hashed before any conversion (integers as OpenImageIO
+    converts them to float, bit for bit), in maketx's 256-row blocks, and the result is maketx's hash of the file."""
+    src, dst, theirs = tmp_path / "in.tif", tmp_path / "out.tx", tmp_path / "theirs.tx"
+    g = np.random.default_rng(21).random((rows, 9, 3))
+    stored = {"uint8": (g * 255).astype(np.uint8), "uint16": (g * 65535).astype(np.uint16),
+              "half": g.astype(np.float16), "float": g.astype(np.float32)}[pixel_type]
+    write(src, stored, pixel_type)
+
+    def reread(*args, **kwargs):
+        raise AssertionError("the source was read again for its hash")
+
+    monkeypatch.setattr(pio, "source_sha1", reread)
+    mipmap("--analysis", "box", src, dst)
+    monkeypatch.undo()
+    assert attributes(dst)["oiio:SHA-1"] == pio.source_sha1(src, hash_extra("clamp", "box"))
+    maketx(src, theirs, "--filter", "box")
+    assert pio.source_sha1(src, "box ") == attributes(theirs)["oiio:SHA-1"]
+
+
+# ------------------------------------------------------------------ maketx's channel and size flags
+
+
+def channel_layout(path: Path) -> tuple[int, list[str], list[tuple[int, int]], list[float]]:
+    inp = oiio.ImageInput.open(str(path))
+    spec = inp.spec()
+    sizes = []
+    while inp.seek_subimage(0, len(sizes)):
+        sizes.append((inp.spec().width, inp.spec().height))
+    inp.close()
+    return (spec.nchannels, list(spec.channelnames), sizes,
+            [float(v) for v in spec.get_string_attribute("oiio:AverageColor").split(",")])
+
+
+@pytest.fixture
+def sources(tmp_path) -> dict[str, Path]:
+    g = np.random.default_rng(14).random((20, 30, 1)).astype(np.float32)
+    rgba = np.concatenate([np.random.default_rng(15).random((20, 30, 3)), np.full((20, 30, 1), 0.5)], axis=2)
+    out = {}
+    for name, px in [("mono", np.repeat(g, 3, axis=2)), ("rgba", rgba.astype(np.float32)),
+                     ("rgb", np.random.default_rng(16).random((20, 30, 3)).astype(np.float32))]:
+        out[name] = tmp_path / f"{name}.exr"
+        write(out[name], px)
+    return out
+
+
+@pytest.mark.parametrize("source, args", [("mono", ["--monochrome-detect"]), ("rgb", ["--monochrome-detect"]),
+                                          ("rgba", ["--nchannels", "3"]), ("rgba", ["--nchannels", "5"]),
+                                          ("mono", ["--nchannels", "4"]), ("mono", ["--monochrome-detect",
+                                                                                   "--nchannels", "2"])])
+def test_channel_flags_like_maketx(tmp_path, sources, source, args):
+    ours, theirs = tmp_path / "ours.exr", tmp_path / "theirs.exr"
+    mipmap(*args, "--type", "float", sources[source], ours)
+    maketx(sources[source], theirs, *args, "-d", "float")
+    a, b = channel_layout(ours), channel_layout(theirs)
+    assert a[:3] == b[:3], (a, b)
+    np.testing.assert_allclose(a[3], b[3], atol=1e-6)
+
+
+def test_resize_makes_maketxs_power_of_two_levels(tmp_path, sources):
+    ours, theirs = tmp_path / "ours.exr", tmp_path / "theirs.exr"
+    mipmap("--resize", "--wrap", "periodic", "--type", "float", sources["rgb"], ours)
+    maketx(sources["rgb"], theirs, "--resize")
+    assert maketx_sizes(ours) == maketx_sizes(theirs) == [(32, 32), (16, 16), (8, 8), (4, 4), (2, 2), (1, 1)]
+    levels = levels_of(ours)
+    src = levels_of(sources["rgb"])[0].astype(np.float64)
+    # level 0 is what a bilinear lookup of the source reads at the new texel centres (periodic: the mean stays)
+    np.testing.assert_allclose(levels[0].mean(axis=(0, 1)), src.mean(axis=(0, 1)), rtol=2e-3)
+    for level in levels[1:]:
+        np.testing.assert_allclose(level.mean(axis=(0, 1)), levels[0].astype(np.float64).mean(axis=(0, 1)),
+                                   rtol=1e-5)
+    assert "--resize" in attributes(ours)["Exif:ImageHistory"]
+    r = CliRunner().invoke(main, ["mipmap", *CPU, "--resize", "--round", "up", str(sources["rgb"]),
+                                  str(tmp_path / "up.exr")])
+    assert r.exit_code == 2 and "--resize" in r.output
+
+
+def test_options_that_change_the_texels_change_the_sha1(tmp_path, sources):
+    """The hash is of the source's pixels (as maketx's), so what changes the levels goes into its appended text:
+    OpenImageIO's ImageCache treats two files with one SHA-1 as the same texture."""
+    hashes = {}
+    for args in ([], ["--nchannels", "1"], ["--resize"], ["--round", "up"], ["--fill"], ["--monochrome-detect"]):
+        out = tmp_path / f"t{len(hashes)}.exr"
+        mipmap(*args, sources["rgba"], out)
+        hashes[" ".join(args)] = attributes(out)["oiio:SHA-1"]
+        assert " ".join(args) in attributes(out)["Exif:ImageHistory"]
+    assert len(set(hashes.values())) == len(hashes), hashes

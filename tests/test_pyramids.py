@@ -151,13 +151,13 @@ def test_levels_laplacian_then_collapse_cli_float_exr(tmp_path):
 
 
 @pytest.mark.parametrize("shape", [(64, 64), (37, 50), (1, 9)])
-def test_mipmap_is_read_by_openimageio_as_mipmapped(tmp_path, shape):
+def test_mipmap_round_up_is_read_by_openimageio_as_mipmapped(tmp_path, shape):
     import OpenImageIO as oiio
 
     g = np.random.default_rng(8).random(shape + (3,)).astype(np.float32)
     src, dst = tmp_path / "in.exr", tmp_path / "out.tx.exr"
     write_exr(src, g)
-    r = CliRunner().invoke(main, ["mipmap", "--backend", "cpu", "--tile", "16", str(src), str(dst)])
+    r = CliRunner().invoke(main, ["mipmap", "--backend", "cpu", "--round", "up", "--tile", "16", str(src), str(dst)])
     assert r.exit_code == 0, r.output
     inp = oiio.ImageInput.open(str(dst))
     levels = []

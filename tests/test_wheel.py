@@ -19,7 +19,8 @@ def test_the_demo_runs_from_the_built_wheel(tmp_path):
                     "-w", str(tmp_path)], check=True, capture_output=True)
     (wheel,) = tmp_path.glob("bilinear_pyramid-*.whl")
     names = set(zipfile.ZipFile(wheel).namelist())
-    for needed in ("pyramid_cli/shaders/pass.frag.glsl", "pyramid_cli/shaders/generate.py",
+    for needed in ("pyramid_cli/shaders/pass.frag.glsl", "pyramid_cli/shaders/pointwise.frag.glsl",
+                   "pyramid_cli/shaders/generate.py",
                    "pyramid_cli/cost_model.json", "pyramid_cli/plan/lower.py", "pyramid_cli/samples/zoneplate.png",
                    "pyramid_cli/samples/highlights.exr"):
         assert needed in names
@@ -28,4 +29,4 @@ def test_the_demo_runs_from_the_built_wheel(tmp_path):
     env = {**os.environ, "PYTHONPATH": str(site)}
     out = subprocess.run([sys.executable, "-m", "pyramid_cli.demo", str(tmp_path / "out")], cwd=tmp_path, env=env,
                          capture_output=True, text=True, check=True).stdout
-    assert str(site) in out and len(list((tmp_path / "out").glob("*.png"))) == 7
+    assert str(site) in out and len(list((tmp_path / "out").glob("*.png"))) == 9  # 7 + blend_apple_orange, fill_holes

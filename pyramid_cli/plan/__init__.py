@@ -11,11 +11,13 @@ from __future__ import annotations
 
 from .estimate import estimate_seconds, pass_measures, pass_seconds
 from .lower import Builder, choose_recipe, plan, plan_steps, recipe_seconds
-from .model import Half, Image, Pass, Plan, Tap, check
+from .model import POINTWISE_OPS, Half, Image, Pass, Plan, PointwisePass, ResamplePass, Tap, check
 from .recipes import Stage, _chain, checked_recipe, conv, direct_recipe, down, recipe, recipe_kernel_matches, up
 from .report import render, to_json
 from .taps import taps_for
 
-__all__ = ["Plan", "Pass", "Tap", "Image", "Half", "Builder", "plan", "plan_steps", "check", "estimate_seconds",
+__all__ = ["PointwisePass", "POINTWISE_OPS",
+           "Plan", "Pass", "Tap", "Image", "Half", "Builder", "plan", "plan_steps", "check", "estimate_seconds",
            "pass_seconds", "pass_measures", "choose_recipe", "recipe_seconds", "Stage", "recipe", "direct_recipe",
-           "checked_recipe", "recipe_kernel_matches", "conv", "down", "up", "_chain", "taps_for", "render", "to_json"]
+           "checked_recipe", "recipe_kernel_matches", "conv", "down", "up", "_chain", "taps_for", "render", "to_json",
+           "ResamplePass"]

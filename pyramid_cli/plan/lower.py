@@ -14,7 +14,7 @@ from .. import algebra, cost
 from ..expr import Expr, Op, steps
 from .bounds import _infer_guards
 from .estimate import pass_seconds
-from .model import Image, Pass, Plan, Tap
+from .model import Image, Pass, Plan, PointwisePass, ResamplePass, Tap
 from .recipes import Stage, _stage_sizes, checked_recipe, direct_recipe
 from .taps import taps_for
 
@@ -74,7 +74,7 @@ class Builder:
 
         self.border = Border.parse(border).value
         self.images = [Image(tuple(size), border=self.border)]
-        self.passes: list[Pass] = []
+        self.passes: list[Pass | ResamplePass | PointwisePass] = []
         self.inputs = [0]
         self.strategy = strategy  # "cost": cheapest of paper/fused per filter; "paper": always the paper's
 
@@ -123,6 +123,25 @@ class Builder:
         self.images.append(Image(size, border=self.border))
         taps = [Tap(i, (Fraction(0), Fraction(0)), Fraction(w), False) for i, w in terms]
         self.passes.append(Pass(label, len(self.images) - 1, (1, 1), (1, 1), {(0, 0): taps}))
+        return len(self.images) - 1
+
+    def resample(self, source: int, axis: int, starts, weights, label: str, why: str = "") -> int:
+        """One :class:`ResamplePass` of image ``source`` along ``axis`` (0 rows, 1 columns) with the table
+        ``starts``/``weights`` (:func:`pyramid_cli.plan.resample.axis_table`); the result is a boundary."""
+        size = list(self.images[source].size)
+        size[axis] = len(starts)
+        self.images.append(Image(tuple(size), border=self.border))
+        self.passes.append(ResamplePass(label, len(self.images) - 1, source, axis, tuple(starts),
+                                        tuple(tuple(row) for row in weights), why))
+        return len(self.images) - 1
+
+    def pointwise(self, op: str, sources: list[int], label: str, param=1) -> int:
+        """A :class:`~pyramid_cli.plan.model.PointwisePass` (``op`` of :data:`~pyramid_cli.plan.model.POINTWISE_OPS`)
+        over images of one size; returns the result's image index (a boundary, like a written step's result)."""
+        size = self.images[sources[0]].size
+        assert all(self.images[i].size == size for i in sources)
+        self.images.append(Image(size, border=self.border))
+        self.passes.append(PointwisePass(label, len(self.images) - 1, op, tuple(sources), Fraction(param)))
         return len(self.images) - 1
 
     def build(self, text: str, outputs: list[int] | None = None, paper: float | None = None) -> Plan:

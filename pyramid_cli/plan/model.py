@@ -43,7 +43,8 @@ rows are negative or ≥ the size):
   executor a one-pass plan whose images are the windows (their guard bands, possibly
   negative, place each window), so executors need nothing new for a kind they can run.
   A kind whose weights depend on the absolute position (per-row weight tables) returns a
-  sliced copy of itself.
+  sliced copy of itself. :class:`PointwisePass` has it (the identity); :class:`ResamplePass`
+  does not yet, so plans holding one (MIP levels) run whole (``tiles.tileable``).
 """
 
 from __future__ import annotations
@@ -127,10 +128,108 @@ class Pass:
         return TileStep((r0, rows[1]), (c0, cols[1]), self, {s: origin for s in self.sources()})
 
 
+# The per-pixel operations of a :class:`PointwisePass` (the nonlinear steps of the pyramid methods:
+# pull-push hole filling, Kraus 2009 after Gortler et al. 1996; multiresolution blending, Burt &
+# Adelson 1983). Each reads its sources at the same pixel and channel; ``k`` is the pass's ``param``.
+# One fact each; the executors (emulate, cpu, gl) implement these formulas literally, in float32.
+POINTWISE_OPS: dict[str, tuple[int, str]] = {
+    "mul": (2, "a·b: colour times weight (premultiplying by a weight image)"),
+    "pull_colour": (2, "a·min(1, k·b)/b where b > 0, else 0: a pulled (filtered) premultiplied colour a with its "
+                       "filtered weight b, renormalised so that its weight becomes min(1, k·b)"),
+    "pull_weight": (1, "min(1, k·a): a filtered weight scaled by k (the fine pixels a coarse one covers) and "
+                       "clamped to 1"),
+    "divide": (2, "a/b where b > 0, else 0: premultiplied colour back to colour"),
+    "over": (3, "a + (1 − b)·c: premultiplied colour a of weight b over the colour c (the push blend)"),
+    "blend": (3, "c·a + (1 − c)·b: a where the mask c is 1, b where it is 0 (Burt & Adelson's per-level blend)"),
+}
+
+
+@dataclass
+class PointwisePass:
+    """Per-pixel arithmetic over several images of one size, at the same logical pixel and channel.
+
+    ``op`` names one of :data:`POINTWISE_OPS` and ``srcs`` its operands in order (``a, b, c``);
+    ``param`` is the constant ``k`` of the ops that take one. No source is read past its extent,
+    so border modes never apply, and every source and the target have no guard band.
+    """
+
+    label: str
+    target: int
+    op: str
+    srcs: tuple[int, ...]
+    param: Fraction = Fraction(1)
+    why: str = ""
+
+    def __post_init__(self):
+        arity = POINTWISE_OPS[self.op][0]  # KeyError: an unknown op is a planner bug
+        assert len(self.srcs) == arity, f"{self.op} takes {arity} source(s), not {len(self.srcs)}"
+
+    def sources(self) -> set[int]:
+        return set(self.srcs)
+
+    @property
+    def fetches(self) -> float:
+        """Texel reads per fragment: one per operand."""
+        return float(len(self.srcs))
+
+    def reads(self, rows: tuple[int, int], cols: tuple[int, int]) -> dict[int, tuple[tuple[int, int], tuple[int, int]]]:
+        """Each source is read over the output rectangle itself (0-based half-open logical rows, columns)."""
+        return {s: (tuple(rows), tuple(cols)) for s in self.srcs}
+
+    def tile(self, rows: tuple[int, int], cols: tuple[int, int]) -> TileStep:
+        """The pass over ``rows × cols``: every source's window starts where the tile does."""
+        return TileStep(tuple(rows), tuple(cols), self, {s: (rows[0], cols[0]) for s in self.srcs})
+
+
+@dataclass
+class ResamplePass:
+    """Separable resampling of one axis by a banded table of exact weights (MIP levels, DESIGN.md §5).
+
+    Output index ``j`` (0-based, along ``axis``: 0 rows, 1 columns) of the target is
+    ``Σₖ weights[j][k] · src[starts[j] + k]`` along that axis, every other index unchanged;
+    source indices outside ``0..n−1`` fold by the source's border mode (:func:`pyramid_cli.border.fold`:
+    clamp, mirror, wrap, or zero). Every row of the table has the same width (zeros pad the short ones),
+    so an executor runs one table-driven loop for every output, whatever the ratio of the sizes.
+    Source and target have no guard bands: the source is a boundary (the plan's input or a
+    level), read through its border mode. :mod:`pyramid_cli.plan.resample` derives the tables.
+    """
+
+    label: str
+    target: int
+    source: int
+    axis: int                                  # 0: rows, 1: columns
+    starts: tuple[int, ...]                    # per output index: the first source index read (0-based)
+    weights: tuple[tuple[Fraction, ...], ...]  # per output index: the weights of starts[j], starts[j] + 1, …
+    why: str = ""
+
+    def sources(self) -> set[int]:
+        return {self.source}
+
+    @property
+    def width(self) -> int:
+        """Texels each output reads (the table's row width)."""
+        return len(self.weights[0]) if self.weights else 0
+
+    @property
+    def fetches(self) -> float:
+        """Texel reads per fragment: the mean number of nonzero weights per output."""
+        return sum(sum(1 for w in row if w) for row in self.weights) / max(1, len(self.weights))
+
+    def reads(self, rows: tuple[int, int], cols: tuple[int, int]) -> dict[int, tuple[tuple[int, int], tuple[int, int]]]:
+        """Source rectangle (0-based half-open logical rows, columns) an output rectangle reads; along
+        ``axis`` it may extend past the source (those reads fold by its border mode)."""
+        span = (rows, cols)[self.axis]
+        if span[0] >= span[1]:
+            read = (0, 0)
+        else:
+            read = (min(self.starts[span[0]:span[1]]), max(self.starts[span[0]:span[1]]) + self.width)
+        return {self.source: (read, cols) if self.axis == 0 else (rows, read)}
+
+
 @dataclass
 class Plan:
     images: list[Image]
-    passes: list[Pass]
+    passes: list[Pass | ResamplePass | PointwisePass]
     expression: str
     paper_fetches: float | None = None
     outputs: list[int] = field(default_factory=list)  # images read back, in order; default: the last
@@ -162,6 +261,22 @@ def check(p: Plan) -> None:
     for k, im in enumerate(p.images):
         assert im.border == "clamp" or not any(im.guard), f"image {k}: border {im.border} with a guard band"
     for ps in p.passes:
+        if isinstance(ps, ResamplePass):
+            src, dst = p.images[ps.source], p.images[ps.target]
+            assert ps.source < ps.target and ps.axis in (0, 1)
+            assert not any(src.guard) and not any(dst.guard), "resampling reads and writes images without guards"
+            assert len(ps.starts) == len(ps.weights) == dst.size[ps.axis]
+            assert src.size[1 - ps.axis] == dst.size[1 - ps.axis]
+            assert all(len(row) == ps.width for row in ps.weights)
+            continue
+        if isinstance(ps, PointwisePass):
+            size = p.images[ps.target].size
+            for s in ps.srcs:
+                assert s < ps.target, f"pass {ps.label}: source {s} is not written before {ps.target}"
+                assert p.images[s].size == size, f"pass {ps.label}: source {s} is not {size}"
+                assert not any(p.images[s].guard), f"pass {ps.label}: source {s} has a guard band"
+            assert not any(p.images[ps.target].guard), f"pass {ps.label}: pointwise target with a guard band"
+            continue
         for taps in ps.phases.values():
             for t in taps:
                 assert t.source < ps.target

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from .. import cost
 from .estimate import estimate_seconds, pass_seconds
-from .model import Plan, Tap
+from .model import Plan, PointwisePass, ResamplePass, Tap
 
 
 def _tap_json(t: Tap) -> dict:
@@ -21,6 +21,14 @@ def to_json(p: Plan) -> dict:
     passes = []
     for ps in p.passes:
         img = p.images[ps.target]
+        if isinstance(ps, ResamplePass):
+            passes.append(_resample_json(p, ps, model))
+            continue
+        if isinstance(ps, PointwisePass):
+            passes.append({"label": ps.label, "size": [img.size[1], img.size[0]], "pointwise": ps.op,
+                           "sources": list(ps.srcs), "param": str(ps.param), "fetches": ps.fetches,
+                           "estimate_s": pass_seconds(p.images, ps, model)})
+            continue
         entry = {"label": ps.label, "size": [img.size[1], img.size[0]], "guard": list(img.guard),
                  "period": [ps.period[1], ps.period[0]], "stride": [ps.stride[1], ps.stride[0]],
                  "fetches": ps.fetches, "estimate_s": pass_seconds(p.images, ps, model)}
@@ -38,16 +46,46 @@ def to_json(p: Plan) -> dict:
             "estimate_s": estimate_seconds(p, model), "cost_model": model.name}
 
 
+def _resample_json(p: Plan, ps: ResamplePass, model) -> dict:
+    """A :class:`ResamplePass` in ``pyramid plan --json``: its axis, sizes and exact weight table
+    (output j reads source index ``starts[j] + k``, 0-based along ``axis``, with ``weights[j][k]``)."""
+    img = p.images[ps.target]
+    return {"label": ps.label, "kind": "resample", "size": [img.size[1], img.size[0]], "guard": [0, 0, 0, 0],
+            "axis": ["rows", "columns"][ps.axis], "from": p.images[ps.source].size[ps.axis],
+            "to": img.size[ps.axis], "fetches": ps.fetches, "estimate_s": pass_seconds(p.images, ps, model),
+            "starts": list(ps.starts), "weights": [[str(w) for w in row] for row in ps.weights]}
+
+
+def _resample_lines(p: Plan, ps: ResamplePass, n: int) -> list[str]:
+    img = p.images[ps.target]
+    src = "input" if ps.source == 0 else f"pass {ps.source}"
+    lines = [f"pass {n}  {ps.label}: {img.size[1]}×{img.size[0]}, reads {src}, "
+             f"{ps.fetches:g} texel(s) per fragment from a table of {len(ps.starts)}×{ps.width} weights"]
+    shown = sorted({0, len(ps.starts) // 2, len(ps.starts) - 1})
+    for j in shown:
+        ws = " ".join(str(w) for w in ps.weights[j])
+        lines.append(f"  out {j:<5} ← src {ps.starts[j]}..{ps.starts[j] + ps.width - 1} × [{ws}]")
+    return lines
+
+
 def render(p: Plan) -> str:
     """The human-readable ``pyramid plan`` report."""
     h, w = p.images[0].size
     oh, ow = p.output.size
     lines = [f"plan   {p.expression}", f"input  {w}×{h} → output {ow}×{oh}, {len(p.passes)} pass(es)"]
     for n, ps in enumerate(p.passes, 1):
+        if isinstance(ps, ResamplePass):
+            lines += _resample_lines(p, ps, n)
+            continue
         img = p.images[ps.target]
         t, l, b, r = img.guard
         guard = f" + guard t{t} l{l} b{b} r{r}" if any(img.guard) else ""
         srcs = ", ".join("input" if s == 0 else f"pass {s}" for s in sorted(ps.sources()))
+        if isinstance(ps, PointwisePass):
+            operands = ", ".join("input" if s == 0 else f"image {s}" for s in ps.srcs)
+            lines.append(f"pass {n}  {ps.label}: {img.size[1]}×{img.size[0]}, pointwise {ps.op}({operands})"
+                         + (f", K = {ps.param}" if ps.op.startswith("pull") else ""))
+            continue
         lines.append(f"pass {n}  {ps.label}: {img.size[1]}×{img.size[0]}{guard}, reads {srcs}, "
                      f"{ps.fetches:g} fetch(es) per fragment")
         if ps.why:

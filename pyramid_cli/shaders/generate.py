@@ -24,10 +24,11 @@ from importlib.resources import files
 import numpy as np
 
 from ..errors import BackendError
-from ..plan import Image, Pass
+from ..plan import Image, Pass, PointwisePass
 
 VERTEX = "fullscreen.vert.glsl"
 FRAGMENT = "pass.frag.glsl"
+RESAMPLE = "resample.frag.glsl"
 
 
 class ShaderCompileError(BackendError):
@@ -67,7 +68,10 @@ class PassShape:
 
 
 def sources(ps: Pass) -> list[int]:
-    """The pass's source images in slot order (slot k is texture unit k)."""
+    """The pass's source images in slot order (slot k is texture unit k); a pointwise pass's
+    operands in their order."""
+    if isinstance(ps, PointwisePass):
+        return list(ps.srcs)
     return sorted(ps.sources())
 
 
@@ -77,6 +81,8 @@ def shape(ps: Pass, images: list[Image] | None = None) -> PassShape:
     With the plan's ``images``, the shape also records each source's border mode
     (a non-clamp border folds reads in the shader); without, every source clamps.
     """
+    if isinstance(ps, PointwisePass):
+        return pointwise_shape(ps)  # type: ignore[return-value]
     slot = {src: k for k, src in enumerate(sources(ps))}
     phases = tuple(sorted(
         (tuple(ph), tuple(ShapeTap(slot[t.source], (Fraction(t.offset[0]), Fraction(t.offset[1])),
@@ -247,7 +253,9 @@ def vertex_source() -> str:
 
 
 def fragment_source(s: PassShape) -> str:
-    """The fragment shader of one pass shape."""
+    """The fragment shader of one pass shape (or of a :class:`PointwiseShape`)."""
+    if isinstance(s, PointwiseShape):
+        return pointwise_fragment_source(s)
     pr, pc = s.period
     sr, sc = s.stride
     defines = [
@@ -265,6 +273,51 @@ def fragment_source(s: PassShape) -> str:
     return _inject(_inject(text, "TAPS", _tap_lines(s)), "AFFINE_TAPS", [])
 
 
+def resample_fragment_source(axis: int) -> str:
+    """The fragment shader of a :class:`~pyramid_cli.plan.ResamplePass` along ``axis`` (0 rows, 1 columns):
+    one table-driven loop for every table (the weights are a texture, not code)."""
+    return _inject(load(RESAMPLE), "DEFINES", [f"#define AXIS {1 - axis}  // GL vectors are (column, row)"])
+
+
+# ------------------------------------------------------------------ pointwise passes
+POINTWISE = "pointwise.frag.glsl"
+
+# The formulas of plan.model.POINTWISE_OPS on vec4 operands a, b, c (K the param); divisions are
+# guarded by a select so that no 0/0 is ever mixed in.
+POINTWISE_GLSL = {
+    "mul": ["frag_color = a * b;"],
+    "pull_colour": ["bvec4 pos = greaterThan(b, vec4(0.0));",
+                    "vec4 v = a * (min(vec4(1.0), K * b) / mix(vec4(1.0), b, pos));",
+                    "frag_color = mix(vec4(0.0), v, pos);"],
+    "pull_weight": ["frag_color = min(vec4(1.0), K * a);"],
+    "divide": ["bvec4 pos = greaterThan(b, vec4(0.0));",
+               "frag_color = mix(vec4(0.0), a / mix(vec4(1.0), b, pos), pos);"],
+    "over": ["frag_color = a + (1.0 - b) * c;"],
+    "blend": ["frag_color = c * a + (1.0 - c) * b;"],
+}
+
+
+@dataclass(frozen=True)
+class PointwiseShape:
+    """The program-cache key of a pointwise pass: its op, operand count and parameter."""
+
+    op: str
+    n_sources: int
+    param: Fraction
+
+
+def pointwise_shape(ps: PointwisePass) -> PointwiseShape:
+    return PointwiseShape(ps.op, len(ps.srcs), Fraction(ps.param))
+
+
+def pointwise_fragment_source(s: PointwiseShape) -> str:
+    """The fragment shader of one pointwise op."""
+    text = _inject(load(POINTWISE), "DEFINES", [f"#define K {_float(s.param)}"])
+    text = _inject(text, "SOURCES", [f"uniform sampler2D u_src{k};" for k in range(s.n_sources)])
+    text = _inject(text, "OPERANDS", [f"vec4 {'abc'[k]} = texelFetch(u_src{k}, q, 0);" for k in range(s.n_sources)])
+    return _inject(text, "OP", POINTWISE_GLSL[s.op])
+
+
 def numbered(source: str) -> str:
     """``source`` with 1-based line numbers, as compilers report them."""
     lines = source.splitlines()
@@ -277,5 +330,6 @@ def compile_error(log: str, stage: str, source: str) -> ShaderCompileError:
     return ShaderCompileError(f"{stage} shader failed to compile: {log.strip()}\n{numbered(source)}")
 
 
-__all__ = ["PassShape", "ShapeTap", "affine_taps", "ShaderCompileError", "shape", "sources", "vertex_source",
-           "fragment_source", "numbered", "compile_error", "load"]
+__all__ = ["PointwiseShape", "pointwise_shape", "pointwise_fragment_source",
+           "PassShape", "ShapeTap", "affine_taps", "ShaderCompileError", "shape", "sources", "vertex_source",
+           "fragment_source", "resample_fragment_source", "numbered", "compile_error", "load"]
