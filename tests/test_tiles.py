@@ -230,3 +230,23 @@ def test_api_memmap_in_memmap_out(tmp_path, fn):
     assert np.array_equal(call(codes, memory=1 << 17), call(codes))
     with pytest.raises(ValueError, match="out: expected a float array of shape"):
         call(mm, out=np.empty((3, 3), np.float32))
+
+
+@pytest.mark.parametrize("kind", ["fill", "blend"])
+def test_pointwise_plans_tile(kind, cpu_ex):
+    """Plans with PointwisePass (issue 17's fill and blend, several levels) tile to the untiled pixels."""
+    from pyramid_cli.work import Blend, Fill
+
+    rng = np.random.default_rng(5)
+    if kind == "fill":
+        work = Fill(levels=3)
+        weight = (rng.random(SIZE + (1,)) > 0.6).astype(np.float32)
+        inputs = [image(SIZE, 3, seed=1) * weight, np.repeat(weight, 3, axis=2)]
+    else:
+        work = Blend(levels=3)
+        inputs = [image(SIZE, 3, seed=1), image(SIZE, 3, seed=2), rng.random(SIZE + (3,)).astype(np.float32)]
+    p = work.plan(tuple(a.shape[:2] for a in inputs))
+    assert tiles.tileable(p)
+    for tile in [(1, 1), (4, 3), (100, 100)]:
+        assert_same_tiled(EMU, p, [a.astype(np.float64) for a in inputs], tile, np.float64)
+        assert_same_tiled(cpu_ex, p, inputs, tile)
