@@ -508,6 +508,7 @@ def collapse(inputs, output_path, synthesis, border, **opts) -> None:
 @border_option
 @io_options
 @batch_options
+@memory_option
 @click.pass_context
 def mipmap(ctx: click.Context, paths, analysis, tile, wrap, swrap, twrap, constant_detect, fill_holes, rounding,
            resize, nchannels, monochrome_detect, border, **opts) -> None:
@@ -536,6 +537,7 @@ def mipmap(ctx: click.Context, paths, analysis, tile, wrap, swrap, twrap, consta
       pyramid mipmap --monochrome-detect --resize mask.png mask.tx      # 1 channel, powers of two
       pyramid mipmap 'tex/albedo.<UDIM>.exr' -o 'tx/albedo.<UDIM>.tx.exr'
       pyramid mipmap --fill bake.png bake.tx                    # pad UV islands first: no dark bleeding
+      pyramid mipmap --memory 2G -v matte_32k.exr matte_32k.tx.exr   # streamed: level 0 band by band
     """
     from .mip import TextureLevels, border_for_wrap, parse_wrap
 

@@ -1085,9 +1085,12 @@ def source_sha1(path: str | os.PathLike[str], extra: str = "") -> str:
     return pixel_sha1(np.asarray(data, dtype=np.float32).reshape(spec.height, spec.width, spec.nchannels), extra)
 
 
-def _mip_metadata(spec: oiio.ImageSpec, data: np.ndarray, meta: dict[str, str], arbitrary: bool) -> None:
+def _mip_metadata(spec: oiio.ImageSpec, data: np.ndarray | None, meta: dict[str, str], arbitrary: bool,
+                  colors: tuple[list[float], list[float] | None] | None = None) -> None:
     """maketx's metadata on level 0: average (and constant) colour of the stored values, plus ``meta``.
 
+    ``colors``: (average, constant or None) when already known (a streamed level 0, :class:`MipBandWriter`),
+    instead of computing them from ``data``.
     A format without arbitrary metadata (TIFF) gets the ``oiio:`` values in its ImageDescription as
     ``oiio:SHA-1=… oiio:AverageColor=…``, which is where maketx puts them and OpenImageIO's reader finds them.
     """
@@ -1095,8 +1098,8 @@ def _mip_metadata(spec: oiio.ImageSpec, data: np.ndarray, meta: dict[str, str], 
 
     spec.attribute("fovcot", float(spec.full_width) / float(spec.full_height))  # maketx's: the aspect ratio
     values = dict(meta)
-    values["oiio:AverageColor"] = format_floats(average_color(data))
-    constant = constant_color(data)
+    average, constant = colors if colors is not None else (average_color(data), constant_color(data))
+    values["oiio:AverageColor"] = format_floats(average)
     if constant is not None:
         values["oiio:ConstantColor"] = format_floats(constant)
     history = spec.get_string_attribute("Exif:ImageHistory")
@@ -1113,6 +1116,40 @@ def _mip_metadata(spec: oiio.ImageSpec, data: np.ndarray, meta: dict[str, str], 
             spec.attribute(name, value)
     if desc:
         spec.attribute("ImageDescription", desc)
+
+
+def _mark_mip_level(spec: oiio.ImageSpec, fmt: str, tile: int, round_up: bool, compression: str | None) -> None:
+    """A MIP level's spec as maketx writes it: tiled, "Plain Texture", OpenEXR's level and rounding modes."""
+    spec.tile_width = spec.tile_height = tile
+    spec.attribute("textureformat", "Plain Texture")
+    if fmt == "openexr":
+        spec.attribute("openexr:levelmode", 1)  # MIPMAP_LEVELS
+        # ROUND_UP: sizes ⌈n/2⌉, as ⊗↓ gives; ROUND_DOWN: ⌊n/2⌋ (--round down, maketx's)
+        spec.attribute("openexr:roundingmode", int(round_up))
+    if fmt == "tiff":
+        spec.attribute("planarconfig", "contig")
+        if compression is None:
+            spec.attribute("compression", "zip")  # maketx's default
+
+
+def _mip_rounding(out_path: str, fmt: str, sizes: list[tuple[int, int]]) -> bool:
+    """Whether MIP level sizes (width, height) round up; OutputError when OpenEXR cannot hold them."""
+    pairs = list(zip(sizes[:-1], sizes[1:], strict=True))
+    round_up = all(b == ((a[0] + 1) // 2, (a[1] + 1) // 2) for a, b in pairs)
+    round_down = all(b == (max(1, a[0] // 2), max(1, a[1] // 2)) for a, b in pairs)
+    if fmt == "openexr" and not (round_up or round_down):
+        raise OutputError(f"cannot write {out_path}: OpenEXR MIP levels halve each size rounding up or down; "
+                          f"these are {' '.join(f'{w}x{h}' for w, h in sizes)}")
+    return round_up
+
+
+def _check_mip_capable(out_path: str, fmt: str) -> bool:
+    """Whether the format has arbitrary metadata; OutputError when it cannot hold MIP levels."""
+    probe = oiio.ImageOutput.create(fmt) if fmt else None
+    if probe is None or not (probe.supports("mipmap") or (probe.supports("multiimage") and probe.supports("tiles"))):
+        oiio.geterror()
+        raise OutputError(f"cannot write {out_path}: the {_FORMAT_TITLES.get(fmt, fmt)} format cannot hold MIP levels")
+    return bool(probe.supports("arbitrary_metadata"))
 
 
 def write_levels(path: str | os.PathLike[str], images: list[Image], *, mode: str = "mipmap",
@@ -1139,24 +1176,9 @@ def write_levels(path: str | os.PathLike[str], images: list[Image], *, mode: str
     fmt = _format_from_path(out_path)
     full = encoded[0][0]
     if mode == "mipmap":
-        sizes = [(spec.width, spec.height) for spec, _ in encoded]
-        pairs = list(zip(sizes[:-1], sizes[1:], strict=True))
-        round_up = all(b == ((a[0] + 1) // 2, (a[1] + 1) // 2) for a, b in pairs)
-        round_down = all(b == (max(1, a[0] // 2), max(1, a[1] // 2)) for a, b in pairs)
-        if fmt == "openexr" and not (round_up or round_down):
-            raise OutputError(f"cannot write {out_path}: OpenEXR MIP levels halve each size rounding up or down; "
-                              f"these are {' '.join(f'{w}x{h}' for w, h in sizes)}")
+        round_up = _mip_rounding(out_path, fmt, [(spec.width, spec.height) for spec, _ in encoded])
         for spec, _ in encoded:
-            spec.tile_width = spec.tile_height = tile
-            spec.attribute("textureformat", "Plain Texture")
-            if fmt == "openexr":
-                spec.attribute("openexr:levelmode", 1)  # MIPMAP_LEVELS
-                # ROUND_UP: sizes ⌈n/2⌉, as ⊗↓ gives; ROUND_DOWN: ⌊n/2⌋ (--round down, maketx's)
-                spec.attribute("openexr:roundingmode", int(round_up))
-            if fmt == "tiff":
-                spec.attribute("planarconfig", "contig")
-                if options.get("compression") is None:
-                    spec.attribute("compression", "zip")  # maketx's default
+            _mark_mip_level(spec, fmt, tile, round_up, options.get("compression"))
     else:
         for k, (spec, _) in enumerate(encoded):
             spec.attribute("name", f"level{k}")
@@ -1508,6 +1530,7 @@ class ImageStream:
         probe = {"uint8": np.uint8, "uint16": np.uint16, "half": np.float16}.get(self._read_type, np.float32)
         self.dtype = _decode(np.zeros((1, 1, spec.nchannels), dtype=probe), self.info).dtype
         self._block: tuple[int, np.ndarray] | None = None  # a row of tiles, for tiled files
+        self.on_stored = None  # called with each band's rows as stored, before decoding (mipmap's SHA-1)
 
     def __enter__(self) -> ImageStream:
         return self
@@ -1551,6 +1574,8 @@ class ImageStream:
     def read(self, y0: int, y1: int) -> np.ndarray:
         """Decoded rows ``y0 .. y1 − 1`` (0 is the top row), (rows, columns, channels)."""
         data = self._stored(y0, y1)
+        if self.on_stored is not None:
+            self.on_stored(data)
         if self._read_type == "half":
             data = np.asarray(data, dtype=np.float16)
         elif self._read_type == "float":
@@ -1694,3 +1719,108 @@ def stream_writer(path: str | os.PathLike[str], info: ImageInfo, shape: tuple[in
     :class:`BandWriter`. Options as :func:`write_image`."""
     with stream_writers([path], [info], [shape], **options) as (writer,):
         yield writer
+
+
+def encoded_rows(path: str | os.PathLike[str], image: Image, **options) -> np.ndarray:
+    """The values :func:`write_image` would store for ``image`` at ``path`` (a band of rows: dithering lines up
+    when the band starts at a multiple of 8 rows), e.g. for a streamed texture's ``oiio:AverageColor``."""
+    return _encode(os.fspath(path), image, **options)[1]
+
+
+class MipBandWriter(BandWriter):
+    """A MIP-mapped texture written as :func:`write_levels` writes it, level 0 band by band (:meth:`write`),
+    then each coarser level from a callable giving its rows (:meth:`append_level`): use :func:`mip_stream_writer`.
+
+    Level 0's header carries maketx's metadata, so its average and constant colour (``colors``) and SHA-1
+    (in ``meta``) are known before the first row is written (:class:`pyramid_cli.mip.PixelStats`).
+    """
+
+    def __init__(self, path: str, tmp: str, fmt: str, info: ImageInfo, shapes: list[tuple[int, int, int]],
+                 options: dict, *, tile: int, meta: dict[str, str], colors, arbitrary: bool):
+        super().__init__(path, tmp, fmt, info, shapes[0], options)
+        self.shapes, self.tile, self.meta, self.colors, self.arbitrary = shapes, tile, meta, colors, arbitrary
+        self.round_up = _mip_rounding(path, fmt, [(w, h) for h, w, _ in shapes])
+        self.levels = 0  # levels complete
+
+    def _open(self, band_spec: oiio.ImageSpec) -> None:
+        spec = band_spec
+        spec.height = spec.full_height = self.height
+        _set_windows(spec, self.info, spec.width, self.height)
+        _mark_mip_level(spec, self.fmt, self.tile, self.round_up, self.options.get("compression"))
+        _mip_metadata(spec, None, self.meta, self.arbitrary, self.colors)
+        out = oiio.ImageOutput.create(self.tmp)
+        if out is None:
+            raise _WriteFailed(_one_line(oiio.geterror(), "no writer for this format"))
+        self._out = out
+        _checked(out, out.open(self.tmp, spec, "Create"), "open")
+        self.spec = spec
+
+    def append_level(self, rows) -> None:
+        """The next level (1, 2, …): ``rows(r0, r1)`` gives its linear pixels, a row of tiles at a time."""
+        if self.written != self.height:
+            raise ValueError(f"level 0: {self.written} of {self.height} rows written")
+        self.levels = max(self.levels, 1) + 1
+        h, w, _ = self.shapes[self.levels - 1]
+        step = self.tile * 8 // math.gcd(self.tile, 8)  # whole rows of tiles, and of the dither pattern
+        try:
+            spec = None
+            for r0 in range(0, h, step):
+                r1 = min(h, r0 + step)
+                spec_k, data = _encode(self.path, Image(rows(r0, r1), self.info), **self.options)
+                if spec is None:
+                    spec = spec_k
+                    spec.height = spec.full_height = h
+                    _set_windows(spec, self.info, w, h)
+                    _mark_mip_level(spec, self.fmt, self.tile, self.round_up, self.options.get("compression"))
+                    append = "AppendMIPLevel" if self._out.supports("mipmap") else "AppendSubimage"
+                    _checked(self._out, self._out.open(self.tmp, spec, append), "open")
+                for a in range(0, r1 - r0, self.tile):
+                    b = min(a + self.tile, r1 - r0)
+                    ok = self._out.write_tiles(spec.x, spec.x + w, spec.y + r0 + a, spec.y + r0 + b, spec.z,
+                                               spec.z + 1, np.ascontiguousarray(data[a:b]))
+                    _checked(self._out, ok, "write")
+        except _WriteFailed as exc:
+            raise OutputError(f"cannot write {self.path}: {str(exc).replace(self.tmp, self.path)}"
+                              f"{_diagnosis(self.tmp)}") from None
+
+    def finish(self) -> None:
+        """Close the file and check it reads back with every level (OutputError naming the user's path)."""
+        if self.written != self.height or max(self.levels, 1) != len(self.shapes):
+            raise ValueError(f"{max(self.levels, 1) if self.written == self.height else 0} of {len(self.shapes)} "
+                             "MIP levels written")
+        try:
+            out, self._out = self._out, None
+            _checked(out, out.close(), "close")
+            _verify(self.tmp, self.fmt, [(self.spec, None)] * len(self.shapes), "mipmap")
+        except _WriteFailed as exc:
+            raise OutputError(f"cannot write {self.path}: {str(exc).replace(self.tmp, self.path)}"
+                              f"{_diagnosis(self.tmp)}") from None
+
+
+@contextlib.contextmanager
+def mip_stream_writer(path: str | os.PathLike[str], info: ImageInfo, shapes: list[tuple[int, int, int]], *,
+                      tile: int = 64, meta: dict[str, str] | None = None,
+                      colors: tuple[list[float], list[float] | None], pixel_type: str | None = None,
+                      colorspace: str | None = None, alpha: str | None = None, dither: bool = False,
+                      compression: str | None = None, force: bool = False,
+                      inputs: Iterable[str | os.PathLike[str]] = ()):
+    """A MIP-mapped texture of levels ``shapes`` (rows, columns, channels) written level 0 first, band by
+    band, atomically: yields its :class:`MipBandWriter`. The file is the one :func:`write_levels` writes
+    (``mode="mipmap"``) from the same pixels, given level 0's ``colors`` (average, constant or None)."""
+    out_path = os.fspath(path)
+    opts = {"pixel_type": pixel_type, "colorspace": colorspace, "alpha": alpha, "dither": dither,
+            "compression": compression, "force": force, "inputs": tuple(inputs)}
+    fmt = _check_output_path(out_path, force, opts["inputs"])
+    check_write_options(out_path, pixel_type, compression)
+    if not streams_to(out_path):
+        raise OutputError(f"cannot write {out_path} band by band: {_FORMAT_TITLES.get(fmt, fmt)} is encoded whole")
+    arbitrary = _check_mip_capable(out_path, fmt)
+    with atomic_path(out_path) as tmp:
+        writer = MipBandWriter(out_path, tmp, fmt, info, shapes, opts, tile=tile, meta=meta or {}, colors=colors,
+                               arbitrary=arbitrary)
+        try:
+            yield writer
+            writer.finish()
+        except BaseException:
+            writer.abort()
+            raise

@@ -390,3 +390,91 @@ def texture_metadata(border: str, analysis: str, sha1: str | None = None, oiio_v
     if sha1:
         meta["oiio:SHA-1"] = sha1
     return meta
+
+
+class PixelStats:
+    """maketx's level-0 statistics gathered from bands of rows, top to bottom, each seen once: the same
+    values as :func:`average_color`, :func:`constant_color` (of the encoded level 0) and :func:`sha1_state`
+    (of the source's stored values) on the whole picture, for a picture that is never held whole
+    (``pyramid mipmap`` streamed, :mod:`pyramid_cli.stream`).
+
+    The float sums add row after row in float64, in the order :func:`average_color`'s reduction down
+    the rows adds them; integer sums are exact; the SHA-1 hashes each :data:`SHA1_BLOCK` rows as they
+    complete (or, for a picture of at most one block, all its bytes).
+    """
+
+    def __init__(self, height: int, block: int = SHA1_BLOCK):
+        self.height, self.block = height, block
+        self._single = block <= 0 or block >= height
+        self._outer = hashlib.sha1()
+        self._inner = hashlib.sha1()
+        self._hashed = 0        # source rows hashed
+        self._rows = 0          # encoded rows summed
+        self._sums: np.ndarray | None = None
+        self._dtype = None
+        self._first: np.ndarray | None = None
+        self._constant = True
+        self.decoded_first: np.ndarray | None = None
+        self.decoded_constant = True
+
+    def hash_rows(self, stored: np.ndarray) -> None:
+        """The next rows of the source as stored (uint8, uint16, float16 or float32), (rows, W, C)."""
+        y = 0
+        while y < len(stored):
+            take = len(stored) if self._single else min(len(stored) - y, self.block - self._hashed % self.block)
+            self._inner.update(np.ascontiguousarray(stored_floats(stored[y:y + take])).tobytes())
+            y += take
+            self._hashed += take
+            if not self._single and (self._hashed % self.block == 0 or self._hashed == self.height):
+                self._outer.update(self._inner.hexdigest().upper().encode())
+                self._inner = hashlib.sha1()
+
+    def sha1(self):
+        """The unfinished SHA-1 (:func:`finish_sha1`), once every row is hashed."""
+        if self._hashed != self.height:
+            raise ValueError(f"{self._hashed} of {self.height} rows hashed")
+        return self._inner if self._single else self._outer
+
+    def add_encoded(self, data: np.ndarray) -> None:
+        """The next rows of level 0 as the file stores them (what :func:`average_color` reads)."""
+        n, w, c = data.shape
+        if not n:
+            return
+        if self._sums is None:
+            self._dtype = data.dtype
+            integer = np.issubdtype(data.dtype, np.integer)
+            self._sums = np.zeros(w * c, dtype=np.uint64 if integer else np.float64)
+            self._first = data[0, 0].copy()
+        rows = data.reshape(n, w * c)
+        if np.issubdtype(self._dtype, np.integer):
+            self._sums += rows.sum(axis=0, dtype=np.uint64)
+        else:
+            for row in rows:  # row after row, as the whole picture's reduction adds them
+                np.add(self._sums, row, out=self._sums, dtype=np.float64)
+        if self._constant:
+            self._constant = bool(np.all(data == self._first))
+        self._rows += n
+
+    def add_decoded(self, pixels: np.ndarray) -> None:
+        """The next rows of the decoded source (for ``--constant-color-detect``: :func:`shrink_constant`)."""
+        if not len(pixels):
+            return
+        if self.decoded_first is None:
+            self.decoded_first = pixels[0, 0].copy()
+        if self.decoded_constant:
+            self.decoded_constant = bool(np.all(pixels == self.decoded_first))
+
+    def average(self) -> list[float]:
+        w_c = len(self._sums)
+        c = len(self._first)
+        if np.issubdtype(self._dtype, np.integer):
+            sums = self._sums.reshape(w_c // c, c).sum(axis=0, dtype=np.uint64).astype(np.float64)
+            sums /= np.iinfo(self._dtype).max
+        else:
+            sums = self._sums.reshape(w_c // c, c).sum(axis=0)
+        return [float(v) for v in sums / max(1, self._rows * (w_c // c))]
+
+    def constant(self) -> list[float] | None:
+        if not self._constant:
+            return None
+        return [float(v) for v in _normalised(self._first[None])[0]]

@@ -124,7 +124,7 @@ def process(paths: list[str], template: str | None, work: Work, session: Session
     each worker with its own session like ``session`` (``session`` may then be None:
     ``Session()``'s defaults).
 
-    One input of ``apply`` or ``blur`` whose whole-picture run would not fit ``memory`` bytes
+    One input of ``apply``, ``blur`` or ``mipmap`` whose whole-picture run would not fit ``memory`` bytes
     (default: a quarter of the available memory) streams from file to file in bands
     (:mod:`pyramid_cli.stream`); images that fit run whole.
     """
@@ -142,11 +142,15 @@ def process(paths: list[str], template: str | None, work: Work, session: Session
         from .sequence import drop_missing
 
         job_list = drop_missing(job_list, keep_going, reporter.warn)
-    if (not many and len(job_list) == 1 and cluster is None and not mip_tile and frames is None
+    if (not many and len(job_list) == 1 and cluster is None and frames is None
             and not (skip_existing and batch.is_fresh(job_list[0]))):
-        from .stream import run_job
+        from .stream import run_job, run_mip
 
-        if run_job(job_list[0], work, session, memory=memory, read=ro, write=wo, reporter=reporter):
+        if mip_tile:
+            if run_mip(job_list[0], work, session, memory=memory, tile=mip_tile, read=ro, write=wo,
+                       reporter=reporter):
+                return batch.Report(done=list(job_list))
+        elif run_job(job_list[0], work, session, memory=memory, read=ro, write=wo, reporter=reporter):
             return batch.Report(done=list(job_list))
     elif memory is not None:
         raise UsageError("--memory streams one input at a time (not batches, frame sequences or clusters)")
@@ -237,14 +241,10 @@ def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: R
     def write_job(job, images):
         options = wo.for_inputs([job.input])
         if mip_tile:
-            from .mip import finish_sha1, hash_extra, texture_metadata
+            from .stream import mip_metadata
 
-            border = getattr(work, "border", "clamp")
-            analysis = getattr(work, "filter_name", getattr(work, "analysis", ""))
-            state = images[0].spec.pixel_hash  # hashed as it was read: the file is not read again
-            extra = hash_extra(border, analysis)
-            sha1 = finish_sha1(state, extra) if state is not None else io.source_sha1(job.input, extra)
-            meta = texture_metadata(border, analysis, sha1, io.oiio_version())
+            # the source's SHA-1 hashed as it was read: the file is not read again
+            meta = mip_metadata(work, job.input, images[0].spec.pixel_hash)
             io.write_levels(job.output, images, mode="mipmap", tile=mip_tile, meta=meta, **options)
         else:
             io.write_image(job.output, images[0], **options)

@@ -16,6 +16,7 @@ band is refused before it starts. Images that fit run whole, as before (fastest)
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import os
 import re
@@ -313,5 +314,196 @@ def run_levels(in_path: str, paths: list[str], work, session, *, memory: int | N
     return True
 
 
+class _Kept:
+    """The coarser MIP levels' rows until their turn (a MIP file holds level 0 first): float32 arrays in memory,
+    or, given ``spill``, a raw float32 file read and written with explicit I/O (no mapping: the rows on disk
+    do not count in the process's memory)."""
+
+    def __init__(self, shapes: list[tuple[int, int, int]], spill: str | None = None):
+        self.shapes = shapes
+        self.arrays = None if spill else [np.empty(s, dtype=np.float32) for s in shapes]
+        self.fd = None
+        self.offsets = [0]
+        for h, w, c in shapes:
+            self.offsets.append(self.offsets[-1] + h * w * c * 4)
+        if spill:
+            self.fd = os.open(spill, os.O_RDWR)
+
+    def close(self) -> None:
+        if self.fd is not None:
+            os.close(self.fd)
+            self.fd = None
+
+    def _at(self, i: int, r: int) -> int:
+        _, w, c = self.shapes[i]
+        return self.offsets[i] + r * w * c * 4
+
+    def write(self, i: int, r: int, px: np.ndarray) -> None:
+        if self.arrays is not None:
+            self.arrays[i][r:r + len(px)] = px
+            return
+        view = memoryview(np.ascontiguousarray(px, dtype=np.float32)).cast("B")
+        at = self._at(i, r)
+        while view:
+            n = os.pwrite(self.fd, view, at)
+            view, at = view[n:], at + n
+
+    def rows(self, i: int, r0: int, r1: int) -> np.ndarray:
+        if self.arrays is not None:
+            return self.arrays[i][r0:r1]
+        _, w, c = self.shapes[i]
+        size = (r1 - r0) * w * c * 4
+        data = bytearray()
+        while len(data) < size:
+            chunk = os.pread(self.fd, size - len(data), self._at(i, r0) + len(data))
+            if not chunk:
+                raise OSError(f"the spill file ends {size - len(data)} bytes early")
+            data += chunk
+        return np.frombuffer(data, dtype=np.float32).reshape(r1 - r0, w, c)
+
+
+@contextlib.contextmanager
+def _scratch(beside: str):
+    """A hidden temporary file beside ``beside`` (as :mod:`pyramid_cli.atomic` names them), removed on success,
+    failure and interruption alike."""
+    from .atomic import _make_temp, _remove
+
+    tmp = _make_temp(beside + ".levels")
+    try:
+        yield tmp
+    finally:
+        _remove(tmp)
+
+
+# mipmap options that need the whole picture before the levels: they run whole
+_MIP_WHOLE = {"resize": "--resize", "fill": "--fill", "nchannels": "--nchannels",
+              "monochrome_detect": "--monochrome-detect"}
+
+
+def mip_metadata(work, path: str, state=None) -> dict[str, str]:
+    """The attributes ``pyramid mipmap`` gives level 0 besides the colours (:func:`pyramid_cli.mip.texture_metadata`):
+    the SHA-1 from ``state`` (:func:`pyramid_cli.mip.sha1_state`), else hashed from the file ``path``."""
+    from . import io
+    from .mip import finish_sha1, hash_extra, texture_metadata
+
+    border = getattr(work, "border", "clamp")
+    analysis = getattr(work, "filter_name", getattr(work, "analysis", ""))
+    extra = hash_extra(border, analysis)
+    sha1 = finish_sha1(state, extra) if state is not None else io.source_sha1(path, extra)
+    return texture_metadata(border, analysis, sha1, io.oiio_version())
+
+
+def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, write=None, reporter=None) -> bool:
+    """``pyramid mipmap`` of one input streamed when its whole run would not fit the budget (``memory``, else
+    :func:`default_memory`); False when it runs whole as before.
+
+    Two passes over the input. The first reads it band by band for what level 0's header must say before its
+    first row: the SHA-1 of the source, the average and constant colour of level 0 as stored
+    (:class:`pyramid_cli.mip.PixelStats`), and, under ``--constant-color-detect``, whether the picture is
+    constant (then it shrinks to one tile and runs whole, as before: it is small). The second runs the plan on
+    the row-band scheduler: level 0 (the input) goes to the file band by band as it is read, the coarser levels
+    are kept in memory when they fit the budget beside the working set, else in a temporary file beside the
+    output (removed on success, failure and interruption), and are written after level 0, one after another.
+    Refused before any work: the options that need the whole picture (``--resize``, ``--fill``, ``--nchannels``,
+    ``--monochrome-detect``) and plans not tileable yet, when ``memory`` is given (without it they run whole).
+    """
+    from . import io, tiles
+    from .mip import PixelStats, shrink_constant
+    from .pipeline import ReadOptions, Reporter, WriteOptions
+
+    ro, wo, reporter = read or ReadOptions(), write or WriteOptions(), reporter or Reporter()
+    whole_only = [flag for name, flag in _MIP_WHOLE.items() if getattr(work, name, False)]
+    if session is None or session.executor is None:
+        if memory is not None:
+            _executor(session)  # refuses with the reason
+        return False
+    if whole_only or not io.streams_to(job.output) or not work.keeps_input:
+        if memory is not None:
+            why = (f"{', '.join(whole_only)} need(s) the whole picture" if whole_only
+                   else f"{job.output} is encoded whole")
+            raise UsageError(f"--memory: mipmap cannot stream here ({why}); leave --memory out to run it whole")
+        return False
+    budget = memory if memory is not None else default_memory()
+    in_path, out_path = job.input, job.output
+    st = io.open_stream(in_path, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan)
+    with st:
+        h, w, c = st.shape
+        work.check(((h, w),), where=in_path)
+        plan = session.plan(work, [(h, w)])
+        if plan is None:
+            return False
+        emu = isinstance(_executor(session), tiles.Emulator)
+        kw = {"in_bytes": st.dtype.itemsize, "out_bytes": 4, "work_bytes": 8 if emu else 4}
+        whole = estimate(plan, c, None, **kw)
+        if whole <= budget:
+            reporter.detail(f"{in_path}: {Choice(budget, whole, None, whole).describe()}")
+            return False
+        if not tiles.tileable(plan):
+            if memory is not None:
+                raise UsageError(f"--memory: the MIP levels of a {w}×{h} picture cannot stream yet (odd sizes are "
+                                 "resampled whole); --round up streams them")
+            return False
+        choice = choose(plan, c, budget, where=in_path, **kw)
+        reporter.detail(f"{in_path}: {choice.describe()}")
+        info = st.info
+        options = wo.for_inputs([in_path])
+        io.check_write_options(out_path, wo.pixel_type, wo.compression)  # refused before any work
+
+        # pass 1: what level 0's header says
+        stats = PixelStats(h)
+        st.on_stored = stats.hash_rows
+        step = 2 * max(MIN_BAND, choice.band)
+        for y in range(0, h, step):
+            px = st.read(y, min(h, y + step))
+            stats.add_decoded(px)
+            stats.add_encoded(io.encoded_rows(out_path, io.Image(px, info), **options))
+        st.on_stored = None
+    meta = mip_metadata(work, in_path, stats.sha1())
+    if getattr(work, "constant_detect", False) and stats.decoded_constant:
+        small = shrink_constant(np.broadcast_to(stats.decoded_first, (min(tile, h), min(tile, w), c)), tile)
+        reporter.detail(f"{in_path}: constant colour, made from one {small.shape[1]}×{small.shape[0]} tile")
+        outs = session.run(work, [small], np.float32)
+        io.write_levels(out_path, [io.Image(px, info) for px in outs], mode="mipmap", tile=tile, meta=meta,
+                        **options)
+        reporter.result(f"wrote {out_path} ({w}×{h}, {len(outs)} MIP levels, {session.ran})")
+        return True
+
+    # pass 2: level 0 to the file as it is read, the coarser levels kept until their turn
+    shapes = [(h, w, c)] + [plan.images[k].size + (c,) for k in plan.outputs]
+    kept_bytes = sum(a * b * n * 4 for a, b, n in shapes[1:])
+    spill = choice.working_set + kept_bytes > budget
+    reporter.detail(f"{in_path}: the coarser levels ({format_size(kept_bytes)}) are kept "
+                    + ("in a temporary file beside the output" if spill else "in memory"))
+    executor = _executor(session)
+    slot = {k: i for i, k in enumerate(plan.outputs)}
+    with contextlib.ExitStack() as stack:
+        st = stack.enter_context(io.open_stream(in_path, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan))
+        kept = _Kept(shapes[1:], stack.enter_context(_scratch(out_path)) if spill else None)
+        stack.callback(kept.close)
+        writer = stack.enter_context(io.mip_stream_writer(out_path, info, shapes, tile=tile, meta=meta,
+                                                          colors=(stats.average(), stats.constant()), **options))
+
+        def source(k, rows, cols):
+            px = st.read(*rows)
+            writer.write(rows[0], px)  # level 0 is the input: each row once, in order
+            px = px[:, cols[0]:cols[1]] if (cols[0], cols[1]) != (0, w) else px
+            return px.astype(np.float64) if emu else px
+
+        def sink(k, r, c0, px):
+            kept.write(slot[k], r, px)
+
+        tiles.Scheduler(executor, plan, source, sink, band=choice.band,
+                        dtype=np.float64 if emu else np.float32).run()
+        for i in range(len(shapes) - 1):
+            writer.append_level(lambda r0, r1, i=i: kept.rows(i, r0, r1))
+    session.ran = session.name
+    if st.nonfinite and ro.nan == "keep":
+        reporter.warn(f"{in_path}: {st.nonfinite} NaN/Inf value(s) kept; they spread through the filter "
+                      "(--nan zero or --nan fail to change that)")
+    reporter.result(f"wrote {out_path} ({w}×{h}, {len(shapes)} MIP levels, {session.ran}, streamed in bands of "
+                    f"{choice.band} rows)")
+    return True
+
+
 __all__ = ["Choice", "choose", "estimate", "parse_size", "default_memory", "stream_file", "format_size", "run_job",
-           "run_levels"]
+           "run_levels", "run_mip", "mip_metadata"]
