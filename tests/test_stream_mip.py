@@ -1,0 +1,252 @@
+"""``pyramid mipmap`` streamed (issue 18): the same file as the whole-picture run, in bounded memory, atomic."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import OpenImageIO as oiio
+import pytest
+
+from pyramid_cli import batch, io, mip, stream
+from pyramid_cli.errors import UsageError
+from pyramid_cli.pipeline import Reporter, process
+from pyramid_cli.session import Session
+
+CLI = [sys.executable, "-m", "pyramid_cli.cli"]
+TIMEOUT = 300
+
+
+def write(path, pixels, pixel_type="half"):
+    h, w, c = pixels.shape
+    spec = oiio.ImageSpec(w, h, c, pixel_type)
+    out = oiio.ImageOutput.create(str(path))
+    assert out.open(str(path), spec, "Create") and out.write_image(pixels) and out.close()
+
+
+def noise(h, w, c=4, seed=0):
+    return np.random.default_rng(seed).random((h, w, c)).astype(np.float32)
+
+
+def levels(path):
+    """Every MIP level of ``path``: (pixels as stored, the spec's serialisation)."""
+    inp = oiio.ImageInput.open(str(path))
+    assert inp is not None, oiio.geterror()
+    out = []
+    try:
+        sub, lev = 0, 0
+        while True:
+            if inp.supports("mipmap") or lev == 0:
+                if not inp.seek_subimage(sub, lev):
+                    break
+            spec = inp.spec()
+            text = "\n".join(ln for ln in spec.serialize().splitlines() if "DateTime" not in ln)  # the clock's
+            out.append((inp.read_image(sub, lev, 0, spec.nchannels, spec.format), text))
+            if inp.seek_subimage(sub, lev + 1):
+                lev += 1
+            elif inp.seek_subimage(sub + 1, 0):
+                sub, lev = sub + 1, 0
+            else:
+                break
+    finally:
+        inp.close()
+    return out
+
+
+def assert_same_file(a, b):
+    la, lb = levels(a), levels(b)
+    assert len(la) == len(lb) > 1
+    for (pa, sa), (pb, sb) in zip(la, lb, strict=True):
+        assert pa.dtype == pb.dtype and np.array_equal(pa, pb)
+        assert sa == sb
+    attrs = {k: oiio.ImageInput.open(str(p)).spec().get_string_attribute(k) for p in (a,)
+             for k in ("oiio:AverageColor", "oiio:SHA-1", "wrapmodes")}
+    assert all(attrs.values()), attrs
+
+
+@pytest.fixture(scope="module")
+def session():
+    pytest.importorskip("numba")
+    with Session("cpu") as s:
+        yield s
+
+
+def mipmap(session, src, out, memory=None, said=None, **kw):
+    work = mip.TextureLevels(levels=None, **kw)
+    rep = Reporter(verbose=True, out=said.append, err=said.append) if said is not None else Reporter(quiet=True)
+    return process([str(src), str(out)], None, work, session, mip_tile=16, memory=memory,
+                   reporter=rep)
+
+
+# ------------------------------------------------------------------ the file is the whole run's
+@pytest.mark.parametrize("ext, pixel_type, size, rounding, budget, spill", [
+    ("exr", "half", (128, 128), "down", 300 << 10, False),    # the coarser levels kept in memory
+    ("exr", "float", (128, 128), "down", 215 << 10, True),    # spilled to a file beside the output
+    ("tx", "half", (128, 128), "down", 215 << 10, True),
+    ("tx", "uint8", (128, 128), "down", 215 << 10, True),
+    ("exr", "half", (160, 123), "up", 210 << 10, True),
+    ("tx", "float", (150, 97), "up", 260 << 10, False),
+])
+def test_streamed_mipmap_is_the_whole_runs_file(tmp_path, session, ext, pixel_type, size, rounding, budget, spill):
+    src = tmp_path / ("in.tif" if pixel_type == "uint8" else "in.exr")
+    write(src, noise(*size, seed=3), pixel_type)
+    said = []
+    mipmap(session, src, tmp_path / f"s.{ext}", budget, said, rounding=rounding)
+    assert any("streamed in bands" in m for m in said), said
+    print(said)
+    assert any(("temporary file" if spill else "in memory") in m for m in said), said
+    mipmap(session, src, tmp_path / f"w.{ext}", rounding=rounding)
+    assert_same_file(tmp_path / f"s.{ext}", tmp_path / f"w.{ext}")
+    assert sorted(os.listdir(tmp_path)) == sorted([src.name, f"s.{ext}", f"w.{ext}"])  # no temporary left
+
+
+def test_streamed_mipmap_with_a_mirror_border_and_a_dithered_8_bit_texture(tmp_path, session):
+    src = tmp_path / "in.png"
+    write(src, noise(128, 128, 3, seed=5), "uint8")
+    said = []
+    for name, budget in (("s.tx", 200 << 10), ("w.tx", None)):
+        process([str(src), str(tmp_path / name)], None, mip.TextureLevels(levels=None, border="mirror"), session,
+                mip_tile=16, memory=budget, reporter=Reporter(verbose=True, out=said.append, err=said.append),
+                write=_dither())
+    assert any("streamed in bands" in m for m in said), said
+    assert_same_file(tmp_path / "s.tx", tmp_path / "w.tx")
+
+
+def _dither():
+    from pyramid_cli.pipeline import WriteOptions
+
+    return WriteOptions(dither=True)
+
+
+def test_a_constant_picture_streamed_shrinks_as_whole(tmp_path, session):
+    src = tmp_path / "in.exr"
+    write(src, np.broadcast_to(np.float32([0.25, 0.5, 0.75, 1]), (128, 128, 4)).copy(), "half")
+    said = []
+    mipmap(session, src, tmp_path / "s.exr", 215 << 10, said, constant_detect=True)
+    assert any("constant colour" in m for m in said), said
+    mipmap(session, src, tmp_path / "w.exr", constant_detect=True)
+    assert_same_file(tmp_path / "s.exr", tmp_path / "w.exr")
+    spec = oiio.ImageInput.open(str(tmp_path / "s.exr")).spec()
+    assert (spec.width, spec.height) == (16, 16) and spec.get_string_attribute("oiio:ConstantColor")
+    # constant but not detected: streamed, with the constant colour in the header
+    mipmap(session, src, tmp_path / "c.exr", 215 << 10)
+    mipmap(session, src, tmp_path / "d.exr")
+    assert_same_file(tmp_path / "c.exr", tmp_path / "d.exr")
+    assert oiio.ImageInput.open(str(tmp_path / "c.exr")).spec().get_string_attribute("oiio:ConstantColor")
+
+
+def test_what_cannot_stream_is_refused_with_memory_and_runs_whole_without(tmp_path, session):
+    src = tmp_path / "in.exr"
+    write(src, noise(64, 64, seed=1))
+    with pytest.raises(UsageError, match="--resize.*whole picture"):
+        mipmap(session, src, tmp_path / "r.exr", 10 << 10, resize=True)
+    with pytest.raises(UsageError, match="--memory streams one input"):
+        process([str(src), str(tmp_path / "other.exr")], str(tmp_path / "{stem}_t.exr"), mip.TextureLevels(levels=None),
+                session, mip_tile=16, memory=1 << 20, reporter=Reporter(quiet=True))
+    with pytest.raises(Exception, match="needs at least"):
+        mipmap(session, src, tmp_path / "x.exr", 4 << 10)
+    assert sorted(os.listdir(tmp_path)) == ["in.exr"]
+    report = mipmap(session, src, tmp_path / "w.exr", None, resize=True)  # default budget: runs whole
+    assert isinstance(report, batch.Report) and (tmp_path / "w.exr").exists()
+
+
+def test_pixel_stats_equal_the_whole_picture_functions():
+    rng = np.random.default_rng(0)
+    for dtype in (np.float32, np.float16, np.uint8, np.uint16):
+        for h in (5, 256, 300):
+            scale = np.iinfo(dtype).max if np.issubdtype(dtype, np.integer) else 1
+            x = (rng.random((h, 37, 3)) * scale).astype(dtype)
+            stats = mip.PixelStats(h)
+            for y in range(0, h, 7):
+                stats.hash_rows(x[y:y + 7])
+                stats.add_encoded(x[y:y + 7])
+            assert stats.average() == mip.average_color(x)  # bit for bit
+            assert mip.finish_sha1(stats.sha1(), "e") == mip.pixel_sha1(x, "e")
+            assert stats.constant() is None and mip.constant_color(x) is None
+    c = np.full((9, 4, 2), 7, dtype=np.uint8)
+    stats = mip.PixelStats(9)
+    stats.add_encoded(c[:4])
+    stats.add_encoded(c[4:])
+    assert stats.constant() == mip.constant_color(c) and stats.average() == mip.average_color(c)
+
+
+# ------------------------------------------------------------------ the command line
+def run(*args):
+    return subprocess.run(CLI + [str(a) for a in args], capture_output=True, text=True, timeout=TIMEOUT)
+
+
+def test_cli_mipmap_streams_when_told(tmp_path):
+    pytest.importorskip("numba")
+    src = tmp_path / "in.exr"
+    write(src, noise(128, 128, seed=2))
+    r = run("mipmap", "--backend", "cpu", "--memory", "300K", "-v", src, tmp_path / "s.tx")
+    assert r.returncode == 0 and "streamed in bands" in r.stdout and "streams in bands" in r.stderr, r.stderr
+    r = run("mipmap", "--backend", "cpu", "--memory", "4K", src, tmp_path / "x.tx")
+    assert r.returncode == 5 and "needs at least" in r.stderr and "Traceback" not in r.stderr
+    r = run("mipmap", "--backend", "cpu", "--memory", "300K", "--fill", src, tmp_path / "x.tx")
+    assert r.returncode == 2 and "--fill" in r.stderr and "Traceback" not in r.stderr
+    assert sorted(os.listdir(tmp_path)) == ["in.exr", "s.tx"]
+
+
+@pytest.mark.slow
+def test_a_signal_during_a_streamed_mipmap(tmp_path):
+    """SIGTERM during a streamed (and spilled) mipmap: the previous output stays (or the complete new file),
+    no temporary (output or spilled levels) is left."""
+    import signal
+    import time
+
+    pytest.importorskip("numba")
+    big = tmp_path / "big.exr"
+    write(big, noise(1024, 1024, 3, seed=7), "float")
+    out = tmp_path / "out.exr"
+    old = b"previous output\n"
+    out.write_bytes(old)
+    for delay in (0.8, 1.4, 2.0):
+        p = subprocess.Popen(CLI + ["mipmap", "--backend", "cpu", "--memory", "6M", "--compression", "zip",
+                                    str(big), str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        time.sleep(delay)
+        p.send_signal(signal.SIGTERM)
+        _, err = p.communicate(timeout=TIMEOUT)
+        assert p.returncode in (0, 143, -signal.SIGTERM), err.decode()
+        assert b"Traceback" not in err
+        assert not [f for f in os.listdir(tmp_path) if ".tmp-" in f]
+        data = out.read_bytes()
+        if data != old:
+            assert len(levels(out)) == 11
+            out.write_bytes(old)
+
+
+@pytest.mark.slow
+def test_streamed_mipmap_stays_within_the_memory_given(tmp_path):
+    """A picture several times --memory makes its MIP file within it (peak RSS over a tiny image's, a bound
+    with a generous margin, not a timing); the whole run takes many times more; the files are the same."""
+    from test_stream import _peak_rss
+
+    pytest.importorskip("numba")
+    budget = 16 << 20
+    big, tiny = tmp_path / "big.exr", tmp_path / "tiny.exr"
+    write(big, noise(2048, 2048, seed=1), "half")       # 32 MiB half, 64 MiB as float32
+    write(tiny, noise(16, 16, seed=2), "half")
+    cmd = CLI + ["mipmap", "--backend", "cpu", "--memory", str(budget)]
+    base = _peak_rss(cmd + [tiny, tmp_path / "t.exr"])
+    streamed = _peak_rss(cmd + [big, tmp_path / "s.exr"])
+    whole = _peak_rss(CLI + ["mipmap", "--backend", "cpu", big, tmp_path / "w.exr"])
+    assert streamed - base < 2 * budget, (base, streamed, whole)
+    assert whole - base > 3 * budget, (base, streamed, whole)
+    assert_same_file(tmp_path / "s.exr", tmp_path / "w.exr")
+
+
+def test_the_spill_file_round_trips(tmp_path):
+    path = tmp_path / "spill"
+    shapes = [(5, 3, 2), (2, 1, 2)]
+    path.write_bytes(b"")
+    kept = stream._Kept(shapes, str(path))
+    a, b = noise(5, 3, 2), noise(2, 1, 2, seed=1)
+    kept.write(1, 0, b)
+    kept.write(0, 2, a[2:])
+    kept.write(0, 0, a[:2])
+    assert np.array_equal(kept.rows(0, 1, 4), a[1:4]) and np.array_equal(kept.rows(1, 0, 2), b)
+    kept.close()
+    assert io.streams_to("x.tx") and io.streams_to("x.exr")
