@@ -707,7 +707,7 @@ class CPUExecutor:
 
         fn = self.resample_kernel(ps.axis)
         h, w, channels = src.shape
-        idx, weights = resample_table(ps, src.shape[ps.axis], plan.images[ps.source].border, np.float32)
+        idx, weights = resample_table(ps, plan.images[ps.source], np.float32)
         size = plan.images[ps.target].size
         out = np.empty(size + (channels,), dtype=np.float32)
         flat_out, flat_src = out.reshape(size[0], -1), src.reshape(h, -1)

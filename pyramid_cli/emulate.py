@@ -11,7 +11,7 @@ import numpy as np
 
 from .border import Border, fold
 from .geometry import base_index
-from .plan import Plan, PointwisePass, ResamplePass, Tap
+from .plan import Image, Plan, PointwisePass, ResamplePass, Tap
 
 
 def pointwise(op: str, srcs: list[np.ndarray], param: float = 1.0) -> np.ndarray:
@@ -121,7 +121,7 @@ def _execute(plan: Plan, image) -> list[np.ndarray]:
     channels = stored[plan.inputs[0]].shape[2:]
     for ps in plan.passes:
         if isinstance(ps, ResamplePass):
-            stored[ps.target] = resample(stored[ps.source], ps, plan.images[ps.source].border)
+            stored[ps.target] = resample(stored[ps.source], ps, plan.images[ps.source])
             continue
         if isinstance(ps, PointwisePass):
             stored[ps.target] = pointwise(ps.op, [stored[s] for s in ps.srcs], ps.param)
@@ -148,19 +148,22 @@ def _execute(plan: Plan, image) -> list[np.ndarray]:
     return stored
 
 
-def resample_table(ps: ResamplePass, n_in: int, border: str, dtype=np.float64) -> tuple[np.ndarray, np.ndarray]:
+def resample_table(ps: ResamplePass, source: Image, dtype=np.float64) -> tuple[np.ndarray, np.ndarray]:
     """A :class:`ResamplePass`'s table for an executor: (indices, weights), both (n_out, width); indices are
-    0-based source indices folded by ``border``, a read of zero ("zero" border) index 0 with weight 0."""
-    idx = np.asarray(ps.starts, dtype=np.int64)[:, None] + np.arange(ps.width)[None, :]
-    folded = fold(idx + 1, n_in, Border.parse(border)) - 1
+    0-based *stored* indices of ``source`` along the pass's axis (logical plus its guard there: a tile's window,
+    :mod:`pyramid_cli.tiles`), folded by its border mode over its stored extent; a read of zero ("zero"
+    border) is index 0 with weight 0."""
+    offset, n_in = source.guard[ps.axis], source.stored[ps.axis]
+    idx = np.asarray(ps.starts, dtype=np.int64)[:, None] + np.arange(ps.width)[None, :] + offset
+    folded = fold(idx + 1, n_in, Border.parse(source.border)) - 1
     weights = np.array([[float(w) for w in row] for row in ps.weights], dtype=dtype)
     weights[folded < 0] = 0
     return np.maximum(folded, 0), weights
 
 
-def resample(src: np.ndarray, ps: ResamplePass, border: str) -> np.ndarray:
-    """One :class:`ResamplePass` on a stored source (no guard bands), float64."""
-    idx, weights = resample_table(ps, src.shape[ps.axis], border)
+def resample(src: np.ndarray, ps: ResamplePass, source: Image) -> np.ndarray:
+    """One :class:`ResamplePass` on a stored source (guard bands only along the pass's axis), float64."""
+    idx, weights = resample_table(ps, source)
     picked = np.take(src, idx, axis=ps.axis)  # axis 0: (n_out, width, W, …); axis 1: (H, n_out, width, …)
     extra = (None,) * (src.ndim - 1 - ps.axis)
     return (picked * weights[(...,) + extra]).sum(axis=ps.axis + 1)

@@ -182,6 +182,7 @@ class GLExecutor:
         self._tables: dict[tuple[int, int], tuple[ResamplePass, Any]] = {}
         self._free: dict[tuple[tuple[int, int], str], list[_Target]] = {}
         self._buffers: dict[tuple[tuple[int, ...], str], np.ndarray] = {}
+        self._tiling = False  # inside run_tiled: its one-pass plans are not tiled again
         self.compiles = 0  # programs built so far (the cache's misses)
         self._clock: _Clock | None = None
         self._info: dict = {}
@@ -303,8 +304,7 @@ class GLExecutor:
             return hit[1]
         from .emulate import resample_table
 
-        idx, weights = resample_table(ps, plan.images[ps.source].size[ps.axis], plan.images[ps.source].border,
-                                      np.float32)
+        idx, weights = resample_table(ps, plan.images[ps.source], np.float32)
         data = np.ascontiguousarray(np.stack([idx.astype(np.float32), weights], axis=-1))
         tex = self.ctx.texture((ps.width, len(ps.starts)), 2, data.tobytes(), dtype="f4")
         if len(self._tables) >= 256:
@@ -430,7 +430,14 @@ class GLExecutor:
             raise ValueError(f"outputs are float32 or float16, not {dtype}")
         arrays = self._inputs(plan, images)
         band, width = tile or self.tile_size(plan)
-        return tiles.run_arrays(self, plan, arrays, band=band, width=width, dtype=dtype)
+        # A tile's one-pass plans run whole or not at all: a window that still does not fit (a MIP
+        # chain's coarse levels read the whole width of the one above) is refused by check(), not
+        # tiled again.
+        self._tiling, outer = True, self._tiling
+        try:
+            return tiles.run_arrays(self, plan, arrays, band=band, width=width, dtype=dtype)
+        finally:
+            self._tiling = outer
 
     def run(self, plan: Plan, image) -> np.ndarray:
         """Execute ``plan`` on ``image`` (H, W) or (H, W, C); returns the output's logical pixels, float32.
@@ -453,7 +460,7 @@ class GLExecutor:
         if dtype not in READ_DTYPES:
             raise ValueError(f"outputs are float32 or float16, not {dtype}")
         arrays = self._inputs(plan, images)
-        if not self.fits(plan):
+        if not self.fits(plan) and not self._tiling:
             from .tiles import tileable
 
             if tileable(plan):

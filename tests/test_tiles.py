@@ -250,3 +250,47 @@ def test_pointwise_plans_tile(kind, cpu_ex):
     for tile in [(1, 1), (4, 3), (100, 100)]:
         assert_same_tiled(EMU, p, [a.astype(np.float64) for a in inputs], tile, np.float64)
         assert_same_tiled(cpu_ex, p, inputs, tile)
+
+
+def mip_plans():
+    """MIP chains (issue 14) whose odd levels run ResamplePass tables: maketx's sizes, --resize, 1×N."""
+    from pyramid_cli.pyramids import mip_plan
+
+    for size, resize in [(SIZE, False), ((7, 1), False), ((1, 9), False), ((11, 6), True)]:
+        for border in BORDERS:
+            yield mip_plan(size, border=border, resize=resize), size
+
+
+@pytest.mark.parametrize("tile", [(1, 1), (3, 2), (100, 100)])
+def test_mip_plans_with_resample_passes_tile(tile, cpu_ex):
+    """Tiled MIP plans (ResamplePass: sliced tables over windows placed by a guard band) equal untiled."""
+    from pyramid_cli.plan import ResamplePass
+
+    for p, size in mip_plans():
+        assert tiles.tileable(p)
+        assert any(isinstance(ps, ResamplePass) for ps in p.passes)
+        assert_same_tiled(EMU, p, image(size).astype(np.float64), tile, np.float64)
+        assert_same_tiled(cpu_ex, p, image(size), tile)
+
+
+@gl_mark
+def test_gl_mip_plans_with_resample_passes_tile(gl):
+    for p, size in mip_plans():
+        for tile in [(1, 1), (4, 3)]:
+            assert_same_tiled(gl, p, image(size), tile)
+
+
+@gl_mark
+def test_gl_mip_strip_beyond_the_texture_limit_is_refused(gl):
+    """A MIP chain wider than GL's limit cannot run in column strips (its coarse levels read the whole
+    width of the level above): GL refuses it with a DataError (exit 5; auto runs it on the CPU) instead
+    of tiling the tiles, while a plain filter of the same width runs tiled (the test above)."""
+    from pyramid_cli.errors import DataError
+    from pyramid_cli.pyramids import mip_plan
+
+    size = (5, 20001)
+    p = mip_plan(size)
+    if gl.max_texture_size > 20001:
+        pytest.skip("this GL holds the whole strip")
+    with pytest.raises(DataError, match="exceeds the limit"):
+        gl.run_outputs(p, np.abs(image(size, 3, seed=4)))

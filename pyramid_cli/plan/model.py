@@ -44,12 +44,13 @@ rows are negative or ≥ the size):
   negative, place each window), so executors need nothing new for a kind they can run.
   A kind whose weights depend on the absolute position (per-row weight tables) returns a
   sliced copy of itself. :class:`PointwisePass` has it (the identity); :class:`ResamplePass`
-  does not yet, so plans holding one (MIP levels) run whole (``tiles.tileable``).
+  slices its table to the tile's outputs, and its executors read the window's stored
+  indices (its guard band along the axis places it: ``emulate.resample_table``).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from fractions import Fraction
 
 Half = Fraction(1, 2)
@@ -190,8 +191,10 @@ class ResamplePass:
     source indices outside ``0..n−1`` fold by the source's border mode (:func:`pyramid_cli.border.fold`:
     clamp, mirror, wrap, or zero). Every row of the table has the same width (zeros pad the short ones),
     so an executor runs one table-driven loop for every output, whatever the ratio of the sizes.
-    Source and target have no guard bands: the source is a boundary (the plan's input or a
-    level), read through its border mode. :mod:`pyramid_cli.plan.resample` derives the tables.
+    Source and target have no guard bands in a whole plan: the source is a boundary (the plan's
+    input or a level), read through its border mode. In a tile (:meth:`tile`, :mod:`pyramid_cli.tiles`)
+    the source is a window placed by a guard band along ``axis``, and reads fold over its stored extent.
+    :mod:`pyramid_cli.plan.resample` derives the tables.
     """
 
     label: str
@@ -218,12 +221,26 @@ class ResamplePass:
     def reads(self, rows: tuple[int, int], cols: tuple[int, int]) -> dict[int, tuple[tuple[int, int], tuple[int, int]]]:
         """Source rectangle (0-based half-open logical rows, columns) an output rectangle reads; along
         ``axis`` it may extend past the source (those reads fold by its border mode)."""
-        span = (rows, cols)[self.axis]
-        if span[0] >= span[1]:
-            read = (0, 0)
-        else:
-            read = (min(self.starts[span[0]:span[1]]), max(self.starts[span[0]:span[1]]) + self.width)
+        starts = self._starts((rows, cols)[self.axis])
+        if not starts:
+            return {}
+        read = (min(starts), max(starts) + self.width)
         return {self.source: (read, cols) if self.axis == 0 else (rows, read)}
+
+    def _starts(self, span: tuple[int, int]) -> tuple[int, ...]:
+        """The table's starts of the outputs ``span`` along ``axis`` (those past the target: none)."""
+        n = len(self.starts)
+        return self.starts[max(0, span[0]):min(n, span[1])]
+
+    def tile(self, rows: tuple[int, int], cols: tuple[int, int]) -> TileStep:
+        """The pass over ``rows × cols``: a copy with the table's rows of the tile, ``starts`` relative to
+        the first source index the tile reads (the source window's logical 0 along ``axis``)."""
+        a, b = (rows, cols)[self.axis]
+        starts = self._starts((a, b))
+        origin = min(starts, default=0)
+        sliced = replace(self, starts=tuple(s - origin for s in starts), weights=self.weights[max(0, a):max(0, b)])
+        at = (origin, cols[0]) if self.axis == 0 else (rows[0], origin)
+        return TileStep(tuple(rows), tuple(cols), sliced, {self.source: at})
 
 
 @dataclass
@@ -264,7 +281,8 @@ def check(p: Plan) -> None:
         if isinstance(ps, ResamplePass):
             src, dst = p.images[ps.source], p.images[ps.target]
             assert ps.source < ps.target and ps.axis in (0, 1)
-            assert not any(src.guard) and not any(dst.guard), "resampling reads and writes images without guards"
+            # a tile's source window may carry a guard band along the axis (tiles.py), never across it
+            assert not any(src.guard[1 - ps.axis::2]) and not any(dst.guard), "resampling guards only its axis"
             assert len(ps.starts) == len(ps.weights) == dst.size[ps.axis]
             assert src.size[1 - ps.axis] == dst.size[1 - ps.axis]
             assert all(len(row) == ps.width for row in ps.weights)

@@ -4,9 +4,10 @@
 // Vectors are (x, y) = (column, row); row 0 of a texture is numpy row 0. Along AXIS (0: x, the
 // columns; 1: y, the rows) output index j reads the source at the indices and weights of row j of
 // the table texture u_table: texel (k, j) holds (source index, weight), indices already folded by
-// the source's border mode on the CPU (a read of zero has weight 0). Source and target have no
-// guard bands, so a stored index is a logical one. The target's spare row and column (the texel
-// after the last, read by later bilinear passes) repeat its edge, as in pass.frag.glsl.
+// the source's border mode on the CPU (a read of zero has weight 0). The indices are stored ones
+// (a tile's window may have a guard band along AXIS); across AXIS there is none. The target's
+// spare row and column (the texel after the last, read by later bilinear passes) repeat its edge,
+// as in pass.frag.glsl.
 
 // {{DEFINES}}
 
