@@ -458,7 +458,8 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
     are kept in memory when they fit the budget beside the working set, else in a temporary file beside the
     output (removed on success, failure and interruption), and are written after level 0, one after another.
     Refused before any work: the options that need the whole picture (``--resize``, ``--fill``, ``--nchannels``,
-    ``--monochrome-detect``) and plans not tileable yet, when ``memory`` is given (without it they run whole).
+    ``--monochrome-detect``) and plans that do not tile (:func:`pyramid_cli.tiles.tileable`), when ``memory`` is
+    given (without it they run whole).
     """
     from . import io, tiles
     from .mip import PixelStats, shrink_constant
@@ -493,8 +494,8 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
             return False
         if not tiles.tileable(plan):
             if memory is not None:
-                raise UsageError(f"--memory: the MIP levels of a {w}×{h} picture cannot stream yet (odd sizes are "
-                                 "resampled whole); --round up streams them")
+                raise UsageError(f"--memory: the MIP levels of a {w}×{h} picture cannot stream (a pass of its plan "
+                                 "does not tile); leave --memory out to run it whole")
             return False
         choice = choose(plan, c, budget, where=in_path, **kw)
         reporter.detail(f"{in_path}: {choice.describe()}")

@@ -102,6 +102,22 @@ def test_streamed_mipmap_is_the_whole_runs_file(tmp_path, session, ext, pixel_ty
     assert sorted(os.listdir(tmp_path)) == sorted([src.name, f"s.{ext}", f"w.{ext}"])  # no temporary left
 
 
+@pytest.mark.parametrize("ext, size, border", [("exr", (100, 75), "clamp"), ("tx", (97, 131), "mirror"),
+                                                ("exr", (128, 64), "zero"), ("tx", (161, 90), "clamp")])
+def test_streamed_mipmap_of_odd_sizes_resampled(tmp_path, session, ext, size, border):
+    """maketx's sizes ⌊n/2⌋: levels that do not halve exactly are resampled (ResamplePass), tiled too."""
+    src = tmp_path / "in.exr"
+    write(src, noise(*size, seed=6), "half")
+    plan = mip.TextureLevels(levels=None, border=border).plan([size])
+    budget = stream.estimate(plan, 4, stream.MIN_BAND) + 1024  # the smallest band: the levels spill
+    said = []
+    mipmap(session, src, tmp_path / f"s.{ext}", budget, said, border=border)
+    assert any("streamed in bands" in m for m in said) and any("temporary file" in m for m in said), said
+    mipmap(session, src, tmp_path / f"w.{ext}", border=border)
+    assert_same_file(tmp_path / f"s.{ext}", tmp_path / f"w.{ext}")
+    assert sorted(os.listdir(tmp_path)) == sorted([src.name, f"s.{ext}", f"w.{ext}"])
+
+
 def test_streamed_mipmap_with_a_mirror_border_and_a_dithered_8_bit_texture(tmp_path, session):
     src = tmp_path / "in.png"
     write(src, noise(128, 128, 3, seed=5), "uint8")
