@@ -1,4 +1,5 @@
-"""Big pictures in bounded memory (issue 18): peak RSS and time of a streamed blur against a bare read+write.
+"""Big pictures in bounded memory (issue 18): peak RSS and time of a streamed blur and mipmap against a bare
+read+write.
 
     python bench/big.py                              # 4K 8K 16K 32K square RGBA half EXRs
     python bench/big.py --sizes 4096,8192 --memory 1G --reps 3
@@ -10,6 +11,8 @@ live under ``--data`` (default /tmp/pyramid-bench-big), never in the repository.
 
 Contenders, each in a fresh process whose peak RSS is its own (``bench/scripts/peak_rss.py``):
   * ``pyramid blur --levels 5 --backend cpu --memory M`` (streams when the whole run would not fit M);
+  * ``pyramid mipmap --backend cpu --memory M`` (the same, level 0 band by band, the coarser levels kept or
+    spilled; it reads the input twice: once for level 0's header, once for the pixels; ``--no-mipmap`` skips it);
   * ``bench/scripts/io_floor.py``: OpenImageIO reads the whole file and writes it back, nothing else.
 Repetitions interleave the two (rotated order); medians are reported. Targets (reported, not asserted):
 peak RSS flat in the size beyond the working-set bound (32K within 2 GiB), time within 1.2× of the
@@ -80,6 +83,7 @@ def main() -> None:
     ap.add_argument("--sizes", default="4096,8192,16384,32768")
     ap.add_argument("--memory", default="512M", help="pyramid's --memory (default 512M: every size streams)")
     ap.add_argument("--reps", type=int, default=1)
+    ap.add_argument("--no-mipmap", dest="mipmap", action="store_false", help="Measure blur and read+write only.")
     ap.add_argument("--data", default="/tmp/pyramid-bench-big")
     ap.add_argument("--json", default=str(HERE / "results" / "big-latest.json"))
     ap.add_argument("--plot", default=str(HERE / "results" / "big-latest.png"))
@@ -112,6 +116,10 @@ def main() -> None:
                                                   "--force", str(src), str(out)],
             "OpenImageIO read+write": [sys.executable, str(HERE / "scripts" / "io_floor.py"), str(src), str(out)],
         }
+        tx = data / f"out_{n}.tx.exr"
+        if a.mipmap:
+            contenders["pyramid mipmap"] = pyramid + ["mipmap", "--backend", "cpu", "--memory", a.memory, "--force",
+                                                      str(src), str(tx)]
         runs: dict[str, list[tuple[float, float]]] = {k: [] for k in contenders}
         loads = []
         for rep in range(a.reps):
@@ -127,11 +135,18 @@ def main() -> None:
                          "runs": rs}
         ours, floor = row["pyramid blur --levels 5"], row["OpenImageIO read+write"]
         row["time_ratio"] = ours["seconds"] / floor["seconds"]
+        if "pyramid mipmap" in row:
+            row["mipmap_time_ratio"] = row["pyramid mipmap"]["seconds"] / floor["seconds"]
         rows.append(row)
         print(f"{n:>6}²  blur {ours['seconds']:7.1f} s {ours['peak_rss_mib']:8.0f} MiB   read+write "
               f"{floor['seconds']:7.1f} s {floor['peak_rss_mib']:8.0f} MiB   time ×{row['time_ratio']:.2f}   "
               f"load {row['load_avg']:.1f}", flush=True)
+        if "pyramid mipmap" in row:
+            mm = row["pyramid mipmap"]
+            print(f"{'':>7}  mipmap {mm['seconds']:5.1f} s {mm['peak_rss_mib']:8.0f} MiB   time ×"
+                  f"{row['mipmap_time_ratio']:.2f}", flush=True)
         out.unlink(missing_ok=True)
+        tx.unlink(missing_ok=True)
     largest = rows[-1]
     targets = {
         "32K within 2 GiB peak RSS": (largest["pyramid blur --levels 5"]["peak_rss_mib"] <= 2048
@@ -159,7 +174,9 @@ def plot(rows: list[dict], path: str, memory: str) -> None:
         return
     fig, (m, t) = plt.subplots(1, 2, figsize=(10, 4))
     px = [r["pixels"] / 1e6 for r in rows]
-    for name, style in (("pyramid blur --levels 5", "o-"), ("OpenImageIO read+write", "s--")):
+    for name, style in (("pyramid blur --levels 5", "o-"), ("pyramid mipmap", "^-"), ("OpenImageIO read+write", "s--")):
+        if name not in rows[0]:
+            continue
         m.plot(px, [r[name]["peak_rss_mib"] for r in rows], style, label=name)
         t.plot(px, [r[name]["seconds"] for r in rows], style, label=name)
     for ax, label in ((m, "peak RSS (MiB)"), (t, "time (s)")):

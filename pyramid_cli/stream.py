@@ -488,7 +488,7 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
             return False
         emu = isinstance(_executor(session), tiles.Emulator)
         kw = {"in_bytes": st.dtype.itemsize, "out_bytes": 4, "work_bytes": 8 if emu else 4}
-        whole = estimate(plan, c, None, **kw)
+        whole = estimate(plan, c, None, **kw) + h * w * c * 4  # and level 0 as it is encoded
         if whole <= budget:
             reporter.detail(f"{in_path}: {Choice(budget, whole, None, whole).describe()}")
             return False
@@ -497,7 +497,36 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
                 raise UsageError(f"--memory: the MIP levels of a {w}×{h} picture cannot stream (a pass of its plan "
                                  "does not tile); leave --memory out to run it whole")
             return False
-        choice = choose(plan, c, budget, where=in_path, **kw)
+        # level 0 (the input) is written as it is read: the writer holds a band of its rows and their encoding
+        anchor = max(plan.images[k].size[0] for k in plan.outputs)
+        shapes = [(h, w, c)] + [plan.images[k].size + (c,) for k in plan.outputs]
+        kept_bytes = sum(a * b * n * 4 for a, b, n in shapes[1:])
+
+        def level0(band: int) -> int:
+            return 2 * -(-band * h // anchor) * w * c * 4
+
+        def cost(band: int) -> int:
+            return estimate(plan, c, band, **kw) + level0(band)
+
+        def fit(avail: int) -> Choice | None:
+            """The largest band (a multiple of MIN_BAND, as :func:`choose` bisects) whose working set, level 0's
+            writer included, fits ``avail`` bytes; None when not even MIN_BAND rows fit."""
+            if cost(MIN_BAND) > avail:
+                return None
+            lo, hi = MIN_BAND, (anchor // MIN_BAND + 2) * MIN_BAND
+            while hi - lo > MIN_BAND:
+                mid = (lo + hi) // (2 * MIN_BAND) * MIN_BAND
+                lo, hi = (mid, hi) if cost(mid) <= avail else (lo, mid)
+            return Choice(budget, whole, lo, cost(lo))
+
+        # the coarser levels (a third of level 0) stay in memory when half the budget holds them
+        choice = fit(budget - kept_bytes) if 2 * kept_bytes <= budget else None
+        spill = choice is None
+        choice = choice or fit(budget)
+        if choice is None:
+            raise DataError(f"{in_path}: this job needs at least {format_size(cost(MIN_BAND))} of memory in bands of "
+                            f"{MIN_BAND} rows (its guard bands at every level), over the budget of "
+                            f"{format_size(budget)}; give more with --memory (memory= in Python)")
         reporter.detail(f"{in_path}: {choice.describe()}")
         info = st.info
         options = wo.for_inputs([in_path])
@@ -523,9 +552,6 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
         return True
 
     # pass 2: level 0 to the file as it is read, the coarser levels kept until their turn
-    shapes = [(h, w, c)] + [plan.images[k].size + (c,) for k in plan.outputs]
-    kept_bytes = sum(a * b * n * 4 for a, b, n in shapes[1:])
-    spill = choice.working_set + kept_bytes > budget
     reporter.detail(f"{in_path}: the coarser levels ({format_size(kept_bytes)}) are kept "
                     + ("in a temporary file beside the output" if spill else "in memory"))
     executor = _executor(session)
