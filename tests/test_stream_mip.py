@@ -213,11 +213,12 @@ def test_a_signal_during_a_streamed_mipmap(tmp_path):
 
     pytest.importorskip("numba")
     big = tmp_path / "big.exr"
-    write(big, noise(1024, 1024, 3, seed=7), "float")
+    write(big, noise(1536, 1536, 3, seed=7), "float")  # about 2.5 s: pass 1, pass 2, then the levels
     out = tmp_path / "out.exr"
     old = b"previous output\n"
     out.write_bytes(old)
-    for delay in (0.8, 1.4, 2.0):
+    interrupted = 0
+    for delay in (0.7, 1.2, 1.8):
         p = subprocess.Popen(CLI + ["mipmap", "--backend", "cpu", "--memory", "6M", "--compression", "zip",
                                     str(big), str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
         time.sleep(delay)
@@ -227,9 +228,11 @@ def test_a_signal_during_a_streamed_mipmap(tmp_path):
         assert b"Traceback" not in err
         assert not [f for f in os.listdir(tmp_path) if ".tmp-" in f]
         data = out.read_bytes()
+        interrupted += data == old
         if data != old:
-            assert len(levels(out)) == 11
+            assert len(levels(out)) == 11  # 1536 … 3, 1
             out.write_bytes(old)
+    assert interrupted, "no run was interrupted: make the picture larger"
 
 
 @pytest.mark.slow
