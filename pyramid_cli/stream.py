@@ -375,59 +375,6 @@ def _scratch(beside: str):
         _remove(tmp)
 
 
-def _lagging_scheduler():
-    """:class:`pyramid_cli.tiles.Scheduler` whose outputs other than the largest follow behind it.
-
-    The scheduler asks every output for its share of each band (``⌈y·n/N⌉`` rows), which for a MIP chain
-    down to 1×1 asks the coarsest level's one row at the first band, and with it the whole picture. Here
-    only the largest output is driven by the band; every other output advances as far as the rows its
-    pass reads are already computed (never pulling its sources further), and all finish at the last band.
-    The pixels are the scheduler's (the same passes over the same rows); the rows held per level are its
-    consumers' guard bands, as the estimate assumes.
-    """
-    from . import tiles
-
-    class Lagging(tiles.Scheduler):
-        def run(self) -> None:
-            n_rows, n_cols = self.anchor
-            self._strip(0, n_cols)
-            lead = max(self.plan.outputs, key=lambda k: self.plan.images[k].size[0])
-            for y0 in range(0, n_rows, self.band):
-                y1 = min(n_rows, y0 + self.band)
-                for k in self.plan.outputs:
-                    if k == lead or y1 == n_rows:
-                        self._emit(k, self._share(k, 0, y1))
-                    else:
-                        self._emit(k, self._ready(k))
-
-        def _ready(self, k: int) -> int:
-            """The most rows of output ``k`` its pass can make from rows its sources already hold."""
-            st, ps = self.state[k], self.writer.get(k)
-            lo, hi = st.emitted, self.plan.images[k].size[0]
-            if ps is None:
-                return lo
-            while lo < hi:  # bisect: readiness is monotone in the rows asked for
-                mid = (lo + hi + 1) // 2
-                if self._available(k, st, ps, mid):
-                    lo = mid
-                else:
-                    hi = mid - 1
-            return lo
-
-        def _available(self, k, st, ps, rows: int) -> bool:
-            start = st.done if st.done is not None else st.emitted
-            if rows <= start:
-                return True
-            step = ps.tile((start, rows), st.comp)
-            for s, (rr, _) in ps.reads(step.rows, step.cols).items():
-                src = self.state[s]
-                if src.done is None or tiles._restrict(rr, src.rows, src.border)[1] > src.done:
-                    return False
-            return True
-
-    return Lagging
-
-
 # mipmap options that need the whole picture before the levels: they run whole
 _MIP_WHOLE = {"resize": "--resize", "fill": "--fill", "nchannels": "--nchannels",
               "monochrome_detect": "--monochrome-detect"}
@@ -572,7 +519,7 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
         def sink(k, r, c0, px):
             kept.write(slot[k], r, px)
 
-        _lagging_scheduler()(executor, plan, source, sink, band=choice.band,
+        tiles.Scheduler(executor, plan, source, sink, band=choice.band,
                              dtype=np.float64 if emu else np.float32).run()
         for i in range(len(shapes) - 1):
             writer.append_level(lambda r0, r1, i=i: kept.rows(i, r0, r1))

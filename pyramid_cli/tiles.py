@@ -136,14 +136,47 @@ class Scheduler:
 
     # ------------------------------------------------------------ driving
     def run(self) -> None:
+        """Strip by strip, band by band. Only the tallest output follows the band; every other output
+        advances as far as the rows its pass reads are already held, and all finish at the last band.
+        (Asking every output for its share ``⌈y·n/N⌉`` of each band would ask a 1×1 level for its one
+        row at the first band, and with it the whole picture.) The pixels are the same either way."""
         n_rows, n_cols = self.anchor
+        lead = max(self.plan.outputs, key=lambda k: self.plan.images[k].size[0])
         for c0 in range(0, n_cols, self.width):
             c1 = min(n_cols, c0 + self.width)
             self._strip(c0, c1)
             for y0 in range(0, n_rows, self.band):
                 y1 = min(n_rows, y0 + self.band)
                 for k in self.plan.outputs:
-                    self._emit(k, self._share(k, 0, y1))
+                    if k == lead or y1 == n_rows:
+                        self._emit(k, self._share(k, 0, y1))
+                    elif k in self.out_cols:
+                        self._emit(k, self._ready(k))
+
+    def _ready(self, k: int) -> int:
+        """The most rows of output ``k`` its pass can make from rows its sources already hold."""
+        st, ps = self.state[k], self.writer.get(k)
+        lo, hi = st.emitted, self.plan.images[k].size[0]
+        if ps is None:
+            return lo
+        while lo < hi:  # bisect: readiness is monotone in the rows asked for
+            mid = (lo + hi + 1) // 2
+            if self._available(st, ps, mid):
+                lo = mid
+            else:
+                hi = mid - 1
+        return lo
+
+    def _available(self, st: _State, ps, rows: int) -> bool:
+        start = st.done if st.done is not None else st.emitted
+        if rows <= start:
+            return True
+        step = ps.tile((start, rows), st.comp)
+        for s, (rr, _) in ps.reads(step.rows, step.cols).items():
+            src = self.state[s]
+            if src.done is None or _restrict(rr, src.rows, src.border)[1] > src.done:
+                return False
+        return True
 
     def _share(self, k: int, axis: int, y: int) -> int:
         n = self.plan.images[k].size[axis]

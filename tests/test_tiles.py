@@ -91,6 +91,22 @@ def test_the_band_is_bounded():
     assert s.peak_pixels < 400 * 16 / 4, s.peak_pixels
 
 
+@pytest.mark.parametrize("kind", ["levels", "mip"])
+def test_a_chain_down_to_one_pixel_is_bounded_too(kind):
+    """Levels down to 1×1 (and MIP chains) in bands: the coarse levels follow the finest instead of
+    pulling the whole picture in for the one row of the 1×1 level at the first band."""
+    from pyramid_cli.pyramids import mip_plan
+
+    size = (512, 16)
+    p = Levels().plan((size,)) if kind == "levels" else mip_plan(size)
+    got = {}
+    s = tiles.Scheduler(EMU, p, lambda k, r, c: image(size, 1)[r[0]:r[1], c[0]:c[1]].astype(np.float64),
+                        lambda k, r, c, px: got.setdefault(k, []).append(px), band=8, dtype=np.float64)
+    s.run()
+    assert {k: sum(len(g) for g in v) for k, v in got.items()} == {k: p.images[k].size[0] for k in p.outputs}
+    assert s.peak_pixels < size[0] * size[1] / 4, s.peak_pixels
+
+
 def test_reads_of_a_pass_include_the_guard_band():
     p = plan(parse("gauss5"), (9, 9))
     first = p.passes[0]
