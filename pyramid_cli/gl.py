@@ -607,24 +607,14 @@ class GLExecutor:
                 held[ps.source].texture.use(location=0)
                 self._table(plan, ps).use(location=1)
                 prog.set("u_width", ps.width)
-                prog.set("u_out_extent", (stored[1], stored[0]))
-                wr, wc = _written(stored, tex_size)
-                target.fbo.use()              # bind first: ctx.viewport is stored with the bound framebuffer
-                ctx.viewport = (0, 0, wc, wr)
-                prog.vao.render(vertices=3)
-                if clock and clock.per_pass:
-                    clock.lap(ctx, "passes")
-                held[ps.target] = target
-                for s in done:
-                    self._release(held.pop(s))
-                continue
-            for k, src in enumerate(generate.sources(ps)):
-                im, t = plan.images[src], held[src]
-                t.texture.use(location=k)
-                prog.set(f"u_guard{k}", (im.guard[1], im.guard[0]))
-                prog.set(f"u_extent{k}", (im.stored[1], im.stored[0]))
-                prog.set(f"u_inv{k}", (1.0 / t.size[1], 1.0 / t.size[0]))
-            prog.set("u_out_guard", (target_image.guard[1], target_image.guard[0]))
+            else:
+                for k, src in enumerate(generate.sources(ps)):
+                    im, t = plan.images[src], held[src]
+                    t.texture.use(location=k)
+                    prog.set(f"u_guard{k}", (im.guard[1], im.guard[0]))
+                    prog.set(f"u_extent{k}", (im.stored[1], im.stored[0]))
+                    prog.set(f"u_inv{k}", (1.0 / t.size[1], 1.0 / t.size[0]))
+                prog.set("u_out_guard", (target_image.guard[1], target_image.guard[0]))
             prog.set("u_out_extent", (stored[1], stored[0]))
             wr, wc = _written(stored, tex_size)
             target.fbo.use()                  # bind first: ctx.viewport is stored with the bound framebuffer

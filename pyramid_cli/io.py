@@ -1630,12 +1630,16 @@ class BandWriter:
         spec = band_spec
         spec.height = spec.full_height = self.height
         _set_windows(spec, self.info, spec.width, self.height)
+        self._header(spec)
         out = oiio.ImageOutput.create(self.tmp)
         if out is None:
             raise _WriteFailed(_one_line(oiio.geterror(), "no writer for this format"))
         self._out = out
         _checked(out, out.open(self.tmp, spec, "Create"), "open")
         self.spec = spec
+
+    def _header(self, spec: oiio.ImageSpec) -> None:
+        """What a subclass adds to the file's header before it opens (nothing here)."""
 
     def _flush(self, final: bool) -> None:
         s = self.spec
@@ -1742,18 +1746,9 @@ class MipBandWriter(BandWriter):
         self.round_up = _mip_rounding(path, fmt, [(w, h) for h, w, _ in shapes])
         self.levels = 0  # levels complete
 
-    def _open(self, band_spec: oiio.ImageSpec) -> None:
-        spec = band_spec
-        spec.height = spec.full_height = self.height
-        _set_windows(spec, self.info, spec.width, self.height)
+    def _header(self, spec: oiio.ImageSpec) -> None:
         _mark_mip_level(spec, self.fmt, self.tile, self.round_up, self.options.get("compression"))
         _mip_metadata(spec, None, self.meta, self.arbitrary, self.colors)
-        out = oiio.ImageOutput.create(self.tmp)
-        if out is None:
-            raise _WriteFailed(_one_line(oiio.geterror(), "no writer for this format"))
-        self._out = out
-        _checked(out, out.open(self.tmp, spec, "Create"), "open")
-        self.spec = spec
 
     def append_level(self, rows) -> None:
         """The next level (1, 2, …): ``rows(r0, r1)`` gives its linear pixels, a row of tiles at a time."""
