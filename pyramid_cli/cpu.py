@@ -452,9 +452,21 @@ def _compile_vectorised(fn, sig: str) -> None:
     saved = config.SLP_VECTORIZE
     config.SLP_VECTORIZE = 1
     try:
-        fn.compile(sig)
+        _compile(fn, sig)
     finally:
         config.SLP_VECTORIZE = saved
+
+
+def _compile(fn, sig: str) -> None:
+    """``fn.compile(sig)``; a disk cache that cannot be written (a full disk, a file-size limit) costs the
+    cache, not the run: numba adds the overload before it saves it, so the retry without a cache finds it."""
+    try:
+        fn.compile(sig)
+    except OSError:
+        from numba.core.caching import NullCache
+
+        fn._cache = NullCache()
+        fn.compile(sig)
 
 
 def _skip_blas_probe() -> None:
@@ -693,7 +705,7 @@ class CPUExecutor:
             with _LOCK:
                 if not fn.signatures:
                     hits = sum(fn.stats.cache_hits.values())
-                    fn.compile(RESAMPLE_SIGNATURE)
+                    _compile(fn, RESAMPLE_SIGNATURE)
                     if sum(fn.stats.cache_hits.values()) > hits:
                         self.cache_loads += 1
                     else:
@@ -807,7 +819,7 @@ class CPUExecutor:
             with _LOCK:
                 if not fn.signatures:
                     hits = sum(fn.stats.cache_hits.values())
-                    fn.compile("void(" + ", ".join(["float32[::1]"] * (len(ps.srcs) + 1) + ["int64"] * 2) + ")")
+                    _compile(fn, "void(" + ", ".join(["float32[::1]"] * (len(ps.srcs) + 1) + ["int64"] * 2) + ")")
                     if sum(fn.stats.cache_hits.values()) > hits:
                         self.cache_loads += 1
                     else:

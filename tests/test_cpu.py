@@ -375,3 +375,23 @@ def test_an_unwritable_cache_folder_falls_back(tmp_path):
     with cpu.CPUExecutor(threads=1, cache=blocker / "cache") as odd:
         np.testing.assert_allclose(odd.run(p, image), emulate.run(p, image), rtol=0, atol=1e-5)
     assert list(cpu._fallback_cache().glob("k_*.py"))
+
+
+def test_a_cache_that_cannot_be_written_costs_the_cache_not_the_run(tmp_path):
+    """A file-size limit (a full disk) hit while numba saves a fresh kernel: the run still succeeds."""
+    import resource
+
+    import OpenImageIO as oiio
+
+    src, dst = tmp_path / "in.exr", tmp_path / "out.exr"
+    assert oiio.ImageBuf(np.random.default_rng(2).random((9, 11, 3)).astype(np.float32)).write(str(src))
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (8_000, 8_000))  # the sources fit, numba's object code does not
+
+    env = dict(os.environ, PYRAMID_CACHE_DIR=str(tmp_path / "fresh-cache"))
+    p = subprocess.run([sys.executable, "-m", "pyramid_cli.cli", "apply", "--backend", "cpu", "-q",
+                        "cubic *v (gauss5 * g)", str(src), str(dst)],
+                       capture_output=True, text=True, preexec_fn=limit, env=env, timeout=300)
+    assert p.returncode == 0, p.stderr
+    assert dst.exists() and not p.stderr
