@@ -154,3 +154,19 @@ def test_readme_fetch_table_is_generated_and_current():
     script = Path(__file__).parent.parent / "scripts" / "fetch_table.py"
     r = subprocess.run([sys.executable, str(script), "--check"], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
+
+
+def test_the_report_names_each_input_and_the_pass_that_writes_each_image():
+    """Several inputs (a fill: colours and weights): sources are named ``input k`` or their writing pass."""
+    from pyramid_cli.plan.report import render
+    from pyramid_cli.work import Fill
+
+    p = Fill(levels=2).plan(((5, 7), (5, 7)))
+    lines = render(p).splitlines()
+    passes = {int(line.split()[1]): line for line in lines if line.startswith("pass ")}
+    for n, ps in enumerate(p.passes, 1):
+        for s in ps.sources():
+            name = (f"input {p.inputs.index(s) + 1}" if s in p.inputs
+                    else f"pass {next(k for k, q in enumerate(p.passes, 1) if q.target == s)}")
+            assert name in passes[n], (n, s, passes[n])
+    assert "reads input 2" in passes[1] and "reads input 1" in passes[2]

@@ -56,9 +56,16 @@ def _resample_json(p: Plan, ps: ResamplePass, model) -> dict:
             "starts": list(ps.starts), "weights": [[str(w) for w in row] for row in ps.weights]}
 
 
+def _name(p: Plan, image: int) -> str:
+    """How the report names an image: the input (``input k`` of several), else the pass that writes it."""
+    if image in p.inputs:
+        return "input" if len(p.inputs) == 1 else f"input {p.inputs.index(image) + 1}"
+    return f"pass {next(n for n, ps in enumerate(p.passes, 1) if ps.target == image)}"
+
+
 def _resample_lines(p: Plan, ps: ResamplePass, n: int) -> list[str]:
     img = p.images[ps.target]
-    src = "input" if ps.source == 0 else f"pass {ps.source}"
+    src = _name(p, ps.source)
     lines = [f"pass {n}  {ps.label}: {img.size[1]}×{img.size[0]}, reads {src}, "
              f"{ps.fetches:g} texel(s) per fragment from a table of {len(ps.starts)}×{ps.width} weights"]
     shown = sorted({0, len(ps.starts) // 2, len(ps.starts) - 1})
@@ -80,9 +87,9 @@ def render(p: Plan) -> str:
         img = p.images[ps.target]
         t, l, b, r = img.guard
         guard = f" + guard t{t} l{l} b{b} r{r}" if any(img.guard) else ""
-        srcs = ", ".join("input" if s == 0 else f"pass {s}" for s in sorted(ps.sources()))
+        srcs = ", ".join(_name(p, s) for s in sorted(ps.sources()))
         if isinstance(ps, PointwisePass):
-            operands = ", ".join("input" if s == 0 else f"image {s}" for s in ps.srcs)
+            operands = ", ".join(_name(p, s) for s in ps.srcs)
             lines.append(f"pass {n}  {ps.label}: {img.size[1]}×{img.size[0]}, pointwise {ps.op}({operands})"
                          + (f", K = {ps.param}" if ps.op.startswith("pull") else ""))
             continue
@@ -93,7 +100,7 @@ def render(p: Plan) -> str:
         for ph, taps in sorted(ps.phases.items(), reverse=True):
             head = f"  phase {ph[0]},{ph[1]}" if len(ps.phases) > 1 else "  "
             for i, tap in enumerate(taps):
-                src = "" if len(ps.sources()) == 1 else (" input" if tap.source == 0 else f" pass {tap.source}")
+                src = "" if len(ps.sources()) == 1 else f" {_name(p, tap.source)}"
                 lines.append(f"{head if i == 0 else ' ' * len(head)}  {tap.sampler:<7} at "
                              f"({float(-tap.offset[1]):+.2f}, {float(-tap.offset[0]):+.2f}) × {tap.weight}{src}")
     paper = "n/a" if p.paper_fetches is None else f"{p.paper_fetches:g}"
