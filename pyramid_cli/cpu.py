@@ -661,17 +661,21 @@ class CPUExecutor:
             k = self._kernels[key] = self._build(s, half)
         return k
 
-    def _build(self, s: generate.PassShape, half: tuple[bool, ...]) -> _Kernel:
-        fn = _load(kernel_source(s, half), self.cache)
-        sig = _signature(s.n_sources, half, s.period[1])
+    def _ready(self, fn, sig: str, compile_=_compile) -> None:
+        """Compile ``fn`` for ``sig`` once (or load it from the disk cache), counting which it was."""
         with _LOCK:
             if not fn.signatures:
                 hits = sum(fn.stats.cache_hits.values())
-                _compile_vectorised(fn, sig)
+                compile_(fn, sig)
                 if sum(fn.stats.cache_hits.values()) > hits:
                     self.cache_loads += 1
                 else:
                     self.compiles += 1
+
+    def _build(self, s: generate.PassShape, half: tuple[bool, ...]) -> _Kernel:
+        fn = _load(kernel_source(s, half), self.cache)
+        sig = _signature(s.n_sources, half, s.period[1])
+        self._ready(fn, sig, _compile_vectorised)
         terms = {ph: phase_terms(taps) for ph, taps in s.phases}
         extents = []
         for k in range(s.n_sources):
@@ -702,14 +706,7 @@ class CPUExecutor:
         k = self._kernels.get(key)
         if k is None:
             fn = _load(resample_source(axis), self.cache)
-            with _LOCK:
-                if not fn.signatures:
-                    hits = sum(fn.stats.cache_hits.values())
-                    _compile(fn, RESAMPLE_SIGNATURE)
-                    if sum(fn.stats.cache_hits.values()) > hits:
-                        self.cache_loads += 1
-                    else:
-                        self.compiles += 1
+            self._ready(fn, RESAMPLE_SIGNATURE)
             k = self._kernels[key] = fn
         return k
 
@@ -816,14 +813,7 @@ class CPUExecutor:
         fn = self._kernels.get(key)
         if fn is None:
             fn = _load(pointwise_source(ps.op, ps.param), self.cache)
-            with _LOCK:
-                if not fn.signatures:
-                    hits = sum(fn.stats.cache_hits.values())
-                    _compile(fn, "void(" + ", ".join(["float32[::1]"] * (len(ps.srcs) + 1) + ["int64"] * 2) + ")")
-                    if sum(fn.stats.cache_hits.values()) > hits:
-                        self.cache_loads += 1
-                    else:
-                        self.compiles += 1
+            self._ready(fn, "void(" + ", ".join(["float32[::1]"] * (len(ps.srcs) + 1) + ["int64"] * 2) + ")")
             self._kernels[key] = fn
         return fn
 
