@@ -48,6 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import signals
 from .border import Border, fold
 from .errors import BackendError
 from .plan import Plan, PointwisePass, ResamplePass
@@ -662,8 +663,12 @@ class CPUExecutor:
         return k
 
     def _ready(self, fn, sig: str, compile_=_compile) -> None:
-        """Compile ``fn`` for ``sig`` once (or load it from the disk cache), counting which it was."""
-        with _LOCK:
+        """Compile ``fn`` for ``sig`` once (or load it from the disk cache), counting which it was.
+
+        A signal waits for the compile to end (:func:`signals.deferred`): raised inside numba's
+        compiler it would leave it broken, and its clean-up would print tracebacks.
+        """
+        with _LOCK, signals.deferred():
             if not fn.signatures:
                 hits = sum(fn.stats.cache_hits.values())
                 compile_(fn, sig)

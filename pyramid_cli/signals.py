@@ -8,15 +8,29 @@ temporary is removed, the previous output is untouched) and the process exits wi
 ``128 + signal number``: 130 for SIGINT, 143 for SIGTERM, 129 for SIGHUP
 (:func:`exit_code`). A second signal while cleaning up ends the process the default way.
 
+Python cannot raise out of a finaliser: an :class:`Interrupted` raised while a ``__del__``, a
+weak-reference callback or a ctypes callback runs (llvmlite frees its LLVM objects in
+``__del__``) would be printed as "Exception ignored" and lost, and the run would go on. The
+``sys.unraisablehook`` that ``install`` sets catches exactly those, prints nothing, and sends the
+signal again a moment later, once the finaliser has returned.
+
+Nor should it raise into a library that keeps state across a call: an exception thrown into
+numba's compiler in mid-compile leaves it inconsistent, and its clean-up then fails with a
+traceback of its own. Code that calls such a library runs it under :func:`deferred`, which holds
+a signal until the call returns and raises it then.
+
 ``install`` also ignores SIGXFSZ, so that a file size limit (``ulimit -f``) makes writes
 fail with EFBIG, reported as exit 4, instead of killing the process mid-write.
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
+import sys
 import threading
+from collections.abc import Iterator
 
 HANDLED = ("SIGINT", "SIGTERM", "SIGHUP")
 
@@ -38,6 +52,8 @@ class Interrupted(KeyboardInterrupt):
 
 
 _received: list[int] = []
+_held: list[int] = []  # signals held by deferred(), to raise when it ends
+_depth = 0  # how many deferred() blocks the main thread is inside
 
 
 def _handler(signum, frame):  # noqa: ARG001 - the signal module's signature
@@ -47,7 +63,49 @@ def _handler(signum, frame):  # noqa: ARG001 - the signal module's signature
         os.kill(os.getpid(), signum)
         return
     _received.append(signum)
+    if _depth:
+        _held.append(signum)
+        return
     raise Interrupted(signum)
+
+
+@contextlib.contextmanager
+def deferred() -> Iterator[None]:
+    """Hold SIGINT, SIGTERM and SIGHUP while the block runs, and raise :class:`Interrupted` after it.
+
+    For calls into libraries that an exception thrown in mid-call would leave broken (numba's
+    compiler). Outside the main thread, which never runs signal handlers, it does nothing.
+    """
+    global _depth
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    _depth += 1
+    try:
+        yield
+    finally:
+        _depth -= 1
+        if not _depth and _held:
+            raise Interrupted(_held.pop())
+
+
+REDELIVER_S = 0.02  # how long after a swallowed signal it is sent again
+
+
+def _unraisable(previous):
+    def hook(unraisable) -> None:
+        exc = unraisable.exc_value
+        if not isinstance(exc, Interrupted):
+            previous(unraisable)
+            return
+        # Raised inside a finaliser and swallowed: deliver it again as a first signal once the
+        # finaliser is done (a timer thread, since the handler only runs in the main thread).
+        _received.clear()
+        timer = threading.Timer(REDELIVER_S, os.kill, (os.getpid(), exc.signum))
+        timer.daemon = True
+        timer.start()
+    hook.pyramid_redelivers = True
+    return hook
 
 
 def install() -> None:
@@ -59,6 +117,9 @@ def install() -> None:
     if threading.current_thread() is not threading.main_thread():
         return
     _received.clear()
+    _held.clear()
+    if not getattr(sys.unraisablehook, "pyramid_redelivers", False):
+        sys.unraisablehook = _unraisable(sys.unraisablehook)
     for name in HANDLED:
         signum = getattr(signal, name, None)
         if signum is None:
