@@ -1597,6 +1597,11 @@ def streams_to(path: str | os.PathLike[str]) -> bool:
     return bool(fmt) and fmt not in _ENCODE_IN_MEMORY
 
 
+def _quantum(tile_rows: int, dither: bool) -> int:
+    """Rows a band is encoded in multiples of: whole rows of tiles, and of the 8-row dither pattern."""
+    return tile_rows * 8 // math.gcd(tile_rows, 8) if dither else tile_rows
+
+
 class BandWriter:
     """Rows written as they complete into the temporary of :func:`stream_writers` (see there)."""
 
@@ -1644,7 +1649,7 @@ class BandWriter:
     def _flush(self, final: bool) -> None:
         s = self.spec
         tiled = s.tile_width > 0 and s.tile_height > 0
-        quantum = s.tile_height if tiled else 8 if self.options.get("dither") else 1
+        quantum = _quantum(s.tile_height if tiled else 1, self.options.get("dither", False))
         rows = self.next - self.written
         whole = rows if final else rows // quantum * quantum
         if not whole:
@@ -1756,7 +1761,7 @@ class MipBandWriter(BandWriter):
             raise ValueError(f"level 0: {self.written} of {self.height} rows written")
         self.levels = max(self.levels, 1) + 1
         h, w, _ = self.shapes[self.levels - 1]
-        step = self.tile * 8 // math.gcd(self.tile, 8)  # whole rows of tiles, and of the dither pattern
+        step = _quantum(self.tile, self.options.get("dither", False))
         try:
             spec = None
             for r0 in range(0, h, step):

@@ -39,7 +39,8 @@ def noise(h, w, c=4, seed=0):
 # ------------------------------------------------------------------ io: bands in, bands out
 @pytest.mark.parametrize("fmt, pixel_type, tile, attrs", [
     ("exr", "half", None, {}), ("exr", "float", 16, {}), ("tif", "uint8", None, {}),
-    ("png", "uint16", None, {}), ("tif", "uint8", None, {"oiio:UnassociatedAlpha": 1})])
+    ("png", "uint16", None, {}), ("tif", "uint8", None, {"oiio:UnassociatedAlpha": 1}),
+    ("tif", "uint8", 16, {})])  # tiled and dithered (TIFF tiles are multiples of 16 rows, so of the dither's 8)
 def test_bands_read_and_write_like_whole_pictures(tmp_path, fmt, pixel_type, tile, attrs):
     src = tmp_path / f"in.{fmt}"
     write(src, noise(45, 37), pixel_type, tile, **attrs)
