@@ -173,9 +173,9 @@ def plan_command(expression, size, as_json: bool, strategy: str, mip_round: str 
     check(p)
     choice = None
     if memory is not None:
-        from .stream import choose, parse_size
+        from .stream import choose, choose_mip, parse_size
 
-        choice = choose(p, 4, parse_size(memory))
+        choice = (choose_mip if mip_round is not None else choose)(p, 4, parse_size(memory))
     if as_json:
         doc = to_json(p)
         if choice is not None:

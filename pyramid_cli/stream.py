@@ -20,6 +20,7 @@ import contextlib
 import dataclasses
 import os
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -80,6 +81,8 @@ class Choice:
     whole: int                  # estimated bytes of the whole-picture run
     band: int | None            # output rows per band; None: runs whole
     working_set: int            # estimated bytes of the streamed run (at ``band``)
+    kept: int = 0               # a streamed MIP map: bytes of the coarser levels, kept until level 0 is written
+    spill: bool = False         # ... in a temporary file beside the output rather than in memory
 
     @property
     def streams(self) -> bool:
@@ -89,12 +92,19 @@ class Choice:
         if not self.streams:
             return (f"runs whole: about {format_size(self.whole)} within the memory budget of "
                     f"{format_size(self.budget)}")
-        return (f"streams in bands of {self.band} output rows: working set about {format_size(self.working_set)} "
+        said = (f"streams in bands of {self.band} output rows: working set about {format_size(self.working_set)} "
                 f"within the memory budget of {format_size(self.budget)} (the whole picture would take about "
                 f"{format_size(self.whole)})")
+        if self.kept:
+            where = "in a temporary file beside the output" if self.spill else "in memory (in the working set)"
+            said += f"; the coarser levels ({format_size(self.kept)}) are kept {where}"
+        return said
 
     def to_json(self) -> dict:
-        return {"budget": self.budget, "whole": self.whole, "band": self.band, "working_set": self.working_set}
+        doc = {"budget": self.budget, "whole": self.whole, "band": self.band, "working_set": self.working_set}
+        if self.kept:
+            doc.update(kept=self.kept, spill=self.spill)
+        return doc
 
 
 def _footprints(plan: Plan) -> dict[int, int]:
@@ -135,6 +145,25 @@ def estimate(plan: Plan, channels: int, band: int | None, in_bytes: int = 4, out
     return total
 
 
+def _band_within(cost: Callable[[int], int], rows: int, avail: int) -> int | None:
+    """The largest multiple of :data:`MIN_BAND` rows, up to a band past ``rows``, whose ``cost`` fits ``avail``
+    bytes (a bisection: the cost grows with the band); None when not even MIN_BAND rows fit."""
+    if cost(MIN_BAND) > avail:
+        return None
+    lo, hi = MIN_BAND, (rows // MIN_BAND + 2) * MIN_BAND
+    while hi - lo > MIN_BAND:
+        mid = (lo + hi) // (2 * MIN_BAND) * MIN_BAND  # strictly between lo and hi
+        lo, hi = (mid, hi) if cost(mid) <= avail else (lo, mid)
+    return lo
+
+
+def _too_small(where: str, need: int, budget: int) -> DataError:
+    prefix = f"{where}: " if where else ""
+    return DataError(f"{prefix}this job needs at least {format_size(need)} of memory in bands of {MIN_BAND} "
+                     f"rows (its guard bands at every level), over the budget of {format_size(budget)}; "
+                     "give more with --memory (memory= in Python)")
+
+
 def choose(plan: Plan, channels: int, budget: int, *, in_bytes: int = 4, out_bytes: int = 4, work_bytes: int = 4,
            force: bool = False, where: str = "") -> Choice:
     """Whole or streamed, and the band: the largest multiple of :data:`MIN_BAND` rows within ``budget``.
@@ -145,20 +174,41 @@ def choose(plan: Plan, channels: int, budget: int, *, in_bytes: int = 4, out_byt
     if whole <= budget and not force:
         return Choice(budget, whole, None, whole)
     rows = max(plan.images[k].size[0] for k in plan.outputs)
-    smallest = estimate(plan, channels, MIN_BAND, **kw)
-    if smallest > budget:
-        prefix = f"{where}: " if where else ""
-        raise DataError(f"{prefix}this job needs at least {format_size(smallest)} of memory in bands of {MIN_BAND} "
-                        f"rows (its guard bands at every level), over the budget of {format_size(budget)}; "
-                        "give more with --memory (memory= in Python)")
-    lo, hi = MIN_BAND, (rows // MIN_BAND + 2) * MIN_BAND  # hi: a whole band more than the picture
-    while hi - lo > MIN_BAND:  # estimate grows with the band: bisect on multiples of MIN_BAND
-        mid = (lo + hi) // (2 * MIN_BAND) * MIN_BAND  # strictly between lo and hi
-        if estimate(plan, channels, mid, **kw) <= budget:
-            lo = mid
-        else:
-            hi = mid
-    return Choice(budget, whole, lo, estimate(plan, channels, lo, **kw))
+
+    def cost(band: int) -> int:
+        return estimate(plan, channels, band, **kw)
+
+    band = _band_within(cost, rows, budget)
+    if band is None:
+        raise _too_small(where, cost(MIN_BAND), budget)
+    return Choice(budget, whole, band, cost(band))
+
+
+def choose_mip(plan: Plan, channels: int, budget: int, *, in_bytes: int = 4, work_bytes: int = 4,
+               where: str = "") -> Choice:
+    """:func:`choose` for a MIP map streamed as :func:`run_mip` streams it.
+
+    Level 0 (the input) goes to the file as it is read, so its writer holds a band of rows and their
+    encoding; the coarser levels (``plan.outputs``, about a third of level 0) are kept until level 0 is
+    done: in memory when half the budget holds them beside the working set, else in a temporary file
+    beside the output (``Choice.spill``)."""
+    kw = {"in_bytes": in_bytes, "out_bytes": 4, "work_bytes": work_bytes}
+    h, w = plan.images[plan.inputs[0]].size
+    whole = estimate(plan, channels, None, **kw) + h * w * channels * 4  # and level 0 as it is encoded
+    if whole <= budget:
+        return Choice(budget, whole, None, whole)
+    anchor = max(plan.images[k].size[0] for k in plan.outputs)
+    kept = sum(a * b * channels * 4 for a, b in (plan.images[k].size for k in plan.outputs))
+
+    def cost(band: int) -> int:
+        return estimate(plan, channels, band, **kw) + 2 * -(-band * h // anchor) * w * channels * 4
+
+    band = _band_within(cost, anchor, budget - kept) if 2 * kept <= budget else None
+    spill = band is None
+    band = band or _band_within(cost, anchor, budget)
+    if band is None:
+        raise _too_small(where, cost(MIN_BAND), budget)
+    return Choice(budget, whole, band, cost(band) + (0 if spill else kept), kept, spill)
 
 
 def _executor(session):
@@ -434,47 +484,16 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
         if plan is None:
             return False
         emu = isinstance(_executor(session), tiles.Emulator)
-        kw = {"in_bytes": st.dtype.itemsize, "out_bytes": 4, "work_bytes": 8 if emu else 4}
-        whole = estimate(plan, c, None, **kw) + h * w * c * 4  # and level 0 as it is encoded
-        if whole <= budget:
-            reporter.detail(f"{in_path}: {Choice(budget, whole, None, whole).describe()}")
+        choice = choose_mip(plan, c, budget, in_bytes=st.dtype.itemsize, work_bytes=8 if emu else 4, where=in_path)
+        reporter.detail(f"{in_path}: {choice.describe()}")
+        if not choice.streams:
             return False
         if not tiles.tileable(plan):
             if memory is not None:
                 raise UsageError(f"--memory: the MIP levels of a {w}×{h} picture cannot stream (a pass of its plan "
                                  "does not tile); leave --memory out to run it whole")
             return False
-        # level 0 (the input) is written as it is read: the writer holds a band of its rows and their encoding
-        anchor = max(plan.images[k].size[0] for k in plan.outputs)
         shapes = [(h, w, c)] + [plan.images[k].size + (c,) for k in plan.outputs]
-        kept_bytes = sum(a * b * n * 4 for a, b, n in shapes[1:])
-
-        def level0(band: int) -> int:
-            return 2 * -(-band * h // anchor) * w * c * 4
-
-        def cost(band: int) -> int:
-            return estimate(plan, c, band, **kw) + level0(band)
-
-        def fit(avail: int) -> Choice | None:
-            """The largest band (a multiple of MIN_BAND, as :func:`choose` bisects) whose working set, level 0's
-            writer included, fits ``avail`` bytes; None when not even MIN_BAND rows fit."""
-            if cost(MIN_BAND) > avail:
-                return None
-            lo, hi = MIN_BAND, (anchor // MIN_BAND + 2) * MIN_BAND
-            while hi - lo > MIN_BAND:
-                mid = (lo + hi) // (2 * MIN_BAND) * MIN_BAND
-                lo, hi = (mid, hi) if cost(mid) <= avail else (lo, mid)
-            return Choice(budget, whole, lo, cost(lo))
-
-        # the coarser levels (a third of level 0) stay in memory when half the budget holds them
-        choice = fit(budget - kept_bytes) if 2 * kept_bytes <= budget else None
-        spill = choice is None
-        choice = choice or fit(budget)
-        if choice is None:
-            raise DataError(f"{in_path}: this job needs at least {format_size(cost(MIN_BAND))} of memory in bands of "
-                            f"{MIN_BAND} rows (its guard bands at every level), over the budget of "
-                            f"{format_size(budget)}; give more with --memory (memory= in Python)")
-        reporter.detail(f"{in_path}: {choice.describe()}")
         info = st.info
         options = wo.for_inputs([in_path])
         io.check_write_options(out_path, wo.pixel_type, wo.compression)  # refused before any work
@@ -499,13 +518,11 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
         return True
 
     # pass 2: level 0 to the file as it is read, the coarser levels kept until their turn
-    reporter.detail(f"{in_path}: the coarser levels ({format_size(kept_bytes)}) are kept "
-                    + ("in a temporary file beside the output" if spill else "in memory"))
     executor = _executor(session)
     slot = {k: i for i, k in enumerate(plan.outputs)}
     with contextlib.ExitStack() as stack:
         st = stack.enter_context(io.open_stream(in_path, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan))
-        kept = _Kept(shapes[1:], stack.enter_context(_scratch(out_path)) if spill else None)
+        kept = _Kept(shapes[1:], stack.enter_context(_scratch(out_path)) if choice.spill else None)
         stack.callback(kept.close)
         writer = stack.enter_context(io.mip_stream_writer(out_path, info, shapes, tile=tile, meta=meta,
                                                           colors=(stats.average(), stats.constant()), **options))
@@ -532,5 +549,5 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
     return True
 
 
-__all__ = ["Choice", "choose", "estimate", "parse_size", "default_memory", "stream_file", "format_size", "run_job",
-           "run_levels", "run_mip", "mip_metadata"]
+__all__ = ["Choice", "choose", "choose_mip", "estimate", "parse_size", "default_memory", "stream_file",
+           "format_size", "run_job", "run_levels", "run_mip", "mip_metadata"]

@@ -204,6 +204,21 @@ def test_cli_mipmap_streams_when_told(tmp_path):
     assert sorted(os.listdir(tmp_path)) == ["in.exr", "s.tx"]
 
 
+@pytest.mark.parametrize("memory", ["300K", "600K"])
+def test_plan_says_what_a_streamed_mipmap_chooses(tmp_path, memory):
+    """``pyramid plan --mipmap --memory`` and ``pyramid mipmap -v --memory`` choose the same band and the same
+    place for the coarser levels (300K spills them, 1M keeps them in memory), from one function."""
+    pytest.importorskip("numba")
+    src = tmp_path / "in.exr"
+    write(src, noise(128, 128, 4, seed=2), "float")  # RGBA float: what plan --memory assumes
+    r = run("mipmap", "--backend", "cpu", "--memory", memory, "-v", src, tmp_path / "s.tx")
+    said = [line.split(f"{src}: ", 1)[1] for line in r.stderr.splitlines() if "streams in bands" in line]
+    assert r.returncode == 0 and len(said) == 1, r.stderr
+    p = run("plan", "--mipmap", "down", "quadratic *v g", "--size", "128x128", "--memory", memory)
+    assert p.returncode == 0 and p.stdout.splitlines()[-1] == f"memory: {said[0]}", (p.stdout, said)
+    assert ("temporary file" in said[0]) == (memory == "300K")
+
+
 @pytest.mark.slow
 def test_a_signal_during_a_streamed_mipmap(tmp_path):
     """SIGTERM during a streamed (and spilled) mipmap: exit 143 with the previous output kept, or the complete
