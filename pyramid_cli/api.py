@@ -113,10 +113,11 @@ def _banded(work: Work, array, out, memory, session: Session | None, backend: st
         raise ValueError(f"out: expected a float array of shape {shape}, got {out.dtype} {tuple(out.shape)}")
     budget = stream.parse_size(memory) if isinstance(memory, str) else memory or stream.default_memory()
     channels = a.shape[2] if a.ndim == 3 else 1
-    choice = stream.choose(plan, channels, budget, in_bytes=max(4, a.dtype.itemsize), force=True)
     from .session import EmulatorExecutor
 
     executor = tiles.Emulator() if isinstance(s.executor, EmulatorExecutor) else s.executor
+    choice = stream.choose(plan, channels, budget, in_bytes=max(4, a.dtype.itemsize), force=True,
+                           **stream.costs(executor))
     tiles.run_arrays(executor, plan, [a], band=choice.band, out=[out], dtype=out.dtype, convert=as_pixels)
     s.ran = s.name
     return out

@@ -397,6 +397,13 @@ class GLExecutor:
                 raise DataError(f"image {k} of the plan needs a {tw}x{th} RGBA32F texture (power-of-two sides) "
                                 f"of {th * tw * 16 / 2 ** 30:.0f} GiB; GL textures stay under 2 GiB")
 
+    @staticmethod
+    def texture_bytes(extent: tuple[int, int]) -> int:
+        """Bytes of the texture that holds a stored (rows, columns) extent: power-of-two sides, RGBA32F at most
+        (host memory on llvmpipe, which ``--memory`` budgets count: :func:`pyramid_cli.stream.estimate`)."""
+        rows, cols = texture_size(extent)
+        return rows * cols * 16
+
     def fits(self, plan: Plan) -> bool:
         """Whether ``plan`` runs whole: every image's power-of-two texture within GL_MAX_TEXTURE_SIZE and 2 GiB.
 

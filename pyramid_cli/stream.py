@@ -121,12 +121,14 @@ def _footprints(plan: Plan) -> dict[int, int]:
 
 
 def estimate(plan: Plan, channels: int, band: int | None, in_bytes: int = 4, out_bytes: int = 4,
-             work_bytes: int = 4) -> int:
+             work_bytes: int = 4, texture: Callable[[tuple[int, int]], int] | None = None) -> int:
     """Bytes a run of ``plan`` holds: whole (``band`` None) or streamed in bands of ``band`` output rows.
 
     Whole: every image of the plan at once (the executors free images no later pass reads, so this
     is an upper bound), the decoded input and the encoded output. Streamed: per image, its rows per band
-    (its share of the band) plus the rows its consumers' guard bands reach, :data:`COPIES` times."""
+    (its share of the band) plus the rows its consumers' guard bands reach, :data:`COPIES` times.
+    ``texture``: bytes of the texture an executor keeps for each image's (rows, columns) held, on top
+    (the GL executor's power-of-two RGBA textures, host memory on llvmpipe: :func:`costs`)."""
     anchor = max(plan.images[k].size[0] for k in plan.outputs)
     total = 0
     feet = _footprints(plan)
@@ -136,8 +138,10 @@ def estimate(plan: Plan, channels: int, band: int | None, in_bytes: int = 4, out
         if band is None:
             total += rows * cols * channels * item
         else:
-            share = -(-band * im.size[0] // anchor)
-            total += COPIES * min(rows, share + feet[k]) * cols * channels * item
+            rows = min(rows, -(-band * im.size[0] // anchor) + feet[k])
+            total += COPIES * rows * cols * channels * item
+        if texture is not None:
+            total += texture((rows, cols))
     for k in plan.outputs:  # what the writers hold (whole: the results; streamed: a band being encoded)
         rows, cols = plan.images[k].size
         share = rows if band is None else 2 * -(-band * rows // anchor)
@@ -165,11 +169,11 @@ def _too_small(where: str, need: int, budget: int) -> DataError:
 
 
 def choose(plan: Plan, channels: int, budget: int, *, in_bytes: int = 4, out_bytes: int = 4, work_bytes: int = 4,
-           force: bool = False, where: str = "") -> Choice:
+           texture: Callable[[tuple[int, int]], int] | None = None, force: bool = False, where: str = "") -> Choice:
     """Whole or streamed, and the band: the largest multiple of :data:`MIN_BAND` rows within ``budget``.
 
     ``force`` streams even when the whole picture fits. DataError when not even the smallest band fits."""
-    kw = {"in_bytes": in_bytes, "out_bytes": out_bytes, "work_bytes": work_bytes}
+    kw = {"in_bytes": in_bytes, "out_bytes": out_bytes, "work_bytes": work_bytes, "texture": texture}
     whole = estimate(plan, channels, None, **kw)
     if whole <= budget and not force:
         return Choice(budget, whole, None, whole)
@@ -185,14 +189,14 @@ def choose(plan: Plan, channels: int, budget: int, *, in_bytes: int = 4, out_byt
 
 
 def choose_mip(plan: Plan, channels: int, budget: int, *, in_bytes: int = 4, work_bytes: int = 4,
-               where: str = "") -> Choice:
+               texture: Callable[[tuple[int, int]], int] | None = None, where: str = "") -> Choice:
     """:func:`choose` for a MIP map streamed as :func:`run_mip` streams it.
 
     Level 0 (the input) goes to the file as it is read, so its writer holds a band of rows and their
     encoding; the coarser levels (``plan.outputs``, about a third of level 0) are kept until level 0 is
     done: in memory when half the budget holds them beside the working set, else in a temporary file
     beside the output (``Choice.spill``)."""
-    kw = {"in_bytes": in_bytes, "out_bytes": 4, "work_bytes": work_bytes}
+    kw = {"in_bytes": in_bytes, "out_bytes": 4, "work_bytes": work_bytes, "texture": texture}
     h, w = plan.images[plan.inputs[0]].size
     whole = estimate(plan, channels, None, **kw) + h * w * channels * 4  # and level 0 as it is encoded
     if whole <= budget:
@@ -220,6 +224,15 @@ def _executor(session):
         raise UsageError("--memory needs a plan executor (--backend gl or cpu): the reference backend "
                          "holds whole pictures")
     return tiles.Emulator() if isinstance(ex, EmulatorExecutor) else ex
+
+
+def costs(executor) -> dict:
+    """What ``executor`` holds per pixel beyond the pictures, as :func:`choose` takes it: float64 working
+    images (the emulator), and textures (an executor with ``texture_bytes``: GL)."""
+    from . import tiles
+
+    return {"work_bytes": 8 if isinstance(executor, tiles.Emulator) else 4,
+            "texture": getattr(executor, "texture_bytes", None)}
 
 
 def stream_file(in_path: str, out_path: str | list[str], work, session, choice: Choice | None = None, *,
@@ -256,8 +269,8 @@ def stream_file(in_path: str, out_path: str | list[str], work, session, choice: 
                   else np.float32 for p in paths]
         emu = isinstance(executor, tiles.Emulator)
         if choice is None:
-            choice = choose(plan, c, budget, in_bytes=stream.dtype.itemsize, out_bytes=4,
-                            work_bytes=8 if emu else 4, force=True, where=in_path)
+            choice = choose(plan, c, budget, in_bytes=stream.dtype.itemsize, out_bytes=4, force=True, where=in_path,
+                            **costs(executor))
         band = choice.band or MIN_BAND
         slot = {k: kept + i for i, k in enumerate(plan.outputs)}
         with io.stream_writers(paths, [info] * len(paths), [s + (c,) for s in sizes], **options) as writers:
@@ -290,7 +303,7 @@ STREAMABLE = ("apply", "blur")  # single-image jobs of one output (Work.label); 
 
 def _decide(in_path: str, work, session, memory: int | None, read, reporter):
     """(open stream, choice) when ``work`` on ``in_path`` streams, else None (it runs whole, as before)."""
-    from . import io, tiles
+    from . import io
     from .pipeline import ReadOptions
 
     if session is None or session.executor is None:
@@ -307,9 +320,8 @@ def _decide(in_path: str, work, session, memory: int | None, read, reporter):
         if plan is None:
             st.close()
             return None
-        emu = isinstance(_executor(session), tiles.Emulator)
-        choice = choose(plan, c, budget, in_bytes=st.dtype.itemsize, out_bytes=4, work_bytes=8 if emu else 4,
-                        where=in_path)
+        choice = choose(plan, c, budget, in_bytes=st.dtype.itemsize, out_bytes=4, where=in_path,
+                        **costs(_executor(session)))
     except BaseException:
         st.close()
         raise
@@ -484,7 +496,7 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
         if plan is None:
             return False
         emu = isinstance(_executor(session), tiles.Emulator)
-        choice = choose_mip(plan, c, budget, in_bytes=st.dtype.itemsize, work_bytes=8 if emu else 4, where=in_path)
+        choice = choose_mip(plan, c, budget, in_bytes=st.dtype.itemsize, where=in_path, **costs(_executor(session)))
         reporter.detail(f"{in_path}: {choice.describe()}")
         if not choice.streams:
             return False

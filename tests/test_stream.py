@@ -139,6 +139,21 @@ def test_parse_size():
             stream.parse_size(bad)
 
 
+def test_gl_textures_count_in_the_budget():
+    """The GL executor holds each image in a power-of-two RGBA32F texture (host memory on llvmpipe): a 520×520
+    blur pads to 1024×1024, so a budget the pictures alone fit streams on GL (it ran whole, over budget)."""
+    from pyramid_cli.gl import GLExecutor
+    from pyramid_cli.tiles import Emulator
+
+    p = Blur(levels=3).plan([(520, 520)])
+    cpu = stream.choose(p, 4, 24 << 20)
+    gl = stream.choose(p, 4, 24 << 20, texture=GLExecutor.texture_bytes)
+    assert not cpu.streams and gl.streams, (cpu, gl)
+    assert gl.whole - cpu.whole >= 1024 * 1024 * 16  # the input's texture at least
+    assert stream.costs(GLExecutor())["texture"] == GLExecutor.texture_bytes  # no context is opened for that
+    assert stream.costs(Emulator()) == {"work_bytes": 8, "texture": None}
+
+
 # ------------------------------------------------------------------ the command line
 def run(*args, **kw):
     return subprocess.run(CLI + [str(a) for a in args], capture_output=True, text=True, timeout=TIMEOUT, **kw)
@@ -158,6 +173,19 @@ def test_cli_streams_when_told_and_says_so(tmp_path):
     r = run("blur", "--backend", "cpu", "--memory", "10K", src, tmp_path / "x.exr")
     assert r.returncode == 5 and "needs at least" in r.stderr and "Traceback" not in r.stderr
     assert not (tmp_path / "x.exr").exists()
+
+
+def test_cli_streams_on_gl_when_its_textures_exceed_the_budget(tmp_path):
+    """--memory counts GL's padded textures: a 520×520 blur whose pictures fit 24M streams on GL, equal to the
+    whole GL run."""
+    src = tmp_path / "in.exr"
+    write(src, noise(520, 520, seed=6))
+    r = run("blur", "--backend", "gl", "--levels", "3", "--memory", "24M", "-v", src, tmp_path / "s.exr")
+    assert r.returncode == 0 and "streams in bands of" in r.stderr, r.stderr
+    r = run("blur", "--backend", "gl", "--levels", "3", "-v", src, tmp_path / "w.exr")
+    assert r.returncode == 0 and "runs whole" in r.stderr, r.stderr
+    a, b = (io.read_image(tmp_path / n, keep_half=True).pixels for n in ("s.exr", "w.exr"))
+    assert np.array_equal(a, b)
     r = run("blur", "--backend", "reference", "--memory", "1M", src, tmp_path / "x.exr")
     assert r.returncode == 2 and "--memory needs a plan executor" in r.stderr, r.stderr
 
