@@ -37,7 +37,9 @@ into RGBA16F does not round that way on llvmpipe, which is why targets stay RGBA
 Pictures that do not fit (a texture beyond GL_MAX_TEXTURE_SIZE or of 2 GiB) run in tiles
 (:meth:`GLExecutor.run_tiled`, :mod:`pyramid_cli.tiles`): every pass on windows of its
 images, each window's texture padded to powers of two (the tile, not the picture), with
-the same exact coordinates and the same pixels.
+the same exact coordinates and the same pixels. Single files that fit but whose textures
+would be padded stream in bands for the same reason (:func:`pyramid_cli.stream.choose`,
+which counts :meth:`GLExecutor.texture_bytes`).
 
 Memory is the cost of a cold run (page faults: about 1 s per GB on the 2-core machines
 of DESIGN.md §6), so uploads go through a reused band and read-backs straight into the

@@ -140,16 +140,23 @@ def test_parse_size():
 
 
 def test_gl_textures_count_in_the_budget():
-    """The GL executor holds each image in a power-of-two RGBA32F texture (host memory on llvmpipe): a 520×520
-    blur pads to 1024×1024, so a budget the pictures alone fit streams on GL (it ran whole, over budget)."""
+    """The GL executor holds each image in a power-of-two RGBA32F texture (host memory on llvmpipe): they count
+    in the estimate, and a picture they pad runs in bands (520×520 pads to 1024×1024), one they do not pad
+    (a 512×512 blur: no guard at any level) runs whole when it fits."""
     from pyramid_cli.gl import GLExecutor
     from pyramid_cli.tiles import Emulator
 
     p = Blur(levels=3).plan([(520, 520)])
     cpu = stream.choose(p, 4, 24 << 20)
     gl = stream.choose(p, 4, 24 << 20, texture=GLExecutor.texture_bytes)
-    assert not cpu.streams and gl.streams, (cpu, gl)
+    assert not cpu.streams and gl.streams and gl.padded > 3, (cpu, gl)
     assert gl.whole - cpu.whole >= 1024 * 1024 * 16  # the input's texture at least
+    assert "the bands are padded, not the picture" in gl.describe() and gl.to_json()["padded"] == round(gl.padded, 3)
+    p = Blur(levels=3).plan([(512, 512)])
+    assert stream.padding(p, GLExecutor.texture_bytes) <= stream.PADDED
+    assert not stream.choose(p, 4, 64 << 20, texture=GLExecutor.texture_bytes).streams
+    tiny = Blur(levels=3).plan([(20, 20)])  # too small for bands of a quarter of its run: whole
+    assert not stream.choose(tiny, 4, 64 << 20, texture=GLExecutor.texture_bytes).streams
     assert stream.costs(GLExecutor())["texture"] == GLExecutor.texture_bytes  # no context is opened for that
     assert stream.costs(Emulator()) == {"work_bytes": 8, "texture": None}
 
@@ -175,19 +182,17 @@ def test_cli_streams_when_told_and_says_so(tmp_path):
     assert not (tmp_path / "x.exr").exists()
 
 
-def test_cli_streams_on_gl_when_its_textures_exceed_the_budget(tmp_path):
-    """--memory counts GL's padded textures: a 520×520 blur whose pictures fit 24M streams on GL, equal to the
-    whole GL run."""
+def test_cli_gl_pads_the_bands_not_the_picture(tmp_path):
+    """On GL a picture that its power-of-two textures would pad (520×520: 1024×1024) runs in bands even within
+    the budget, and says why; the pixels are those of GL's whole run of the picture (the Python API's)."""
+    from pyramid_cli import api
+
     src = tmp_path / "in.exr"
     write(src, noise(520, 520, seed=6))
-    r = run("blur", "--backend", "gl", "--levels", "3", "--memory", "24M", "-v", src, tmp_path / "s.exr")
-    assert r.returncode == 0 and "streams in bands of" in r.stderr, r.stderr
-    r = run("blur", "--backend", "gl", "--levels", "3", "-v", src, tmp_path / "w.exr")
-    assert r.returncode == 0 and "runs whole" in r.stderr, r.stderr
-    a, b = (io.read_image(tmp_path / n, keep_half=True).pixels for n in ("s.exr", "w.exr"))
-    assert np.array_equal(a, b)
-    r = run("blur", "--backend", "reference", "--memory", "1M", src, tmp_path / "x.exr")
-    assert r.returncode == 2 and "--memory needs a plan executor" in r.stderr, r.stderr
+    r = run("blur", "--backend", "gl", "--levels", "3", "-v", src, tmp_path / "s.exr")
+    assert r.returncode == 0 and "the bands are padded, not the picture" in r.stderr, r.stderr
+    whole = api.blur(io.read_image(src).pixels, levels=3, backend="gl")
+    assert np.array_equal(io.read_image(tmp_path / "s.exr", keep_half=True).pixels, whole.astype(np.float16))
 
 
 def _peak_rss(args) -> int:
