@@ -91,10 +91,12 @@ def _run(work: Work, arrays: list, session: Session | None, backend: str) -> lis
     return _session(session, backend).run(work, arrays)
 
 
-def _banded(work: Work, array, out, memory, session: Session | None, backend: str) -> np.ndarray:
+def _banded(work: Work, array, out: Sequence[np.ndarray] | None, memory, session: Session | None,
+            backend: str) -> list[np.ndarray]:
     """One image through ``work`` band by band (:mod:`pyramid_cli.tiles`): a memory-mapped input is read
-    a band at a time and the result written into ``out`` (a memmap keeps it on disk), within ``memory`` bytes
-    of working set (default: a quarter of the available memory), the pixels of the whole run."""
+    a band at a time and the results written into ``out`` (one array per output of the plan, after level 0
+    for a job that keeps its input; a memmap keeps it on disk), within ``memory`` bytes of working set
+    (default: a quarter of the available memory), the pixels of the whole run."""
     from . import stream, tiles
 
     a = array if isinstance(array, np.ndarray) else np.asarray(array)
@@ -106,11 +108,14 @@ def _banded(work: Work, array, out, memory, session: Session | None, backend: st
                          "backend holds whole pictures")
     work.check((a.shape[:2],))
     plan = s.plan(work, [a.shape[:2]])
-    shape = plan.output.size + a.shape[2:]
-    if out is None:
-        out = np.empty(shape, dtype=np.float32)
-    elif tuple(out.shape) != shape or out.dtype not in (np.float16, np.float32, np.float64):
-        raise ValueError(f"out: expected a float array of shape {shape}, got {out.dtype} {tuple(out.shape)}")
+    shapes = [plan.images[k].size + a.shape[2:] for k in plan.outputs]
+    outs = [np.empty(shape, dtype=np.float32) for shape in shapes] if out is None else list(out)
+    if len(outs) != len(shapes):
+        raise ValueError(f"out: expected {len(shapes)} arrays (shapes {shapes}), got {len(outs)}")
+    for k, (o, shape) in enumerate(zip(outs, shapes, strict=True)):
+        if tuple(o.shape) != shape or o.dtype not in (np.float16, np.float32, np.float64):
+            name = "out" if len(outs) == 1 else f"out[{k}]"
+            raise ValueError(f"{name}: expected a float array of shape {shape}, got {o.dtype} {tuple(o.shape)}")
     budget = stream.parse_size(memory) if isinstance(memory, str) else memory or stream.default_memory()
     channels = a.shape[2] if a.ndim == 3 else 1
     from .session import EmulatorExecutor
@@ -118,9 +123,14 @@ def _banded(work: Work, array, out, memory, session: Session | None, backend: st
     executor = tiles.Emulator() if isinstance(s.executor, EmulatorExecutor) else s.executor
     choice = stream.choose(plan, channels, budget, in_bytes=max(4, a.dtype.itemsize), force=True,
                            **stream.costs(executor))
-    tiles.run_arrays(executor, plan, [a], band=choice.band, out=[out], dtype=out.dtype, convert=as_pixels)
+    tiles.run_arrays(executor, plan, [a], band=choice.band, out=outs, convert=as_pixels)
     s.ran = s.name
-    return out
+    return outs
+
+
+def _bands_wanted(array, out, memory) -> bool:
+    """Whether a call runs band by band: ``out=``, ``memory=`` or a memory-mapped input."""
+    return out is not None or memory is not None or isinstance(array, np.memmap)
 
 
 # ------------------------------------------------------------------ arrays
@@ -164,8 +174,8 @@ def apply(expr: str | Expr, array, *, border: str = "clamp", backend: str = "aut
     (4, 4, 3)
     """
     work = Filter(expr=_expr(expr), border=border)
-    if out is not None or memory is not None or isinstance(array, np.memmap):
-        return _banded(work, array, out, memory, session, backend)
+    if _bands_wanted(array, out, memory):
+        return _banded(work, array, None if out is None else [out], memory, session, backend)[0]
     (result,) = _run(work, [as_pixels(array)], session, backend)
     return result
 
@@ -215,14 +225,15 @@ def blur(array, levels: int = 4, *, sigma: float | None = None, analysis: str = 
         if not 1 <= levels <= 16:
             raise ValueError(f"levels must be 1 to 16, not {levels}")
         work = Blur(levels=levels, analysis=analysis, synthesis=synthesis, quasi=quasi, border=border)
-    if out is not None or memory is not None or isinstance(array, np.memmap):
-        return _banded(work, array, out, memory, session, backend)
+    if _bands_wanted(array, out, memory):
+        return _banded(work, array, None if out is None else [out], memory, session, backend)[0]
     (result,) = _run(work, [as_pixels(array)], session, backend)
     return result
 
 
 def pyramid(array, *, analysis: str = catalogue.ANALYSIS_DEFAULT, levels: int | None = None, border: str = "clamp",
-            backend: str = "auto", session: Session | None = None) -> Iterator[np.ndarray]:
+            backend: str = "auto", session: Session | None = None, out: Sequence[np.ndarray] | None = None,
+            memory: int | str | None = None) -> Iterator[np.ndarray]:
     """The analysis pyramid (§4), level 0 (the input itself) first.
 
     Parameters
@@ -233,8 +244,11 @@ def pyramid(array, *, analysis: str = catalogue.ANALYSIS_DEFAULT, levels: int | 
         A ⊗↓ filter or one-step expression.
     levels : int, optional
         Reductions after level 0; None goes down to 1×1 (scikit-image's convention).
-    border, backend, session
+    border, backend, session, memory
         As in :func:`apply`.
+    out : sequence of numpy.ndarray, optional
+        One array per level after level 0 to write into (memmaps, say); with it, ``memory`` or a
+        memory-mapped input the pyramid runs band by band, as in :func:`apply`.
 
     Yields
     ------
@@ -249,19 +263,27 @@ def pyramid(array, *, analysis: str = catalogue.ANALYSIS_DEFAULT, levels: int | 
     >>> levels[0] is a, [lv.shape for lv in levels]
     (True, [(5, 3), (3, 2), (2, 1), (1, 1)])
     """
+    work = Levels(levels=levels, analysis=analysis, border=border)
+    if _bands_wanted(array, out, memory):
+        outs = _banded(work, array, out, memory, session, backend)
+        yield array
+        yield from outs
+        return
     pixels = as_pixels(array)
-    outs = _run(Levels(levels=levels, analysis=analysis, border=border), [pixels], session, backend)
+    outs = _run(work, [pixels], session, backend)
     yield array if pixels is array else pixels
     yield from outs[1:]
 
 
 def laplacian(array, levels: int = 4, *, analysis: str = catalogue.ANALYSIS_DEFAULT,
               synthesis: str = catalogue.SYNTHESIS_DEFAULT, border: str = "clamp", backend: str = "auto",
-              session: Session | None = None) -> list[np.ndarray]:
+              session: Session | None = None, out: Sequence[np.ndarray] | None = None,
+              memory: int | str | None = None) -> list[np.ndarray]:
     """Laplacian bands L_k = G_k − expand(G_k+1) for k < ``levels``, then the coarsest G_m.
 
     :func:`collapse` (with the same ``synthesis`` and ``border``) sums them back to the
-    input, exactly up to float rounding.
+    input, exactly up to float rounding. ``out`` (one array per band), ``memory`` or a memory-mapped
+    input run it band by band, as in :func:`apply`.
 
     Examples
     --------
@@ -276,6 +298,8 @@ def laplacian(array, levels: int = 4, *, analysis: str = catalogue.ANALYSIS_DEFA
     if not 1 <= levels <= 16:
         raise ValueError(f"levels must be 1 to 16, not {levels}")
     work = Laplacian(levels=levels, analysis=analysis, synthesis=synthesis, border=border)
+    if _bands_wanted(array, out, memory):
+        return _banded(work, array, out, memory, session, backend)
     return _run(work, [as_pixels(array)], session, backend)
 
 
@@ -295,8 +319,12 @@ def collapse(bands: Sequence, *, synthesis: str = catalogue.SYNTHESIS_DEFAULT, b
 
 
 def mipmap(array, *, analysis: str = catalogue.MIP_ANALYSIS_DEFAULT, border: str = "clamp", rounding: str = "down",
-           backend: str = "auto", session: Session | None = None) -> list[np.ndarray]:
+           backend: str = "auto", session: Session | None = None, out: Sequence[np.ndarray] | None = None,
+           memory: int | str | None = None) -> list[np.ndarray]:
     """MIP levels down to 1×1, level 0 first, as ``pyramid mipmap`` writes them.
+
+    ``out`` (one array per level after level 0), ``memory`` or a memory-mapped input run it band by
+    band, as in :func:`apply`.
 
     ``rounding`` "down" (maketx's and OpenEXR's sizes ``max(1, ⌊n/2⌋)``): a level that halves
     exactly is the paper's ⊗↓ (§4) of the one above; any other is resampled with the same
@@ -313,8 +341,10 @@ def mipmap(array, *, analysis: str = catalogue.MIP_ANALYSIS_DEFAULT, border: str
     """
     from .mip import TextureLevels
 
-    pixels = as_pixels(array)
     work = TextureLevels(levels=None, analysis=analysis, border=border, rounding=rounding)
+    if _bands_wanted(array, out, memory):
+        return [array, *_banded(work, array, out, memory, session, backend)]
+    pixels = as_pixels(array)
     return [array if pixels is array else pixels, *_run(work, [pixels], session, backend)[1:]]
 
 

@@ -254,6 +254,36 @@ def test_api_memmap_in_memmap_out(tmp_path, fn):
         call(mm, out=np.empty((3, 3), np.float32))
 
 
+@pytest.mark.parametrize("fn", ["pyramid", "laplacian", "mipmap"])
+def test_api_memmap_in_memmap_outs_for_every_level(tmp_path, fn):
+    """Jobs of several outputs too: a memory-mapped input runs band by band into one memory-mapped ``out=``
+    per level (after level 0, which is the input, for the pyramid and the MIP map); the whole run's pixels."""
+    pytest.importorskip("numba")
+    import pyramid_cli as pyr
+
+    size = (70, 45, 3)
+    src = np.lib.format.open_memmap(tmp_path / "in.npy", "w+", np.float32, size)
+    src[...] = image(size[:2], 3, seed=4)
+    src.flush()
+    mm = np.load(tmp_path / "in.npy", mmap_mode="r")
+    call = {"pyramid": lambda a, **kw: list(pyr.pyramid(a, backend="cpu", **kw)),
+            "laplacian": lambda a, **kw: pyr.laplacian(a, 3, backend="cpu", **kw),
+            "mipmap": lambda a, **kw: pyr.mipmap(a, backend="cpu", border="mirror", **kw)}[fn]
+    want = call(np.array(mm))
+    made = want if fn == "laplacian" else want[1:]  # level 0 of a pyramid or MIP map is the input itself
+    dst = [np.lib.format.open_memmap(tmp_path / f"out{k}.npy", "w+", np.float32, w.shape) for k, w in enumerate(made)]
+    got = call(mm, out=dst, memory="256K")
+    assert all(g is d for g, d in zip(got[-len(dst):], dst, strict=True))
+    for k, w in enumerate(made):
+        dst[k].flush()
+        assert np.array_equal(np.load(tmp_path / f"out{k}.npy"), w), k
+    assert all(np.array_equal(g, w) for g, w in zip(call(mm), want, strict=True))  # a memmap alone: new arrays
+    with pytest.raises(ValueError, match=f"out: expected {len(made)} arrays"):
+        call(mm, out=dst[:1])
+    with pytest.raises(ValueError, match=r"out\[1\]: expected a float array of shape"):
+        call(mm, out=[dst[0], np.empty((3, 3), np.float32), *dst[2:]])
+
+
 @pytest.mark.parametrize("kind", ["fill", "blend"])
 def test_pointwise_plans_tile(kind, cpu_ex):
     """Plans with PointwisePass (issue 17's fill and blend, several levels) tile to the untiled pixels."""
