@@ -13,8 +13,10 @@ Contenders, each in a fresh process whose peak RSS is its own (``bench/scripts/p
   * ``pyramid blur --levels 5 --backend cpu --memory M`` (streams when the whole run would not fit M);
   * ``pyramid mipmap --backend cpu --memory M`` (the same, level 0 band by band, the coarser levels kept or
     spilled; it reads the input twice: once for level 0's header, once for the pixels; ``--no-mipmap`` skips it);
+  * ``maketx`` (OpenImageIO's, from the wheel) on the same file, the peer ``pyramid mipmap`` imitates
+    (with the mipmap; whole pictures in memory, its own defaults);
   * ``bench/scripts/io_floor.py``: OpenImageIO reads the whole file and writes it back, nothing else.
-Repetitions interleave the two (rotated order); medians are reported. Targets (reported, not asserted):
+Repetitions interleave the contenders (rotated order); medians are reported. Targets (reported, not asserted):
 peak RSS flat in the size beyond the working-set bound (32K within 2 GiB), time within 1.2× of the
 read+write. Writes JSON (``--json``) and a plot of peak memory and time against pixels (``--plot``, needs
 matplotlib from the bench extra).
@@ -117,9 +119,11 @@ def main() -> None:
             "OpenImageIO read+write": [sys.executable, str(HERE / "scripts" / "io_floor.py"), str(src), str(out)],
         }
         tx = data / f"out_{n}.tx.exr"
+        theirs = data / f"out_{n}.maketx.exr"
         if a.mipmap:
             contenders["pyramid mipmap"] = pyramid + ["mipmap", "--backend", "cpu", "--memory", a.memory, "--force",
                                                       str(src), str(tx)]
+            contenders["maketx"] = [str(Path(sys.executable).parent / "maketx"), str(src), "-o", str(theirs)]
         runs: dict[str, list[tuple[float, float]]] = {k: [] for k in contenders}
         loads = []
         for rep in range(a.reps):
@@ -137,16 +141,20 @@ def main() -> None:
         row["time_ratio"] = ours["seconds"] / floor["seconds"]
         if "pyramid mipmap" in row:
             row["mipmap_time_ratio"] = row["pyramid mipmap"]["seconds"] / floor["seconds"]
+            row["maketx_time_ratio"] = row["maketx"]["seconds"] / floor["seconds"]
+            row["mipmap_vs_maketx"] = row["pyramid mipmap"]["seconds"] / row["maketx"]["seconds"]
         rows.append(row)
         print(f"{n:>6}²  blur {ours['seconds']:7.1f} s {ours['peak_rss_mib']:8.0f} MiB   read+write "
               f"{floor['seconds']:7.1f} s {floor['peak_rss_mib']:8.0f} MiB   time ×{row['time_ratio']:.2f}   "
               f"load {row['load_avg']:.1f}", flush=True)
         if "pyramid mipmap" in row:
             mm = row["pyramid mipmap"]
+            mk = row["maketx"]
             print(f"{'':>7}  mipmap {mm['seconds']:5.1f} s {mm['peak_rss_mib']:8.0f} MiB   time ×"
-                  f"{row['mipmap_time_ratio']:.2f}", flush=True)
-        out.unlink(missing_ok=True)
-        tx.unlink(missing_ok=True)
+                  f"{row['mipmap_time_ratio']:.2f}   maketx {mk['seconds']:5.1f} s {mk['peak_rss_mib']:8.0f} MiB   "
+                  f"time ×{row['maketx_time_ratio']:.2f}   mipmap/maketx ×{row['mipmap_vs_maketx']:.2f}", flush=True)
+        for f in (out, tx, theirs):
+            f.unlink(missing_ok=True)
     largest = rows[-1]
     targets = {
         "32K within 2 GiB peak RSS": (largest["pyramid blur --levels 5"]["peak_rss_mib"] <= 2048
@@ -174,7 +182,8 @@ def plot(rows: list[dict], path: str, memory: str) -> None:
         return
     fig, (m, t) = plt.subplots(1, 2, figsize=(10, 4))
     px = [r["pixels"] / 1e6 for r in rows]
-    for name, style in (("pyramid blur --levels 5", "o-"), ("pyramid mipmap", "^-"), ("OpenImageIO read+write", "s--")):
+    for name, style in (("pyramid blur --levels 5", "o-"), ("pyramid mipmap", "^-"), ("maketx", "v:"),
+                        ("OpenImageIO read+write", "s--")):
         if name not in rows[0]:
             continue
         m.plot(px, [r[name]["peak_rss_mib"] for r in rows], style, label=name)
