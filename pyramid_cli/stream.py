@@ -129,14 +129,16 @@ def _footprints(plan: Plan) -> dict[int, int]:
 
 
 def estimate(plan: Plan, channels: int, band: int | None, in_bytes: int = 4, out_bytes: int = 4,
-             work_bytes: int = 4, texture: Callable[[tuple[int, int]], int] | None = None) -> int:
+             work_bytes: int = 4, texture: Callable[[tuple[int, int]], int] | None = None,
+             keeps_input: bool = False) -> int:
     """Bytes a run of ``plan`` holds: whole (``band`` None) or streamed in bands of ``band`` output rows.
 
     Whole: every image of the plan at once (the executors free images no later pass reads, so this
     is an upper bound), the decoded input and the encoded output. Streamed: per image, its rows per band
     (its share of the band) plus the rows its consumers' guard bands reach, :data:`COPIES` times.
     ``texture``: bytes of the texture an executor keeps for each image's (rows, columns) held, on top
-    (the GL executor's power-of-two RGBA textures, host memory on llvmpipe: :func:`costs`)."""
+    (the GL executor's power-of-two RGBA textures, host memory on llvmpipe: :func:`costs`).
+    ``keeps_input``: the input is written too, as level 0 (``levels``, ``mipmap``), by a writer of its own."""
     anchor = max(plan.images[k].size[0] for k in plan.outputs)
     total = 0
     feet = _footprints(plan)
@@ -150,7 +152,8 @@ def estimate(plan: Plan, channels: int, band: int | None, in_bytes: int = 4, out
             total += COPIES * rows * cols * channels * item
         if texture is not None:
             total += texture((rows, cols))
-    for k in plan.outputs:  # what the writers hold (whole: the results; streamed: a band being encoded)
+    written = [plan.inputs[0]] * keeps_input + list(plan.outputs)
+    for k in written:  # what the writers hold (whole: the results; streamed: a band being encoded)
         rows, cols = plan.images[k].size
         share = rows if band is None else 2 * -(-band * rows // anchor)
         total += share * cols * channels * out_bytes
@@ -209,12 +212,14 @@ def _pick(plan: Plan, whole: int, budget: int, texture, force: bool, fit: Callab
 
 
 def choose(plan: Plan, channels: int, budget: int, *, in_bytes: int = 4, out_bytes: int = 4, work_bytes: int = 4,
-           texture: Callable[[tuple[int, int]], int] | None = None, force: bool = False, where: str = "") -> Choice:
+           texture: Callable[[tuple[int, int]], int] | None = None, keeps_input: bool = False, force: bool = False,
+           where: str = "") -> Choice:
     """Whole or streamed, and the band: the largest multiple of :data:`MIN_BAND` rows within ``budget``.
 
     ``force`` streams even when the whole picture fits; so does a picture whose textures the executor would
     pad (:func:`_pick`). DataError when not even the smallest band fits."""
-    kw = {"in_bytes": in_bytes, "out_bytes": out_bytes, "work_bytes": work_bytes, "texture": texture}
+    kw = {"in_bytes": in_bytes, "out_bytes": out_bytes, "work_bytes": work_bytes, "texture": texture,
+          "keeps_input": keeps_input}
     whole = estimate(plan, channels, None, **kw)
     rows = max(plan.images[k].size[0] for k in plan.outputs)
 
@@ -236,14 +241,13 @@ def choose_mip(plan: Plan, channels: int, budget: int, *, in_bytes: int = 4, wor
     encoding; the coarser levels (``plan.outputs``, about a third of level 0) are kept until level 0 is
     done: in memory when half the budget holds them beside the working set, else in a temporary file
     beside the output (``Choice.spill``)."""
-    kw = {"in_bytes": in_bytes, "out_bytes": 4, "work_bytes": work_bytes, "texture": texture}
-    h, w = plan.images[plan.inputs[0]].size
-    whole = estimate(plan, channels, None, **kw) + h * w * channels * 4  # and level 0 as it is encoded
+    kw = {"in_bytes": in_bytes, "out_bytes": 4, "work_bytes": work_bytes, "texture": texture, "keeps_input": True}
+    whole = estimate(plan, channels, None, **kw)
     anchor = max(plan.images[k].size[0] for k in plan.outputs)
     kept = sum(a * b * channels * 4 for a, b in (plan.images[k].size for k in plan.outputs))
 
     def cost(band: int) -> int:
-        return estimate(plan, channels, band, **kw) + 2 * -(-band * h // anchor) * w * channels * 4
+        return estimate(plan, channels, band, **kw)
 
     def fit(avail: int) -> Choice | None:
         band = _band_within(cost, anchor, min(avail, budget - kept)) if 2 * kept <= budget else None
@@ -310,7 +314,7 @@ def stream_file(in_path: str, out_path: str | list[str], work, session, choice: 
         emu = isinstance(executor, tiles.Emulator)
         if choice is None:
             choice = choose(plan, c, budget, in_bytes=stream.dtype.itemsize, out_bytes=4, force=True, where=in_path,
-                            **costs(executor))
+                            keeps_input=bool(kept), **costs(executor))
         band = choice.band or MIN_BAND
         slot = {k: kept + i for i, k in enumerate(plan.outputs)}
         with io.stream_writers(paths, [info] * len(paths), [s + (c,) for s in sizes], **options) as writers:
@@ -361,7 +365,7 @@ def _decide(in_path: str, work, session, memory: int | None, read, reporter):
             st.close()
             return None
         choice = choose(plan, c, budget, in_bytes=st.dtype.itemsize, out_bytes=4, where=in_path,
-                        **costs(_executor(session)))
+                        keeps_input=work.keeps_input, **costs(_executor(session)))
     except BaseException:
         st.close()
         raise
@@ -495,6 +499,24 @@ def mip_metadata(work, path: str, state=None) -> dict[str, str]:
     return texture_metadata(border, analysis, sha1, io.oiio_version())
 
 
+def _level0_stats(st, stats, step: int, out_path: str, options: dict):
+    """Read ``st`` once, ``step`` rows at a time, into ``stats`` (a :class:`pyramid_cli.mip.PixelStats`): the
+    SHA-1 of the rows as stored, the average and constant colour of level 0 as decoded and as encoded. (A
+    function of its own so that no band outlives the pass: the last one stayed alive through the second.)"""
+    from . import io
+
+    h = st.shape[0]
+    st.on_stored = stats.hash_rows
+    try:
+        for y in range(0, h, step):
+            px = st.read(y, min(h, y + step))
+            stats.add_decoded(px)
+            stats.add_encoded(io.encoded_rows(out_path, io.Image(px, st.info), **options))
+    finally:
+        st.on_stored = None
+    return stats
+
+
 def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, write=None, reporter=None) -> bool:
     """``pyramid mipmap`` of one input streamed when its whole run would not fit the budget (``memory``, else
     :func:`default_memory`); False when it runs whole as before.
@@ -551,14 +573,7 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
         io.check_write_options(out_path, wo.pixel_type, wo.compression)  # refused before any work
 
         # pass 1: what level 0's header says
-        stats = PixelStats(h)
-        st.on_stored = stats.hash_rows
-        step = 2 * max(MIN_BAND, choice.band)
-        for y in range(0, h, step):
-            px = st.read(y, min(h, y + step))
-            stats.add_decoded(px)
-            stats.add_encoded(io.encoded_rows(out_path, io.Image(px, info), **options))
-        st.on_stored = None
+        stats = _level0_stats(st, PixelStats(h), 2 * max(MIN_BAND, choice.band), out_path, options)
     meta = mip_metadata(work, in_path, stats.sha1())
     if getattr(work, "constant_detect", False) and stats.decoded_constant:
         small = shrink_constant(np.broadcast_to(stats.decoded_first, (min(tile, h), min(tile, w), c)), tile)

@@ -139,6 +139,21 @@ def test_parse_size():
             stream.parse_size(bad)
 
 
+def test_a_job_that_writes_its_input_counts_that_writer():
+    """``levels`` writes the input as level 0 beside the plan's outputs: its writer's band counts (it did not,
+    and a 4K ``levels --memory 64M`` peaked about 20 MB over the budget above the interpreter's own)."""
+    from pyramid_cli.work import Levels
+
+    p = Levels(levels=3).plan([(300, 200)])
+    anchor = max(p.images[k].size[0] for k in p.outputs)
+    for band in (8, 64):
+        extra = stream.estimate(p, 4, band, keeps_input=True) - stream.estimate(p, 4, band)
+        assert extra == 2 * -(-band * 300 // anchor) * 200 * 4 * 4
+    assert stream.estimate(p, 4, None, keeps_input=True) - stream.estimate(p, 4, None) == 300 * 200 * 4 * 4
+    budget = stream.estimate(p, 4, 64) + 1
+    assert stream.choose(p, 4, budget, keeps_input=True, force=True).band < stream.choose(p, 4, budget, force=True).band
+
+
 def test_gl_textures_count_in_the_budget():
     """The GL executor holds each image in a power-of-two RGBA32F texture (host memory on llvmpipe): they count
     in the estimate, and a picture they pad runs in bands (520×520 pads to 1024×1024), one they do not pad
