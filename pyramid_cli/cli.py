@@ -175,7 +175,10 @@ def plan_command(expression, size, as_json: bool, strategy: str, mip_round: str 
     if memory is not None:
         from .stream import choose, choose_mip, parse_size
 
-        choice = (choose_mip if mip_round is not None else choose)(p, 4, parse_size(memory))
+        if mip_round is not None:  # level 0 kept in memory, the input read once, where it fits (RGBA float)
+            choice = choose_mip(p, 4, parse_size(memory), level0=h * w * 4 * 4)
+        else:
+            choice = choose(p, 4, parse_size(memory))
     if as_json:
         doc = to_json(p)
         if choice is not None:

@@ -86,6 +86,7 @@ class Choice:
     kept: int = 0               # a streamed MIP map: bytes of the coarser levels, kept until level 0 is written
     spill: bool = False         # ... in a temporary file beside the output rather than in memory
     padded: float = 0.0         # streams because whole, the executor's textures would be this many times the pictures
+    level0: int = 0             # a streamed MIP map read once: bytes of level 0 kept in memory until its header
 
     @property
     def streams(self) -> bool:
@@ -101,6 +102,9 @@ class Choice:
         if self.kept:
             where = "in a temporary file beside the output" if self.spill else "in memory (in the working set)"
             said += f"; the coarser levels ({format_size(self.kept)}) are kept {where}"
+        if self.level0:
+            said += (f"; level 0 ({format_size(self.level0)}) is kept in memory (in the working set) until its "
+                     "header is known (the input is read once)")
         if self.padded:
             said += (f"; in bands because whole, the GL textures (powers of two) would be {self.padded:.1f}× the "
                      "pictures: the bands are padded, not the picture")
@@ -110,6 +114,8 @@ class Choice:
         doc = {"budget": self.budget, "whole": self.whole, "band": self.band, "working_set": self.working_set}
         if self.kept:
             doc.update(kept=self.kept, spill=self.spill)
+        if self.level0:
+            doc["level0"] = self.level0
         if self.padded:
             doc["padded"] = round(self.padded, 3)
         return doc
@@ -234,13 +240,16 @@ def choose(plan: Plan, channels: int, budget: int, *, in_bytes: int = 4, out_byt
 
 
 def choose_mip(plan: Plan, channels: int, budget: int, *, in_bytes: int = 4, work_bytes: int = 4,
-               texture: Callable[[tuple[int, int]], int] | None = None, where: str = "") -> Choice:
+               texture: Callable[[tuple[int, int]], int] | None = None, level0: int = 0,
+               where: str = "") -> Choice:
     """:func:`choose` for a MIP map streamed as :func:`run_mip` streams it.
 
-    Level 0 (the input) goes to the file as it is read, so its writer holds a band of rows and their
-    encoding; the coarser levels (``plan.outputs``, about a third of level 0) are kept until level 0 is
-    done: in memory when half the budget holds them beside the working set, else in a temporary file
-    beside the output (``Choice.spill``)."""
+    Level 0's writer holds a band of rows and their encoding. The coarser levels (``plan.outputs``, about a
+    third of level 0) are kept until level 0 is written: in memory when half the budget holds them beside
+    the working set, else in a temporary file beside the output (``Choice.spill``). Level 0 itself
+    (``level0`` bytes, as read; 0: never) is kept in memory under the same rule when it fits, and the input
+    is then read once (``Choice.level0``); otherwise twice (:func:`run_mip`). On disk it would not pay:
+    spilling 512 MiB of level 0 at 8K took as long as decoding the input again."""
     kw = {"in_bytes": in_bytes, "out_bytes": 4, "work_bytes": work_bytes, "texture": texture, "keeps_input": True}
     whole = estimate(plan, channels, None, **kw)
     anchor = max(plan.images[k].size[0] for k in plan.outputs)
@@ -250,11 +259,15 @@ def choose_mip(plan: Plan, channels: int, budget: int, *, in_bytes: int = 4, wor
         return estimate(plan, channels, band, **kw)
 
     def fit(avail: int) -> Choice | None:
-        band = _band_within(cost, anchor, min(avail, budget - kept)) if 2 * kept <= budget else None
-        if band is not None:
-            return Choice(budget, whole, band, cost(band) + kept, kept, spill=False)
-        band = _band_within(cost, anchor, avail)
-        return None if band is None else Choice(budget, whole, band, cost(band), kept, spill=True)
+        for level0_held, kept_held in ((True, True), (True, False), (False, True), (False, False)):
+            if level0_held and not level0:
+                continue
+            held = kept * kept_held + level0 * level0_held
+            band = _band_within(cost, anchor, min(avail, budget - held)) if 2 * held <= budget else None
+            if band is not None:
+                return Choice(budget, whole, band, cost(band) + held, kept, not kept_held,
+                              level0=level0 * level0_held)
+        return None
 
     return _pick(plan, whole, budget, texture, False, fit, where, lambda: cost(MIN_BAND))
 
@@ -421,17 +434,17 @@ def run_levels(in_path: str, paths: list[str], work, session, *, memory: int | N
 
 
 class _Kept:
-    """The coarser MIP levels' rows until their turn (a MIP file holds level 0 first): float32 arrays in memory,
-    or, given ``spill``, a raw float32 file read and written with explicit I/O (no mapping: the rows on disk
-    do not count in the process's memory)."""
+    """MIP levels' rows until their turn (a MIP file holds level 0 first, its header before its rows): arrays
+    of ``dtype`` in memory, or, given ``spill``, a raw file read and written with explicit I/O (no mapping: the
+    rows on disk do not count in the process's memory)."""
 
-    def __init__(self, shapes: list[tuple[int, int, int]], spill: str | None = None):
-        self.shapes = shapes
-        self.arrays = None if spill else [np.empty(s, dtype=np.float32) for s in shapes]
+    def __init__(self, shapes: list[tuple[int, int, int]], spill: str | None = None, dtype=np.float32):
+        self.shapes, self.dtype = shapes, np.dtype(dtype)
+        self.arrays = None if spill else [np.empty(s, dtype=self.dtype) for s in shapes]
         self.fd = None
         self.offsets = [0]
         for h, w, c in shapes:
-            self.offsets.append(self.offsets[-1] + h * w * c * 4)
+            self.offsets.append(self.offsets[-1] + h * w * c * self.dtype.itemsize)
         if spill:
             self.fd = os.open(spill, os.O_RDWR)
 
@@ -442,13 +455,13 @@ class _Kept:
 
     def _at(self, i: int, r: int) -> int:
         _, w, c = self.shapes[i]
-        return self.offsets[i] + r * w * c * 4
+        return self.offsets[i] + r * w * c * self.dtype.itemsize
 
     def write(self, i: int, r: int, px: np.ndarray) -> None:
         if self.arrays is not None:
             self.arrays[i][r:r + len(px)] = px
             return
-        view = memoryview(np.ascontiguousarray(px, dtype=np.float32)).cast("B")
+        view = memoryview(np.ascontiguousarray(px, dtype=self.dtype)).cast("B")
         at = self._at(i, r)
         while view:
             n = os.pwrite(self.fd, view, at)
@@ -458,14 +471,14 @@ class _Kept:
         if self.arrays is not None:
             return self.arrays[i][r0:r1]
         _, w, c = self.shapes[i]
-        size = (r1 - r0) * w * c * 4
+        size = (r1 - r0) * w * c * self.dtype.itemsize
         data = bytearray()
         while len(data) < size:
             chunk = os.pread(self.fd, size - len(data), self._at(i, r0) + len(data))
             if not chunk:
                 raise OSError(f"the spill file ends {size - len(data)} bytes early")
             data += chunk
-        return np.frombuffer(data, dtype=np.float32).reshape(r1 - r0, w, c)
+        return np.frombuffer(data, dtype=self.dtype).reshape(r1 - r0, w, c)
 
 
 @contextlib.contextmanager
@@ -509,7 +522,7 @@ def _level0_stats(st, stats, step: int, out_path: str, options: dict):
     st.on_stored = stats.hash_rows
     try:
         for y in range(0, h, step):
-            px = st.read(y, min(h, y + step))
+            px = st.read(y, min(h, y + step)).astype(np.float32, copy=False)
             stats.add_decoded(px)
             stats.add_encoded(io.encoded_rows(out_path, io.Image(px, st.info), **options))
     finally:
@@ -521,19 +534,20 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
     """``pyramid mipmap`` of one input streamed when its whole run would not fit the budget (``memory``, else
     :func:`default_memory`); False when it runs whole as before.
 
-    Two passes over the input. The first reads it band by band for what level 0's header must say before its
-    first row: the SHA-1 of the source, the average and constant colour of level 0 as stored
-    (:class:`pyramid_cli.mip.PixelStats`), and, under ``--constant-color-detect``, whether the picture is
-    constant (then it shrinks to one tile and runs whole, as before: it is small). The second runs the plan on
-    the row-band scheduler: level 0 (the input) goes to the file band by band as it is read, the coarser levels
-    are kept in memory when they fit the budget beside the working set, else in a temporary file beside the
-    output (removed on success, failure and interruption), and are written after level 0, one after another.
-    Refused before any work: the options that need the whole picture (``--resize``, ``--fill``, ``--nchannels``,
-    ``--monochrome-detect``) and plans that do not tile (:func:`pyramid_cli.tiles.tileable`), when ``memory`` is
-    given (without it they run whole).
+    Level 0's header must say, before its first row, the SHA-1 of the source, the average and constant colour
+    of level 0 as stored (:class:`pyramid_cli.mip.PixelStats`) and, under ``--constant-color-detect``, whether
+    the picture is constant (then it shrinks to one tile and runs whole, as before: it is small). The input is
+    read once when level 0 can be kept in memory until then (:func:`choose_mip`): the plan runs on the row-band
+    scheduler while the statistics are gathered, then level 0 and the coarser levels are written. Otherwise it
+    is read twice: first band by band for the header, then through the scheduler with level 0 written as it is
+    read. The coarser levels are kept
+    in memory when they fit the budget beside the working set, else in a temporary file beside the output;
+    temporary files are removed on success, failure and interruption. Refused before any work: the options that
+    need the whole picture (``--resize``, ``--fill``, ``--nchannels``, ``--monochrome-detect``) and plans that do
+    not tile (:func:`pyramid_cli.tiles.tileable`), when ``memory`` is given (without it they run whole).
     """
     from . import io, tiles
-    from .mip import PixelStats, shrink_constant
+    from .mip import PixelStats
     from .pipeline import ReadOptions, Reporter, WriteOptions
 
     ro, wo, reporter = read or ReadOptions(), write or WriteOptions(), reporter or Reporter()
@@ -550,15 +564,21 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
         return False
     budget = memory if memory is not None else default_memory()
     in_path, out_path = job.input, job.output
-    st = io.open_stream(in_path, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan)
-    with st:
+    executor = _executor(session)
+    emu = isinstance(executor, tiles.Emulator)
+
+    def open_input():
+        return io.open_stream(in_path, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan, keep_half=True)
+
+    with contextlib.ExitStack() as stack:
+        st = stack.enter_context(open_input())
         h, w, c = st.shape
         work.check(((h, w),), where=in_path)
         plan = session.plan(work, [(h, w)])
         if plan is None:
             return False
-        emu = isinstance(_executor(session), tiles.Emulator)
-        choice = choose_mip(plan, c, budget, in_bytes=st.dtype.itemsize, where=in_path, **costs(_executor(session)))
+        kw = {"in_bytes": st.dtype.itemsize, "where": in_path, **costs(executor)}
+        choice = choose_mip(plan, c, budget, level0=h * w * c * st.dtype.itemsize, **kw)
         reporter.detail(f"{in_path}: {choice.describe()}")
         if not choice.streams:
             return False
@@ -571,40 +591,54 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
         info = st.info
         options = wo.for_inputs([in_path])
         io.check_write_options(out_path, wo.pixel_type, wo.compression)  # refused before any work
-
-        # pass 1: what level 0's header says
-        stats = _level0_stats(st, PixelStats(h), 2 * max(MIN_BAND, choice.band), out_path, options)
-    meta = mip_metadata(work, in_path, stats.sha1())
-    if getattr(work, "constant_detect", False) and stats.decoded_constant:
-        small = shrink_constant(np.broadcast_to(stats.decoded_first, (min(tile, h), min(tile, w), c)), tile)
-        reporter.detail(f"{in_path}: constant colour, made from one {small.shape[1]}×{small.shape[0]} tile")
-        outs = session.run(work, [small], np.float32)
-        io.write_levels(out_path, [io.Image(px, info) for px in outs], mode="mipmap", tile=tile, meta=meta,
-                        **options)
-        reporter.result(f"wrote {out_path} ({w}×{h}, {len(outs)} MIP levels, {session.ran})")
-        return True
-
-    # pass 2: level 0 to the file as it is read, the coarser levels kept until their turn
-    executor = _executor(session)
-    slot = {k: i for i, k in enumerate(plan.outputs)}
-    with contextlib.ExitStack() as stack:
-        st = stack.enter_context(io.open_stream(in_path, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan))
+        step = 2 * max(MIN_BAND, choice.band)  # level 0's rows at a time outside the scheduler (multiples of 8)
+        stats = PixelStats(h)
+        once = bool(choice.level0)
+        if once:  # level 0 kept as read while the scheduler runs; its header's statistics gathered on the way
+            level0 = _Kept([shapes[0]], None, st.dtype)
+            st.on_stored = stats.hash_rows
+        else:  # the first read, for the header; the scheduler reads again, writing level 0 as it reads it
+            _level0_stats(st, stats, step, out_path, options)
+            if _constant(work, stats):
+                return _write_constant(work, session, stats, shapes[0], tile, in_path, out_path, info, options,
+                                       reporter)
+            st = stack.enter_context(open_input())
         kept = _Kept(shapes[1:], stack.enter_context(_scratch(out_path)) if choice.spill else None)
         stack.callback(kept.close)
-        writer = stack.enter_context(io.mip_stream_writer(out_path, info, shapes, tile=tile, meta=meta,
-                                                          colors=(stats.average(), stats.constant()), **options))
+
+        def open_writer():
+            meta = mip_metadata(work, in_path, stats.sha1())
+            return stack.enter_context(io.mip_stream_writer(out_path, info, shapes, tile=tile, meta=meta,
+                                                            colors=(stats.average(), stats.constant()), **options))
+
+        writer = None if once else open_writer()
+        slot = {k: i for i, k in enumerate(plan.outputs)}
 
         def source(k, rows, cols):
             px = st.read(*rows)
-            writer.write(rows[0], px)  # level 0 is the input: each row once, in order
+            if once:
+                level0.write(0, rows[0], px)
+                stats.add_decoded(px)
+            else:
+                writer.write(rows[0], px.astype(np.float32, copy=False))  # level 0: each row once, in order
             px = px[:, cols[0]:cols[1]] if (cols[0], cols[1]) != (0, w) else px
             return px.astype(np.float64) if emu else px
 
         def sink(k, r, c0, px):
             kept.write(slot[k], r, px)
 
-        tiles.Scheduler(executor, plan, source, sink, band=choice.band,
-                             dtype=np.float64 if emu else np.float32).run()
+        tiles.Scheduler(executor, plan, source, sink, band=choice.band, dtype=np.float64 if emu else np.float32).run()
+        if once:
+            st.on_stored = None
+            for y in range(0, h, step):  # level 0 as encoded, in the bands of the two-read way (dithering lines up)
+                rows = level0.rows(0, y, min(h, y + step)).astype(np.float32, copy=False)
+                stats.add_encoded(io.encoded_rows(out_path, io.Image(rows, info), **options))
+            if _constant(work, stats):
+                return _write_constant(work, session, stats, shapes[0], tile, in_path, out_path, info, options,
+                                       reporter)
+            writer = open_writer()
+            for y in range(0, h, step):
+                writer.write(y, level0.rows(0, y, min(h, y + step)).astype(np.float32, copy=False))
         for i in range(len(shapes) - 1):
             writer.append_level(lambda r0, r1, i=i: kept.rows(i, r0, r1))
     session.ran = session.name
@@ -612,7 +646,28 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
         reporter.warn(f"{in_path}: {st.nonfinite} NaN/Inf value(s) kept; they spread through the filter "
                       "(--nan zero or --nan fail to change that)")
     reporter.result(f"wrote {out_path} ({w}×{h}, {len(shapes)} MIP levels, {session.ran}, streamed in bands of "
-                    f"{choice.band} rows)")
+                    f"{choice.band} rows{', the input read once' if once else ''})")
+    return True
+
+
+def _constant(work, stats) -> bool:
+    return bool(getattr(work, "constant_detect", False) and stats.decoded_constant)
+
+
+def _write_constant(work, session, stats, shape, tile: int, in_path: str, out_path: str, info, options,
+                    reporter) -> bool:
+    """``--constant-color-detect`` on a constant picture: one tile of its colour, run and written whole."""
+    from . import io
+    from .mip import shrink_constant
+
+    h, w, c = shape
+    first = stats.decoded_first.astype(np.float32)
+    small = shrink_constant(np.broadcast_to(first, (min(tile, h), min(tile, w), c)), tile)
+    reporter.detail(f"{in_path}: constant colour, made from one {small.shape[1]}×{small.shape[0]} tile")
+    outs = session.run(work, [small], np.float32)
+    io.write_levels(out_path, [io.Image(px, info) for px in outs], mode="mipmap", tile=tile,
+                    meta=mip_metadata(work, in_path, stats.sha1()), **options)
+    reporter.result(f"wrote {out_path} ({w}×{h}, {len(outs)} MIP levels, {session.ran})")
     return True
 
 

@@ -80,37 +80,53 @@ def mipmap(session, src, out, memory=None, said=None, **kw):
                    reporter=rep)
 
 
+def coarser(said: str) -> str:
+    """What a streamed mipmap's -v line says of its coarser levels ('' when it says nothing of them)."""
+    return said.split("the coarser levels", 1)[1].split(";")[0] if "the coarser levels" in said else ""
+
+
+def level0(said: str) -> str:
+    """What it says of level 0 kept in memory until its header is known ('' when it reads the input twice)."""
+    return said.split("; level 0 (", 1)[1].split(";")[0] if "; level 0 (" in said else ""
+
+
 # ------------------------------------------------------------------ the file is the whole run's
-@pytest.mark.parametrize("ext, pixel_type, size, rounding, budget, spill", [
-    ("exr", "half", (128, 128), "down", 400 << 10, False),    # the coarser levels kept in memory
-    ("exr", "float", (128, 128), "down", 300 << 10, True),    # spilled to a file beside the output
-    ("tx", "half", (128, 128), "down", 300 << 10, True),
-    ("tx", "uint8", (128, 128), "down", 300 << 10, True),
-    ("exr", "half", (160, 123), "up", 300 << 10, True),
-    ("tx", "float", (150, 97), "up", 330 << 10, False),
+@pytest.mark.parametrize("ext, pixel_type, size, rounding, budget, once, where", [
+    # read once: level 0 kept in memory until its header is known; the coarser levels in memory or spilled
+    ("exr", "half", (128, 128), "down", 450 << 10, True, "in memory"),
+    ("tx", "half", (128, 128), "down", 380 << 10, True, "temporary file"),
+    ("exr", "float", (128, 128), "down", 550 << 10, True, "temporary file"),
+    ("tx", "uint8", (128, 128), "down", 550 << 10, True, "temporary file"),
+    ("exr", "half", (160, 123), "up", 540 << 10, True, "in memory"),
+    # read twice (level 0 does not fit): written as it is read the second time
+    ("exr", "half", (160, 123), "up", 320 << 10, False, "in memory"),
+    ("tx", "float", (150, 97), "up", 250 << 10, False, "temporary file"),
+    ("tx", "uint8", (128, 128), "down", 300 << 10, False, "temporary file"),
 ])
-def test_streamed_mipmap_is_the_whole_runs_file(tmp_path, session, ext, pixel_type, size, rounding, budget, spill):
+def test_streamed_mipmap_is_the_whole_runs_file(tmp_path, session, ext, pixel_type, size, rounding, budget, once,
+                                                 where):
     src = tmp_path / ("in.tif" if pixel_type == "uint8" else "in.exr")
     write(src, noise(*size, seed=3), pixel_type)
     said = []
     mipmap(session, src, tmp_path / f"s.{ext}", budget, said, rounding=rounding)
-    assert any("streamed in bands" in m for m in said), said
-    assert any(("temporary file" if spill else "in memory") in m for m in said), said
+    chose = [m for m in said if "streams in bands" in m]
+    assert len(chose) == 1 and any(m.endswith("the input read once)") == once for m in said if "wrote" in m), said
+    assert bool(level0(chose[0])) == once and where in coarser(chose[0]), said
     mipmap(session, src, tmp_path / f"w.{ext}", rounding=rounding)
     assert_same_file(tmp_path / f"s.{ext}", tmp_path / f"w.{ext}")
     assert sorted(os.listdir(tmp_path)) == sorted([src.name, f"s.{ext}", f"w.{ext}"])  # no temporary left
 
 
 @pytest.mark.parametrize("ext, size, border, budget", [
-    ("exr", (100, 75), "clamp", 230), ("tx", (97, 131), "mirror", 400), ("exr", (128, 64), "zero", 150),
-    ("tx", (161, 90), "clamp", 290)])
+    ("exr", (100, 75), "clamp", 200), ("tx", (97, 131), "mirror", 340), ("exr", (128, 64), "zero", 130),
+    ("tx", (161, 90), "clamp", 250)])
 def test_streamed_mipmap_of_odd_sizes_resampled(tmp_path, session, ext, size, border, budget):
     """maketx's sizes ⌊n/2⌋: levels that do not halve exactly are resampled (ResamplePass), tiled too."""
     src = tmp_path / "in.exr"
     write(src, noise(*size, seed=6), "half")
     said = []
     mipmap(session, src, tmp_path / f"s.{ext}", budget << 10, said, border=border)  # the levels spill
-    assert any("streamed in bands" in m for m in said) and any("temporary file" in m for m in said), said
+    assert any("streamed in bands" in m for m in said) and any("temporary file" in coarser(m) for m in said), said
     mipmap(session, src, tmp_path / f"w.{ext}", border=border)
     assert_same_file(tmp_path / f"s.{ext}", tmp_path / f"w.{ext}")
     assert sorted(os.listdir(tmp_path)) == sorted([src.name, f"s.{ext}", f"w.{ext}"])
@@ -134,21 +150,25 @@ def _dither():
     return WriteOptions(dither=True)
 
 
-def test_a_constant_picture_streamed_shrinks_as_whole(tmp_path, session):
+@pytest.mark.parametrize("budget, once", [(300 << 10, False), (450 << 10, True)])
+def test_a_constant_picture_streamed_shrinks_as_whole(tmp_path, session, budget, once):
+    """Found constant after the first of two reads, or after the one read (level 0 kept in memory)."""
     src = tmp_path / "in.exr"
     write(src, np.broadcast_to(np.float32([0.25, 0.5, 0.75, 1]), (128, 128, 4)).copy(), "half")
     said = []
-    mipmap(session, src, tmp_path / "s.exr", 300 << 10, said, constant_detect=True)
+    mipmap(session, src, tmp_path / "s.exr", budget, said, constant_detect=True)
     assert any("constant colour" in m for m in said), said
+    assert [bool(level0(m)) for m in said if "streams in bands" in m] == [once], said
     mipmap(session, src, tmp_path / "w.exr", constant_detect=True)
     assert_same_file(tmp_path / "s.exr", tmp_path / "w.exr")
     spec = oiio.ImageInput.open(str(tmp_path / "s.exr")).spec()
     assert (spec.width, spec.height) == (16, 16) and spec.get_string_attribute("oiio:ConstantColor")
     # constant but not detected: streamed, with the constant colour in the header
-    mipmap(session, src, tmp_path / "c.exr", 300 << 10)
+    mipmap(session, src, tmp_path / "c.exr", budget)
     mipmap(session, src, tmp_path / "d.exr")
     assert_same_file(tmp_path / "c.exr", tmp_path / "d.exr")
     assert oiio.ImageInput.open(str(tmp_path / "c.exr")).spec().get_string_attribute("oiio:ConstantColor")
+    assert sorted(os.listdir(tmp_path)) == ["c.exr", "d.exr", "in.exr", "s.exr", "w.exr"]
 
 
 def test_what_cannot_stream_is_refused_with_memory_and_runs_whole_without(tmp_path, session):
@@ -206,8 +226,9 @@ def test_cli_mipmap_streams_when_told(tmp_path):
 
 @pytest.mark.parametrize("memory", ["300K", "600K"])
 def test_plan_says_what_a_streamed_mipmap_chooses(tmp_path, memory):
-    """``pyramid plan --mipmap --memory`` and ``pyramid mipmap -v --memory`` choose the same band and the same
-    place for the coarser levels (300K spills them, 1M keeps them in memory), from one function."""
+    """``pyramid plan --mipmap --memory`` and ``pyramid mipmap -v --memory`` choose the same band, the same place
+    for the coarser levels and the same number of reads (300K: twice, the levels spilled; 600K: once, level 0
+    kept in memory), from one function."""
     pytest.importorskip("numba")
     src = tmp_path / "in.exr"
     write(src, noise(128, 128, 4, seed=2), "float")  # RGBA float: what plan --memory assumes
@@ -216,11 +237,15 @@ def test_plan_says_what_a_streamed_mipmap_chooses(tmp_path, memory):
     assert r.returncode == 0 and len(said) == 1, r.stderr
     p = run("plan", "--mipmap", "down", "quadratic *v g", "--size", "128x128", "--memory", memory)
     assert p.returncode == 0 and p.stdout.splitlines()[-1] == f"memory: {said[0]}", (p.stdout, said)
-    assert ("temporary file" in said[0]) == (memory == "300K")
+    if memory == "300K":
+        assert "temporary file" in coarser(said[0]) and not level0(said[0]), said
+    else:
+        assert level0(said[0]), said
 
 
 @pytest.mark.slow
-def test_a_signal_during_a_streamed_mipmap(tmp_path):
+@pytest.mark.parametrize("memory", ["6M", "60M"])  # read twice, the levels spilled; read once, level 0 kept
+def test_a_signal_during_a_streamed_mipmap(tmp_path, memory):
     """SIGTERM during a streamed (and spilled) mipmap: exit 143 with the previous output kept, or the complete
     new file; no temporary (output or spilled levels) is left."""
     from interrupt import interrupt_runs
@@ -229,7 +254,7 @@ def test_a_signal_during_a_streamed_mipmap(tmp_path):
     big = tmp_path / "big.exr"
     write(big, noise(1536, 1536, 3, seed=7), "float")  # about 2.5 s: pass 1, pass 2, then the levels
     out = tmp_path / "out.exr"
-    stopped = interrupt_runs(CLI + ["mipmap", "--backend", "cpu", "--memory", "6M", "--compression", "zip",
+    stopped = interrupt_runs(CLI + ["mipmap", "--backend", "cpu", "--memory", memory, "--compression", "zip",
                                     big, out], out, (0.7, 1.2, 1.8), lambda f: len(levels(f)) == 11)  # 1536 … 3, 1
     assert stopped, "no run was interrupted: make the picture larger"
 
