@@ -228,17 +228,21 @@ def test_gl_filter_work_applies_tiled(gl):
 
 
 # ------------------------------------------------------------------ the Python API: arrays larger than RAM
+def memmapped_input(tmp_path, seed: int, size=(70, 45, 3)) -> np.ndarray:
+    """A 70×45 RGB float32 image in a .npy file, opened read-only as a memmap (numba required: the CPU runs)."""
+    pytest.importorskip("numba")
+    src = np.lib.format.open_memmap(tmp_path / "in.npy", "w+", np.float32, size)
+    src[...] = image(size[:2], size[2], seed=seed)
+    src.flush()
+    return np.load(tmp_path / "in.npy", mmap_mode="r")
+
+
 @pytest.mark.parametrize("fn", ["blur", "apply"])
 def test_api_memmap_in_memmap_out(tmp_path, fn):
     """A memory-mapped input runs band by band into a memory-mapped ``out=``; the pixels of the whole run."""
-    pytest.importorskip("numba")
     import pyramid_cli as pyr
 
-    size = (70, 45, 3)
-    src = np.lib.format.open_memmap(tmp_path / "in.npy", "w+", np.float32, size)
-    src[...] = image(size[:2], 3, seed=9)
-    src.flush()
-    mm = np.load(tmp_path / "in.npy", mmap_mode="r")
+    mm = memmapped_input(tmp_path, seed=9)
     call = (lambda a, **kw: pyr.blur(a, 3, backend="cpu", **kw)) if fn == "blur" else \
         (lambda a, **kw: pyr.apply("quadratic *v g", a, backend="cpu", **kw))
     want = call(np.array(mm))
@@ -258,14 +262,9 @@ def test_api_memmap_in_memmap_out(tmp_path, fn):
 def test_api_memmap_in_memmap_outs_for_every_level(tmp_path, fn):
     """Jobs of several outputs too: a memory-mapped input runs band by band into one memory-mapped ``out=``
     per level (after level 0, which is the input, for the pyramid and the MIP map); the whole run's pixels."""
-    pytest.importorskip("numba")
     import pyramid_cli as pyr
 
-    size = (70, 45, 3)
-    src = np.lib.format.open_memmap(tmp_path / "in.npy", "w+", np.float32, size)
-    src[...] = image(size[:2], 3, seed=4)
-    src.flush()
-    mm = np.load(tmp_path / "in.npy", mmap_mode="r")
+    mm = memmapped_input(tmp_path, seed=4)
     call = {"pyramid": lambda a, **kw: list(pyr.pyramid(a, backend="cpu", **kw)),
             "laplacian": lambda a, **kw: pyr.laplacian(a, 3, backend="cpu", **kw),
             "mipmap": lambda a, **kw: pyr.mipmap(a, backend="cpu", border="mirror", **kw)}[fn]
