@@ -140,8 +140,11 @@ def _size(ctx, param, value):
 @click.option("--memory", metavar="SIZE", default=None,
               help="Also say how a file of this size runs in this working-set budget (e.g. 512M): whole, or "
                    "streamed in bands of how many rows (RGBA float; see pyramid apply --memory).")
+@click.option("--backend", "memory_backend", type=click.Choice(["cpu", "gl"]), default=None,
+              help="Whose memory --memory estimates (default cpu; gl counts its power-of-two textures and pads "
+                   "bands, not pictures, as pyramid blur --backend gl does).")
 def plan_command(expression, size, as_json: bool, strategy: str, mip_round: str | None, border: str,
-                 memory: str | None) -> None:
+                 memory: str | None, memory_backend: str | None) -> None:
     """Show the render passes and bilinear taps that compute EXPRESSION.
 
     \b
@@ -150,6 +153,7 @@ def plan_command(expression, size, as_json: bool, strategy: str, mip_round: str 
       pyramid plan --json 'h_Doo-Sabin ⊗↑ g' --size 64x64
       pyramid plan --mipmap down 'quadratic *v g' --size 1001x777
       pyramid plan 'gauss7' --size 32768x32768 --memory 1G
+      pyramid plan 'gauss7' --size 5000x3000 --memory 1G --backend gl
 
     \b
     Tap positions are [x, y] in source texels relative to the source pixel the
@@ -172,13 +176,20 @@ def plan_command(expression, size, as_json: bool, strategy: str, mip_round: str 
         p = plan(expression, (h, w), strategy, border)
     check(p)
     choice = None
+    if memory_backend is not None and memory is None:
+        raise UsageError("--backend says whose memory --memory estimates: give --memory too")
     if memory is not None:
         from .stream import choose, choose_mip, parse_size
 
+        texture = None
+        if memory_backend == "gl":
+            from .gl import GLExecutor
+
+            texture = GLExecutor.texture_bytes
         if mip_round is not None:  # level 0 kept in memory, the input read once, where it fits (RGBA float)
-            choice = choose_mip(p, 4, parse_size(memory), level0=h * w * 4 * 4)
+            choice = choose_mip(p, 4, parse_size(memory), level0=h * w * 4 * 4, texture=texture)
         else:
-            choice = choose(p, 4, parse_size(memory))
+            choice = choose(p, 4, parse_size(memory), texture=texture)
     if as_json:
         doc = to_json(p)
         if choice is not None:

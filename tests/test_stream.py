@@ -286,6 +286,21 @@ def test_plan_says_how_a_size_runs_in_a_budget():
     assert r.exit_code == 5 and "needs at least" in r.output
 
 
+def test_plan_says_how_gl_runs_a_size():
+    """``plan --memory --backend gl`` counts GL's textures: a 5000×3000 picture they pad goes in bands."""
+    from click.testing import CliRunner
+
+    from pyramid_cli.cli import main
+
+    args = ["plan", "gauss5", "--size", "5000x3000", "--memory", "4G"]
+    r = CliRunner().invoke(main, args)
+    assert r.exit_code == 0 and "runs whole" in r.output, r.output
+    r = CliRunner().invoke(main, args + ["--backend", "gl"])
+    assert r.exit_code == 0 and "the bands are padded, not the picture" in r.output, r.output
+    r = CliRunner().invoke(main, ["plan", "gauss5", "--size", "64x64", "--backend", "gl"])
+    assert r.exit_code == 2 and "give --memory too" in r.output, r.output
+
+
 @pytest.mark.slow
 def test_a_signal_during_a_streamed_write(tmp_path):
     """SIGTERM while bands are being written: exit 143 with the previous output kept, or the complete new file."""
