@@ -141,8 +141,8 @@ def _size(ctx, param, value):
               help="Also say how a file of this size runs in this working-set budget (e.g. 512M): whole, or "
                    "streamed in bands of how many rows (RGBA float; see pyramid apply --memory).")
 @click.option("--backend", "memory_backend", type=click.Choice(["cpu", "gl"]), default=None,
-              help="Whose memory --memory estimates (default cpu; gl counts its power-of-two textures and pads "
-                   "bands, not pictures, as pyramid blur --backend gl does).")
+              help="Whose memory --memory estimates (default cpu; gl: GL on a software renderer such as Mesa's "
+                   "llvmpipe, whose power-of-two textures are host memory and pad bands, not pictures).")
 def plan_command(expression, size, as_json: bool, strategy: str, mip_round: str | None, border: str,
                  memory: str | None, memory_backend: str | None) -> None:
     """Show the render passes and bilinear taps that compute EXPRESSION.

@@ -68,6 +68,7 @@ READ_DTYPES = {np.dtype(np.float32): "f4", np.dtype(np.float16): "f2"}
 BAND_BYTES = 8 << 20  # upload staging: rows of RGBA32F per texture write
 MAX_TEXTURE_BYTES = 2 << 30  # llvmpipe fails to attach a texture of 2 GiB (8193², 12000×6000: DESIGN.md §6)
 TILE_TEXELS = 1 << 24        # a tile's largest texture, about (256 MiB of RGBA32F), when a plan runs in tiles
+SOFTWARE_RENDERERS = ("llvmpipe", "softpipe", "swrast", "lavapipe")  # GL_RENDERERs whose textures are host memory
 
 
 def _create_context():
@@ -398,6 +399,14 @@ class GLExecutor:
             if th * tw * 16 >= MAX_TEXTURE_BYTES:
                 raise DataError(f"image {k} of the plan needs a {tw}x{th} RGBA32F texture (power-of-two sides) "
                                 f"of {th * tw * 16 / 2 ** 30:.0f} GiB; GL textures stay under 2 GiB")
+
+    @property
+    def host_textures(self) -> bool:
+        """Whether textures live in host memory (a software renderer such as Mesa's llvmpipe): then ``--memory``
+        counts them (:meth:`texture_bytes`) and single files they would pad run in bands
+        (:func:`pyramid_cli.stream.costs`). A GPU's textures live in its own memory, and whole runs stay whole."""
+        renderer = self.renderer.lower()
+        return any(name in renderer for name in SOFTWARE_RENDERERS)
 
     @staticmethod
     def texture_bytes(extent: tuple[int, int]) -> int:

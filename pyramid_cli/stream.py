@@ -285,11 +285,13 @@ def _executor(session):
 
 def costs(executor) -> dict:
     """What ``executor`` holds per pixel beyond the pictures, as :func:`choose` takes it: float64 working
-    images (the emulator), and textures (an executor with ``texture_bytes``: GL)."""
+    images (the emulator), and textures in host memory (GL on a software renderer: ``host_textures``; a GPU's
+    are in its own memory, which ``--memory`` does not budget)."""
     from . import tiles
 
+    host = getattr(executor, "host_textures", False)
     return {"work_bytes": 8 if isinstance(executor, tiles.Emulator) else 4,
-            "texture": getattr(executor, "texture_bytes", None)}
+            "texture": executor.texture_bytes if host else None}
 
 
 def stream_file(in_path: str, out_path: str | list[str], work, session, choice: Choice | None = None, *,

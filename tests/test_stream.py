@@ -172,8 +172,18 @@ def test_gl_textures_count_in_the_budget():
     assert not stream.choose(p, 4, 64 << 20, texture=GLExecutor.texture_bytes).streams
     tiny = Blur(levels=3).plan([(20, 20)])  # too small for bands of a quarter of its run: whole
     assert not stream.choose(tiny, 4, 64 << 20, texture=GLExecutor.texture_bytes).streams
-    assert stream.costs(GLExecutor())["texture"] == GLExecutor.texture_bytes  # no context is opened for that
     assert stream.costs(Emulator()) == {"work_bytes": 8, "texture": None}
+
+
+def test_only_host_memory_textures_count(gl):
+    """llvmpipe's textures are host memory and count; a GPU's (any other renderer) are not the budget's."""
+    from pyramid_cli.gl import GLExecutor
+
+    assert gl.host_textures and "llvmpipe" in gl.renderer.lower()
+    assert stream.costs(gl)["texture"] == GLExecutor.texture_bytes
+    gpu = GLExecutor()
+    gpu._info = {"renderer": "NVIDIA H100 80GB HBM3/PCIe/SSE2"}  # what a GPU's GL_RENDERER reads like
+    assert not gpu.host_textures and stream.costs(gpu) == {"work_bytes": 4, "texture": None}
 
 
 # ------------------------------------------------------------------ the command line
