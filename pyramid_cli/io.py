@@ -1702,13 +1702,7 @@ def stream_writers(paths: list[str | os.PathLike[str]], infos: list[ImageInfo], 
     out_paths = [os.fspath(p) for p in paths]
     opts = {"pixel_type": pixel_type, "colorspace": colorspace, "alpha": alpha, "dither": dither,
             "compression": compression, "force": force, "inputs": tuple(inputs)}
-    fmts = []
-    for p in out_paths:
-        fmt = _check_output_path(p, force, opts["inputs"])
-        check_write_options(p, pixel_type, compression)
-        if not streams_to(p):
-            raise OutputError(f"cannot write {p} band by band: {_FORMAT_TITLES.get(fmt, fmt)} is encoded whole")
-        fmts.append(fmt)
+    fmts = [_check_band_output(p, opts) for p in out_paths]
     with atomic_paths(out_paths) as tmps:
         writers = [BandWriter(p, tmp, fmt, info, shape, opts)
                    for p, tmp, fmt, info, shape in zip(out_paths, tmps, fmts, infos, shapes, strict=True)]
@@ -1720,6 +1714,16 @@ def stream_writers(paths: list[str | os.PathLike[str]], infos: list[ImageInfo], 
             for w in writers:
                 w.abort()
             raise
+
+
+def _check_band_output(path: str, opts: dict) -> str:
+    """The format of ``path``, refused before any work as :func:`write_image` refuses it, or when its format
+    is encoded whole (it cannot be written band by band)."""
+    fmt = _check_output_path(path, opts["force"], opts["inputs"])
+    check_write_options(path, opts["pixel_type"], opts["compression"])
+    if not streams_to(path):
+        raise OutputError(f"cannot write {path} band by band: {_FORMAT_TITLES.get(fmt, fmt)} is encoded whole")
+    return fmt
 
 
 @contextlib.contextmanager
@@ -1810,10 +1814,7 @@ def mip_stream_writer(path: str | os.PathLike[str], info: ImageInfo, shapes: lis
     out_path = os.fspath(path)
     opts = {"pixel_type": pixel_type, "colorspace": colorspace, "alpha": alpha, "dither": dither,
             "compression": compression, "force": force, "inputs": tuple(inputs)}
-    fmt = _check_output_path(out_path, force, opts["inputs"])
-    check_write_options(out_path, pixel_type, compression)
-    if not streams_to(out_path):
-        raise OutputError(f"cannot write {out_path} band by band: {_FORMAT_TITLES.get(fmt, fmt)} is encoded whole")
+    fmt = _check_band_output(out_path, opts)
     arbitrary = _check_mip_capable(out_path, fmt)
     with atomic_path(out_path) as tmp:
         writer = MipBandWriter(out_path, tmp, fmt, info, shapes, opts, tile=tile, meta=meta or {}, colors=colors,

@@ -186,17 +186,18 @@ def _too_small(where: str, need: int, budget: int) -> DataError:
 
 
 def padding(plan: Plan, texture: Callable[[tuple[int, int]], int] | None) -> float:
-    """How many times the pictures' RGBA32F bytes an executor's textures take in a whole run of ``plan``
-    (1.0 without textures, or with textures the pictures' size)."""
+    """How many times the bytes of textures the pictures' size an executor's textures take in a whole run of
+    ``plan`` (1.0 without textures, or with textures the pictures' size; ``texture((1, 1))``: a texel's bytes)."""
     if texture is None:
         return 1.0
     ims = plan.images
-    return sum(texture(im.stored) for im in ims) / sum(im.stored[0] * im.stored[1] * 16 for im in ims)
+    return sum(texture(im.stored) for im in ims) / sum(im.stored[0] * im.stored[1] * texture((1, 1)) for im in ims)
 
 
 def _pick(plan: Plan, whole: int, budget: int, texture, force: bool, fit: Callable[[int], Choice | None],
-          where: str, need: Callable[[], int]) -> Choice:
-    """Whole, or the bands ``fit(avail)`` finds within ``avail`` bytes (None: not even :data:`MIN_BAND` rows).
+          where: str, cost: Callable[[int], int]) -> Choice:
+    """Whole, or the bands ``fit(avail)`` finds within ``avail`` bytes (None: not even :data:`MIN_BAND` rows;
+    then DataError with the working set ``cost`` gives bands of MIN_BAND rows).
 
     A run of a picture whose textures the executor pads (GL: :func:`padding` over :data:`PADDED`) goes in
     bands even when it fits the budget, in at most :data:`PADDED_BAND_BYTES` and a quarter of the whole run's,
@@ -213,7 +214,7 @@ def _pick(plan: Plan, whole: int, budget: int, texture, force: bool, fit: Callab
         return Choice(budget, whole, None, whole)
     choice = fit(budget)
     if choice is None:
-        raise _too_small(where, need(), budget)
+        raise _too_small(where, cost(MIN_BAND), budget)
     return choice
 
 
@@ -236,7 +237,7 @@ def choose(plan: Plan, channels: int, budget: int, *, in_bytes: int = 4, out_byt
         band = _band_within(cost, rows, avail)
         return None if band is None else Choice(budget, whole, band, cost(band))
 
-    return _pick(plan, whole, budget, texture, force, fit, where, lambda: cost(MIN_BAND))
+    return _pick(plan, whole, budget, texture, force, fit, where, cost)
 
 
 def choose_mip(plan: Plan, channels: int, budget: int, *, in_bytes: int = 4, work_bytes: int = 4,
@@ -269,7 +270,7 @@ def choose_mip(plan: Plan, channels: int, budget: int, *, in_bytes: int = 4, wor
                               level0=level0 * level0_held)
         return None
 
-    return _pick(plan, whole, budget, texture, False, fit, where, lambda: cost(MIN_BAND))
+    return _pick(plan, whole, budget, texture, False, fit, where, cost)
 
 
 def _executor(session):
@@ -542,11 +543,11 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
     read once when level 0 can be kept in memory until then (:func:`choose_mip`): the plan runs on the row-band
     scheduler while the statistics are gathered, then level 0 and the coarser levels are written. Otherwise it
     is read twice: first band by band for the header, then through the scheduler with level 0 written as it is
-    read. The coarser levels are kept
-    in memory when they fit the budget beside the working set, else in a temporary file beside the output;
-    temporary files are removed on success, failure and interruption. Refused before any work: the options that
-    need the whole picture (``--resize``, ``--fill``, ``--nchannels``, ``--monochrome-detect``) and plans that do
-    not tile (:func:`pyramid_cli.tiles.tileable`), when ``memory`` is given (without it they run whole).
+    read. The coarser levels are kept in memory when they fit the budget beside the working set, else in a
+    temporary file beside the output, removed on success, failure and interruption. Refused before any work:
+    the options that need the whole picture (``--resize``, ``--fill``, ``--nchannels``, ``--monochrome-detect``)
+    and plans that do not tile (:func:`pyramid_cli.tiles.tileable`), when ``memory`` is given (without it they
+    run whole).
     """
     from . import io, tiles
     from .mip import PixelStats

@@ -195,13 +195,21 @@ def test_linear_ramp_is_reproduced_closely_inside_the_hole(analysis):
     assert err.max() > worst / 3  # the bound is tight: a fill that did nothing would fail it anyway
 
 
-def test_alpha_holes_output_opaque_and_keep_known_pixels():
-    rng = np.random.default_rng(5)
-    a = rng.random((21, 18, 4)).astype(np.float32)
-    alpha = (rng.random((21, 18)) < 0.4).astype(np.float32)
-    alpha[3, 4] = 0.5
+def _alpha_holes(shape, seed, known, partial):
+    """Premultiplied RGBA (as read_image gives it) whose alpha is 1 at a fraction ``known`` of the pixels, 0
+    elsewhere, and ``partial = ((y, x), value)``: one pixel of partial alpha; returns (pixels, alpha)."""
+    rng = np.random.default_rng(seed)
+    a = rng.random(shape + (4,)).astype(np.float32)
+    alpha = (rng.random(shape) < known).astype(np.float32)
+    (y, x), value = partial
+    alpha[y, x] = value
     a[..., 3] = alpha
-    a[..., :3] *= alpha[..., None]  # premultiplied, as read_image gives it
+    a[..., :3] *= alpha[..., None]
+    return a, alpha
+
+
+def test_alpha_holes_output_opaque_and_keep_known_pixels():
+    a, alpha = _alpha_holes((21, 18), seed=5, known=0.4, partial=((3, 4), 0.5))
     out = pyr.fill(a, backend="cpu")
     assert np.all(out[..., 3] == 1)
     np.testing.assert_array_equal(out[alpha == 1][:, :3], a[alpha == 1][:, :3])
@@ -412,12 +420,7 @@ def test_mipmap_fill_needs_an_alpha_channel(files, tmp_path):
 
 
 def test_keep_alpha_returns_the_input_alpha_beside_straight_filled_colours():
-    rng = np.random.default_rng(9)
-    a = rng.random((15, 12, 4)).astype(np.float32)
-    alpha = (rng.random((15, 12)) < 0.5).astype(np.float32)
-    alpha[2, 2] = 0.25
-    a[..., 3] = alpha
-    a[..., :3] *= alpha[..., None]
+    a, alpha = _alpha_holes((15, 12), seed=9, known=0.5, partial=((2, 2), 0.25))
     opaque = pyr.fill(a, backend="cpu")
     kept = pyr.fill(a, keep_alpha=True, backend="cpu")
     np.testing.assert_array_equal(kept[..., 3], alpha)
