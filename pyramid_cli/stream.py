@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import DataError, UsageError
+from .errors import DataError, OutputError, UsageError
 from .plan import Plan
 
 MIN_BAND = 8            # rows: dithering's Bayer pattern and most tile heights are multiples of 8
@@ -439,10 +439,12 @@ def run_levels(in_path: str, paths: list[str], work, session, *, memory: int | N
 class _Kept:
     """MIP levels' rows until their turn (a MIP file holds level 0 first, its header before its rows): arrays
     of ``dtype`` in memory, or, given ``spill``, a raw file read and written with explicit I/O (no mapping: the
-    rows on disk do not count in the process's memory)."""
+    rows on disk do not count in the process's memory). A spill that fails (a full disk) is an OutputError
+    naming ``beside``, the output the file sits beside (exit 4)."""
 
-    def __init__(self, shapes: list[tuple[int, int, int]], spill: str | None = None, dtype=np.float32):
-        self.shapes, self.dtype = shapes, np.dtype(dtype)
+    def __init__(self, shapes: list[tuple[int, int, int]], spill: str | None = None, dtype=np.float32,
+                 beside: str = ""):
+        self.shapes, self.dtype, self.beside = shapes, np.dtype(dtype), beside
         self.arrays = None if spill else [np.empty(s, dtype=self.dtype) for s in shapes]
         self.fd = None
         self.offsets = [0]
@@ -466,9 +468,18 @@ class _Kept:
             return
         view = memoryview(np.ascontiguousarray(px, dtype=self.dtype)).cast("B")
         at = self._at(i, r)
-        while view:
-            n = os.pwrite(self.fd, view, at)
-            view, at = view[n:], at + n
+        try:
+            while view:
+                n = os.pwrite(self.fd, view, at)
+                view, at = view[n:], at + n
+        except OSError as exc:
+            raise self._failed(exc) from None
+
+    def _failed(self, exc: OSError) -> OutputError:
+        from .atomic import _reason
+
+        return OutputError(f"cannot write {self.beside}: {_reason(exc)} (in the temporary file of its coarser "
+                           "MIP levels beside it)")
 
     def rows(self, i: int, r0: int, r1: int) -> np.ndarray:
         if self.arrays is not None:
@@ -476,11 +487,14 @@ class _Kept:
         _, w, c = self.shapes[i]
         size = (r1 - r0) * w * c * self.dtype.itemsize
         data = bytearray()
-        while len(data) < size:
-            chunk = os.pread(self.fd, size - len(data), self._at(i, r0) + len(data))
-            if not chunk:
-                raise OSError(f"the spill file ends {size - len(data)} bytes early")
-            data += chunk
+        try:
+            while len(data) < size:
+                chunk = os.pread(self.fd, size - len(data), self._at(i, r0) + len(data))
+                if not chunk:
+                    raise OSError(f"the spill file ends {size - len(data)} bytes early")
+                data += chunk
+        except OSError as exc:
+            raise self._failed(exc) from None
         return np.frombuffer(data, dtype=self.dtype).reshape(r1 - r0, w, c)
 
 
@@ -606,7 +620,8 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
                 return _write_constant(work, session, stats, shapes[0], tile, in_path, out_path, info, options,
                                        reporter)
             st = stack.enter_context(open_input())
-        kept = _Kept(shapes[1:], stack.enter_context(_scratch(out_path)) if choice.spill else None)
+        kept = _Kept(shapes[1:], stack.enter_context(_scratch(out_path)) if choice.spill else None,
+                     beside=out_path)
         stack.callback(kept.close)
 
         def open_writer():

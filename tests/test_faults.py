@@ -176,6 +176,21 @@ def test_a_real_full_disk_during_mipmap(tmp_path):
         assert code == 4 and not leftovers(disk), err
 
 
+@pytest.mark.parametrize("memory", ["60M", "6M"])  # level 0 kept and the levels spilled; read twice
+def test_a_real_full_disk_during_a_streamed_mipmap(tmp_path, memory):
+    """The disk fills while the coarser levels spill beside the output (it was a traceback, exit 1) or while
+    level 0 is written: one line naming the output, exit 4, the previous output and no temporary left."""
+    big = tmp_path / "big.exr"
+    write(big, noise(1536, 1536, seed=6), "float")
+    with mounted(tmp_path / "small", "size=3m") as disk:
+        out = disk / "tex.exr"
+        old = previous(out)
+        code, _, err = run(["mipmap", "--backend", "cpu", "--memory", memory, "--compression", "none", big, out])
+        assert code == 4, err
+        one_line_error(err, str(out))
+        assert out.read_bytes() == old and not leftovers(disk)
+
+
 def test_a_read_only_folder(src, tmp_path):
     with mounted(tmp_path / "ro", "ro,size=64k") as disk:
         code, _, err = run(["blur", "--backend", "cpu", src / "in.png", disk / "out.png"])
