@@ -265,9 +265,12 @@ def sequence_options() -> list:
         click.option("--frames", metavar="RANGE", help="Frames of sequence inputs (plate.####.exr, plate.%04d.exr, "
                      "plate.1001-1240#.exr, tex.<UDIM>.exr) to process, e.g. 1001-1240x2 (default: the pattern's "
                      "range, else every frame on disk). Output templates take #### or {frame}."),
-        click.option("--shard", metavar="K/N|auto", help="Process only the K-th (from 1) of N contiguous chunks of "
-                     "the jobs; auto reads the array task from Slurm, SGE, AWS Batch, Kubernetes, LSF or PBS "
-                     "(auto/N where the scheduler does not publish the count)."),
+        click.option("--shard", metavar="K/N|auto", help="Process only the K-th (from 1) "
+                     "of N contiguous chunks of the jobs. auto reads the array task from Slurm, SGE, AWS Batch, "
+                     "Kubernetes, LSF, PBS or Torque; give what the scheduler does not publish: auto/N the task "
+                     "count (Kubernetes), auto/FIRST-LAST[:STEP] the array's range as submitted (LSF, PBS, Torque: "
+                     "auto/5-9 for bsub -J 'x[5-9]'), or PYRAMID_SHARD_COUNT / PYRAMID_SHARD_ARRAY. A task that "
+                     "cannot be placed exits 2 before any work."),
         click.option("--cluster", metavar="ADDRESS", help="Run on a Dask cluster: tcp://HOST:8786, or local:N for N "
                      "worker processes on this machine (needs pip install 'bilinear-pyramid[cluster]')."),
         click.option("--chunk", type=click.IntRange(1), metavar="N", help="Jobs per cluster task (default: about "
