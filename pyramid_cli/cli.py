@@ -246,8 +246,10 @@ def batch_options(f):
     """Many inputs in one process: an output template, failure and freshness policies, I/O overlap."""
     options = [
         click.option("-o", "--output", "template", metavar="TEMPLATE",
-                     help="Output path template for several inputs: {stem} {name} {ext} (with its dot, e.g. "
-                          "'.exr') {dir}. Output folders are created."),
+                     help="Output path template: {stem} {name} {ext} (with its dot, e.g. '.exr') {dir} of each "
+                          "input, and for sequences {frame} ({frame:05d}) or one frame token (####, %04d, @, $F4, "
+                          "<UDIM>), in any combination: 'out/{stem}_blur_{frame:05d}{ext}'. Without fields or a "
+                          "token it is a path as it is. Output folders are created."),
         click.option("--keep-going", is_flag=True, help="Go on past a bad file; report failures at the end."),
         click.option("--skip-existing", is_flag=True, help="Skip inputs whose output is newer (like make)."),
         click.option("-j", "--jobs", type=click.IntRange(1, 64), default=2, show_default=True,
@@ -263,8 +265,9 @@ def sequence_options() -> list:
     """--frames, --shard, --cluster, --chunk (frame sequences, array jobs, a Dask cluster)."""
     return [
         click.option("--frames", metavar="RANGE", help="Frames of sequence inputs (plate.####.exr, plate.%04d.exr, "
-                     "plate.1001-1240#.exr, tex.<UDIM>.exr) to process, e.g. 1001-1240x2 (default: the pattern's "
-                     "range, else every frame on disk). Output templates take #### or {frame}."),
+                     "plate.1001-1240#.exr, tex.<UDIM>.exr) to process: 1001-1240, 1001-1240x2 or 1001-1240:2 (both "
+                     "every other frame), 1,5-9, -5--1; descending ranges are the same frames; run in ascending "
+                     "order (default: the pattern's range, else every frame on disk)."),
         click.option("--shard", metavar="K/N|auto", help="Process only the K-th (from 1) of N contiguous chunks of "
                      "the jobs; auto reads the array task from Slurm, SGE, AWS Batch, Kubernetes, LSF or PBS "
                      "(auto/N where the scheduler does not publish the count)."),
