@@ -49,22 +49,22 @@ def expand(patterns: list[str]) -> list[str]:
 
 
 def output_for(template: str, path: str) -> str:
-    """Fill an output template: {stem} {name} {ext} {dir} of the input path.
+    """Fill an output template for a plain input: {stem} {name} {ext} {dir} of its path.
 
     ``{ext}`` includes the dot (``.exr``); ``{name}`` is ``{stem}{ext}``; ``{dir}`` is the input's
-    folder (``.`` when it has none).
+    folder (``.`` when it has none). A frame token or ``{frame}`` needs a frame sequence's input
+    (:func:`pyramid_cli.sequence.output_path`, which fills every template).
     """
-    name = os.path.basename(path)
-    stem, ext = os.path.splitext(name)
-    try:
-        return template.format(stem=stem, name=name, ext=ext, dir=os.path.dirname(path) or ".")
-    except (KeyError, IndexError, ValueError) as e:
-        raise UsageError(f"bad output template {template!r}: use {{stem}} {{name}} {{ext}} (with its dot) "
-                         f"{{dir}} ({e})") from None
+    from .sequence import output_path
+
+    return output_path(template, path, None)
 
 
 def plan_jobs(paths: list[str], output: str | None, frames: str | None = None) -> list[Job]:
-    """``IN OUT`` (two paths, no -o) or ``IN... -o TEMPLATE``; frame sequences go to :mod:`.sequence`."""
+    """``IN OUT`` (two paths, no -o) or ``IN... -o TEMPLATE``; frame sequences go to :mod:`.sequence`.
+
+    ``OUT`` of a plain ``IN`` is a path as it is (braces included); it may not hold a frame token.
+    """
     from . import sequence
 
     if frames is not None or any(sequence.is_sequence(p) for p in (paths if output else paths[:1])):
@@ -73,6 +73,9 @@ def plan_jobs(paths: list[str], output: str | None, frames: str | None = None) -
         if len(paths) != 2 or _GLOB & set(paths[0]):
             raise UsageError("give INPUT OUTPUT, or several inputs with -o/--output TEMPLATE "
                              "(e.g. -o 'out/{stem}_blur.exr')")
+        if sequence.is_sequence(paths[1]):
+            raise UsageError(f"{paths[1]}: a frame token in the output, and {paths[0]} is not a frame sequence "
+                             "(for one frame of a sequence give its token too, e.g. plate.1001#.exr)")
         return [Job(paths[0], paths[1])]
     inputs = expand(paths)
     if not inputs:

@@ -246,8 +246,10 @@ def batch_options(f):
     """Many inputs in one process: an output template, failure and freshness policies, I/O overlap."""
     options = [
         click.option("-o", "--output", "template", metavar="TEMPLATE",
-                     help="Output path template for several inputs: {stem} {name} {ext} (with its dot, e.g. "
-                          "'.exr') {dir}. Output folders are created."),
+                     help="Output path template: {stem} {name} {ext} (with its dot, e.g. '.exr') {dir} of each "
+                          "input, and for sequences {frame} ({frame:05d}) or one frame token (####, %04d, @, $F4, "
+                          "<UDIM>), in any combination: 'out/{stem}_blur_{frame:05d}{ext}'. Without fields or a "
+                          "token it is a path as it is. Output folders are created."),
         click.option("--keep-going", is_flag=True, help="Go on past a bad file; report failures at the end."),
         click.option("--skip-existing", is_flag=True, help="Skip inputs whose output is newer (like make)."),
         click.option("-j", "--jobs", type=click.IntRange(1, 64), default=2, show_default=True,
@@ -263,8 +265,9 @@ def sequence_options() -> list:
     """--frames, --shard, --cluster, --chunk (frame sequences, array jobs, a Dask cluster)."""
     return [
         click.option("--frames", metavar="RANGE", help="Frames of sequence inputs (plate.####.exr, plate.%04d.exr, "
-                     "plate.1001-1240#.exr, tex.<UDIM>.exr) to process, e.g. 1001-1240x2 (default: the pattern's "
-                     "range, else every frame on disk). Output templates take #### or {frame}."),
+                     "plate.1001-1240#.exr, tex.<UDIM>.exr) to process: 1001-1240, 1001-1240x2 or 1001-1240:2 (both "
+                     "every other frame), 1,5-9, -5--1; descending ranges are the same frames; run in ascending "
+                     "order (default: the pattern's range, else every frame on disk)."),
         click.option("--shard", metavar="K/N|auto", help="Process only the K-th (from 1) "
                      "of N contiguous chunks of the jobs. auto reads the array task from Slurm, SGE, AWS Batch, "
                      "Kubernetes, LSF, PBS or Torque; give what the scheduler does not publish: auto/N the task "
@@ -669,9 +672,12 @@ def blend(a_path, b_path, mask_path, output_path, levels, analysis, synthesis, a
 
 
 @main.command("farm-template", context_settings={"ignore_unknown_options": True, "allow_interspersed_args": False})
-@click.option("--frames", required=True, metavar="RANGE", help="The job's frames, e.g. 1001-1240 or 1001-1240x2.")
+@click.option("--frames", required=True, metavar="RANGE", help="The job's frames: 1001-1240, 1001-1240x2 or "
+              "1001-1240:2 (every other frame), 1,5-9; written to the template ascending, as Open Job Description "
+              "requires (1010-1001 becomes 1001-1010).")
 @click.option("--chunk", type=click.IntRange(1), default=10, show_default=True,
-              help="Frames per task (one process, one warm executor each).")
+              help="Frames per task, at most, whatever the range's shape (one process, one warm executor each; "
+                   "OpenJD evens the sizes: 10 frames at 4 are tasks of 4, 3, 3).")
 @click.option("--target-seconds", type=click.IntRange(1), help="Target task run time, for schedulers that adapt "
               "the chunk size to it (targetRuntimeSeconds).")
 @click.option("--name", help="Job name (default: the command).")
@@ -679,23 +685,38 @@ def blend(a_path, b_path, mask_path, output_path, levels, analysis, synthesis, a
 @click.option("-o", "--output", "out_path", default="-", show_default=True, type=click.Path(dir_okay=False),
               help="Where to write the template (- for standard output).")
 @click.argument("command", nargs=-1, required=True, type=click.UNPROCESSED, metavar="-- COMMAND ARGS...")
-def farm_template(frames, chunk, target_seconds, name, executable, out_path, command) -> None:
+@click.pass_context
+def farm_template(ctx: click.Context, frames, chunk, target_seconds, name, executable, out_path, command) -> None:
     """Write an Open Job Description job template (AWS Deadline Cloud's format) running COMMAND over frames.
 
-    Each task runs COMMAND on a contiguous chunk of frames with --frames; the
-    template validates with `openjd check` and runs locally with `openjd run`.
+    Each task runs COMMAND on a chunk of frames with --frames CHUNK (an OpenJD range
+    such as 1001-1007:2, which --frames reads with the same meaning); the template
+    validates with `openjd check` and runs locally with `openjd run`. COMMAND is
+    planned over all the frames when the template is written: what its tasks would
+    refuse (a bad option, an output template giving two frames one file, frames
+    outside the pattern's range) is refused now. --frames, --shard, --cluster and
+    --chunk cannot be in COMMAND (farm-template sets the frames; the tasks are the split).
 
     \b
     Example:
       pyramid farm-template --frames 1001-1240 --chunk 20 -o blur.json -- \\
           blur --levels 4 --skip-existing '/shots/sh010/plate.####.exr' -o '/shots/sh010/soft.####.exr'
+      pyramid farm-template --frames 1001-1240x2 --chunk 8 -o half.json -- \\
+          apply 'quadratic *v g' '/shots/sh010/plate.####.exr' -o '/shots/sh010/half/{stem}_half{ext}'
       openjd check blur.json && openjd run blur.json
       deadline bundle submit ...   # a job bundle holding template.json
     """
-    from .farm import dumps, job_template
+    from .farm import check_plan, dumps, job_template
 
-    text = dumps(job_template(list(command), frames, chunk=chunk, name=name, executable=executable,
-                              target_seconds=target_seconds))
+    template = job_template(list(command), frames, chunk=chunk, name=name, executable=executable,
+                            target_seconds=target_seconds)
+    sub = main.get_command(ctx, command[0])
+    try:
+        parsed = sub.make_context(command[0], list(command[1:]), parent=ctx)
+    except click.ClickException as e:
+        raise UsageError(f"the command after --: {e.format_message().splitlines()[0]}") from None
+    check_plan(parsed.params["paths"], parsed.params.get("template"), frames)
+    text = dumps(template)
     if out_path == "-":
         click.echo(text, nl=False)
         return

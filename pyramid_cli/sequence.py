@@ -1,101 +1,251 @@
-"""Frame sequences in pipeline conventions: ``plate.####.exr``, ``plate.%04d.exr``, ``plate.1001-1240#.exr``.
+"""Frame sequences in pipeline conventions (``plate.####.exr``, ``plate.%04d.exr``, ``plate.1001-1240#.exr``)
+and the one frame-range language of ``--frames``, patterns and farm templates.
 
-Parsing is :mod:`fileseq`'s (``#``, ``@``, ``%04d``, ``$F4``, ``<UDIM>``, ``%(UDIM)d``,
-frame ranges with steps and negative frames). One rule is this tool's: a lone ``#``
-means four digits (``plate.1001-1240#.exr``, as fileseq and RV write it), a run of
-two or more ``#`` means one digit each (``plate.####.exr``, as Nuke and Houdini write
-it); ``@`` is always one digit each.
+**Frame ranges** (``--frames``, the range in a pattern, a farm template's ``Frames``)::
 
-Which frames: the pattern's own range (``plate.1001-1240#.exr``), narrowed by
-``--frames`` when both are given; else ``--frames``; else the frames found on disk,
-from the first to the last (a gap is a missing frame). UDIM tiles are never
-contiguous, so a UDIM pattern without a range takes the tiles found on disk.
-A frame whose file is missing is an :class:`~pyramid_cli.errors.InputError` naming it
-(exit 3), or skipped with a warning under ``--keep-going``.
+    RANGE := PART [, PART]...        spaces around parts and around '-' are ignored
+    PART  := A | A-B | A-BxN | A-B:N
 
-Output templates take the same tokens (``out/soft.####.exr``: frame to frame, with the
-template's own padding) and the fields ``{frame}`` (``{frame:04d}`` for a width),
-``{stem}``, ``{name}``, ``{ext}``, ``{dir}``.
+``A-B`` is every frame from A to B; ``A-BxN`` and ``A-B:N`` (fileseq's and Open Job
+Description's spellings) are every N-th frame counted from A: ``1001-1007:2`` is 1001
+1003 1005 1007. Frames may be negative (``-5--1``). A descending part (``1010-1001``,
+``1010-1001x3`` = 1010 1007 1004 1001) selects the same frames as counting up; a
+negative step is accepted on a descending part only (OpenJD's ``10-1:-3``). Whatever
+the spelling, the frames run in ascending order, each once. fileseq's ``y`` (every
+frame but every N-th) and its stagger meaning of ``:`` are not this language; subframes
+neither. At most :data:`MAX_FRAMES` frames. A bad range is one line (exit 2).
+
+**Patterns.** A path is a frame sequence when its file name (not its folder) holds one
+frame token: ``#`` (a lone ``#`` is four digits, as fileseq and RV write it; a run of
+two or more is one digit each, as Nuke and Houdini write it), ``@`` (one digit each;
+``@`` followed by a digit, as in ``icon@2x.png``, is text), ``%0Nd`` / ``%d``, ``$FN`` /
+``$F``, ``<UDIM>``, ``%(UDIM)d``. Digits alone are not a token: ``plate.1001.exr`` and
+``v2.1001_1.exr`` are plain files. A range may stand right before the token after a
+separator (``plate.1001-1240#.exr``). Frames are printf-padded (``-003`` for -3 at
+four digits); a file is a frame only with exactly the pattern's padding.
+
+Which frames: the pattern's own range, narrowed by ``--frames`` when both are given;
+else ``--frames``; else the frames found on disk, from the first to the last (a gap is
+a missing frame). UDIM tiles are never contiguous, so a UDIM pattern without a range
+takes the tiles found on disk. A frame whose file is missing is an
+:class:`~pyramid_cli.errors.InputError` naming it (exit 3), or skipped with a warning
+under ``--keep-going``.
+
+**Outputs.** An output template takes the fields ``{frame}`` (``{frame:05d}`` for a
+width), ``{stem}``, ``{name}``, ``{ext}`` (with its dot) and ``{dir}`` of the input, and
+at most one frame token in its file name (its own padding), in any combination:
+``out/{stem}_blur_{frame:05d}{ext}``, ``out/{stem}.####{ext}``. A template without a
+token is a path once its fields are filled, never parsed again.
 """
 
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
+import re
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
-import fileseq
-
-from .batch import Job, expand, output_for
+from .batch import Job, expand
 from .errors import InputError, UsageError
 
-_UDIM = ("<UDIM>", "%(UDIM)d")
+MAX_FRAMES = 1_000_000
+"""The most frames one range or one sequence may hold (a typo such as ``1-10000000`` is refused, not expanded)."""
+
+RANGE_EXAMPLES = "examples: 1001-1240, 1001-1240x2, 1001-1240:2, 1,5-9"
+
+_PART = re.compile(r"\s*(-?\d+)(?:\s*-\s*(-?\d+)(?:\s*([x:y])\s*(-?\d+))?)?\s*")
+# A frame token: UDIM first (its spellings contain '%' and 'd'), then printf, Houdini, hashes, at-signs.
+_TOKEN = re.compile(r"<UDIM>|%\(UDIM\)d|%0\d+d|%d|\$F\d*|#+|(?<!@)@+(?![\d@])")
+_RANGE_CHARS = set("0123456789-,:xy")
+_FIELD = re.compile(r"\{\{|\}\}|\{[^{}]*\}")
+_FIELDS = "{frame} {stem} {name} {ext} {dir}"
 
 
-@dataclass
-class FrameJob(Job):
-    """A job of a frame sequence: its frame number, and whether its input exists."""
+# --------------------------------------------------------------------------- frame ranges
 
-    frame: int = 0
-    missing: bool = False
+def _parts(spec: str, what: str) -> list[range]:
+    """The parts of a range as Python ranges (ascending or descending, in the order written)."""
+    bad = f"{what} {spec!r}: not a frame range ({RANGE_EXAMPLES})"
+    if not isinstance(spec, str) or not spec.strip():
+        raise UsageError(bad)
+    parts, total = [], 0
+    for text in spec.split(","):
+        m = _PART.fullmatch(text)
+        if not m:
+            raise UsageError(bad)
+        a, b, kind, n = m.groups()
+        a = int(a)
+        b = a if b is None else int(b)
+        step = 1 if n is None else int(n)
+        if kind == "y":
+            raise UsageError(f"{what} {spec!r}: fileseq's y (every frame but every N-th) is not supported; "
+                             "list the frames instead")
+        if step == 0:
+            raise UsageError(f"{what} {spec!r}: a step must not be 0")
+        if step < 0 and a <= b:
+            raise UsageError(f"{what} {spec!r}: a negative step needs a descending range (10-1:-3)")
+        step = abs(step)
+        part = range(a, b + 1, step) if a <= b else range(a, b - 1, -step)
+        total += len(part)
+        if total > MAX_FRAMES:
+            raise UsageError(f"{what} {spec!r}: more than {MAX_FRAMES} frames in one run")
+        parts.append(part)
+    return parts
 
 
-def _pad_style(pattern: str):
-    seq = fileseq.FileSequence(pattern, allow_subframes=False)
-    return fileseq.PAD_STYLE_HASH4 if seq.padding() == "#" else fileseq.PAD_STYLE_HASH1
+def frame_set(spec: str, what: str = "--frames") -> list[int]:
+    """The frames of a range (see the module notes), ascending, each once.
 
-
-def parse(pattern: str) -> fileseq.FileSequence | None:
-    """The :class:`fileseq.FileSequence` of ``pattern``, or None when it names no sequence.
-
-    A path is a sequence when it holds a padding token (``#``, ``@``, ``%0Nd``, ``$FN``,
-    ``<UDIM>``, ``%(UDIM)d``); ``render_v002.exr`` is a plain file.
+    >>> frame_set("1010-1001x3")
+    [1001, 1004, 1007, 1010]
+    >>> frame_set("1-10:4,20")
+    [1, 5, 9, 20]
 
     Parameters
     ----------
-    pattern : str
-        A path or sequence pattern, e.g. ``plate.1001-1240#.exr``.
-
-    Returns
-    -------
-    fileseq.FileSequence or None
-    """
-    try:
-        seq = fileseq.FileSequence(pattern, allow_subframes=False)
-    except fileseq.ParseException as e:
-        raise UsageError(f"{pattern}: not a frame sequence pattern ({e})") from None
-    if not seq.padding():
-        return None
-    return fileseq.FileSequence(pattern, pad_style=_pad_style(pattern), allow_subframes=False)
-
-
-def is_sequence(path: str) -> bool:
-    """Does ``path`` name a frame sequence (see :func:`parse`)?"""
-    try:
-        return parse(path) is not None
-    except UsageError:
-        return False
-
-
-def _is_udim(seq: fileseq.FileSequence) -> bool:
-    return seq.padding() in _UDIM
-
-
-def frame_set(spec: str) -> list[int]:
-    """Frames of a range such as ``1001-1240x2``, ``1-10,20``, ``-5--1`` (fileseq's syntax), in order.
+    spec : str
+        The range: ``1001-1240``, ``1001-1240x2``, ``1001-1240:2``, ``1,5-9``, ``-5--1``.
+    what : str
+        How messages name it (``--frames``, or a pattern).
 
     Raises
     ------
     UsageError
-        Not a frame range.
+        Not a range (one line), or more than :data:`MAX_FRAMES` frames.
+    """
+    return sorted({f for part in _parts(spec, what) for f in part})
+
+
+def range_text(frames: Iterable[int]) -> str:
+    """A short spelling of frames, ascending and without overlaps, in this language and Open Job Description's.
+
+    Runs of three or more frames with one step become ``A-B`` or ``A-B:N``; other frames are listed.
+
+    >>> range_text([1, 5, 6, 7, 8, 9, 11, 13, 15, 20])
+    '1,5-9,11-15:2,20'
+    """
+    values = sorted(set(frames))
+    out: list[str] = []
+    i = 0
+    while i < len(values):
+        j = i
+        if i + 2 < len(values):
+            step = values[i + 1] - values[i]
+            while j + 1 < len(values) and values[j + 1] - values[j] == step:
+                j += 1
+        if j - i >= 2:
+            out.append(f"{values[i]}-{values[j]}" + (f":{step}" if step != 1 else ""))
+            i = j + 1
+        else:
+            out.append(str(values[i]))
+            i += 1
+    return ",".join(out)
+
+
+# --------------------------------------------------------------------------- patterns
+
+@dataclass(frozen=True)
+class Pattern:
+    """A frame sequence pattern: ``head`` + the frame (``width`` digits, printf-padded) + ``tail``.
+
+    ``frames`` is the pattern's own range (``plate.1001-1240#.exr``), or None.
+    """
+
+    head: str
+    token: str
+    tail: str
+    width: int
+    frames: tuple[int, ...] | None = None
+
+    @property
+    def udim(self) -> bool:
+        return self.token in ("<UDIM>", "%(UDIM)d")
+
+    def frame(self, f: int) -> str:
+        """The path of frame ``f``."""
+        return f"{self.head}{_pad(f, self.width)}{self.tail}"
+
+
+def _pad(f: int, width: int) -> str:
+    return f"{f:0{width}d}" if width else str(f)
+
+
+def _width(token: str) -> int:
+    if token == "#":
+        return 4
+    if token[0] in "#@":
+        return len(token)
+    if token.startswith("%0"):
+        return int(token[2:-1])
+    if token.startswith("$F"):
+        return int(token[2:] or 0)
+    return 0  # %d, <UDIM>, %(UDIM)d
+
+
+def _find_token(path: str, masked: str | None = None) -> re.Match | None:
+    """The frame token in the file name of ``path`` (searched in ``masked``, ``path`` with fields blanked)."""
+    text = path if masked is None else masked
+    start = max(text.rfind("/"), text.rfind(os.sep)) + 1
+    found = list(_TOKEN.finditer(text, start))
+    if len(found) > 1:
+        raise UsageError(f"{path}: {len(found)} frame tokens in one name "
+                         f"({', '.join(m.group() for m in found)}): give one")
+    return found[0] if found else None
+
+
+def _range_before(path: str, head: str) -> tuple[str, tuple[int, ...] | None]:
+    """Split a range off the end of ``head`` (``plate.1001-1240`` → ``plate.``, its frames).
+
+    A range starts at the name's beginning or after a character that is not a letter or a
+    digit (``plate.``, ``plate_``, ``plate-``), and ends right at the token.
+    """
+    name_start = max(head.rfind("/"), head.rfind(os.sep)) + 1
+    i = len(head)
+    while i > name_start and head[i - 1] in _RANGE_CHARS:
+        i -= 1
+    first_error = None
+    for s in range(i, len(head)):
+        text = head[s:]
+        if not any(c.isdigit() for c in text) or not (text[0] == "-" or text[0].isdigit()):
+            continue
+        if s > name_start and head[s - 1].isalnum():
+            continue
+        try:
+            return head[:s], tuple(frame_set(text, what=f"{path}: range"))
+        except UsageError as e:
+            if first_error is None and re.match(r"-?\d+\s*-", text):
+                first_error = e
+    if first_error is not None:
+        raise first_error
+    return head, None
+
+
+def parse(pattern: str) -> Pattern | None:
+    """The :class:`Pattern` of ``pattern``, or None when its file name holds no frame token.
+
+    ``render_v002.exr``, ``plate.1001.exr`` and ``v2.1001_1.exr`` are plain files.
+
+    Raises
+    ------
+    UsageError
+        Two tokens in one name, or a malformed range before the token (one line).
+    """
+    m = _find_token(pattern)
+    if m is None:
+        return None
+    head, frames = _range_before(pattern, pattern[:m.start()])
+    return Pattern(head, m.group(), pattern[m.end():], _width(m.group()), frames)
+
+
+def is_sequence(path: str) -> bool:
+    """Does ``path`` name a frame sequence: a frame token in its file name (see the module notes)? Never raises.
+
+    A name with two tokens counts as one, so that :func:`parse` refuses it.
     """
     try:
-        frames = list(fileseq.FrameSet(spec))
-    except (fileseq.ParseException, ValueError, TypeError) as e:
-        raise UsageError(f"--frames {spec!r}: not a frame range such as 1001-1240x2 ({e})") from None
-    if not frames:
-        raise UsageError(f"--frames {spec!r} selects no frame")
-    return [int(f) for f in frames]
+        return _find_token(path) is not None
+    except UsageError:
+        return True
 
 
 def frames_of(pattern: str, frames: str | None = None) -> list[tuple[int, str]]:
@@ -111,7 +261,7 @@ def frames_of(pattern: str, frames: str | None = None) -> list[tuple[int, str]]:
     Returns
     -------
     list of (int, str)
-        In frame order as the range gives it (ascending when found on disk).
+        In ascending frame order.
 
     Raises
     ------
@@ -124,9 +274,8 @@ def frames_of(pattern: str, frames: str | None = None) -> list[tuple[int, str]]:
     if seq is None:
         raise UsageError(f"{pattern}: not a frame sequence (use #, @, %04d, $F4 or <UDIM> for the frame number)")
     chosen = frame_set(frames) if frames is not None else None
-    own = seq.frameSet()
-    if own is not None:
-        listed = [int(f) for f in own]
+    if seq.frames is not None:
+        listed = list(seq.frames)
         if chosen is not None:
             keep = set(chosen)
             listed = [f for f in listed if f in keep]
@@ -138,39 +287,102 @@ def frames_of(pattern: str, frames: str | None = None) -> list[tuple[int, str]]:
         found = _on_disk(seq)
         if not found:
             raise InputError(f"{pattern}: no frame of this sequence exists")
-        listed = found if _is_udim(seq) else list(range(found[0], found[-1] + 1))
+        if seq.udim:
+            listed = found
+        elif found[-1] - found[0] >= MAX_FRAMES:
+            raise InputError(f"{pattern}: frames {found[0]} to {found[-1]} on disk span more than {MAX_FRAMES} "
+                             "frames; give --frames")
+        else:
+            listed = list(range(found[0], found[-1] + 1))
     return [(f, seq.frame(f)) for f in listed]
 
 
-def _on_disk(seq: fileseq.FileSequence) -> list[int]:
+def _on_disk(seq: Pattern) -> list[int]:
     """Frames whose file exists with exactly the pattern's padding (``plate.01.exr`` is not frame 1 of ``####``)."""
-    try:
-        found = fileseq.findSequenceOnDisk(seq.format("{dirname}{basename}@{extension}"),
-                                           pad_style=fileseq.PAD_STYLE_HASH1)
-    except fileseq.FileSeqException:
+    folder, prefix = os.path.split(seq.head)
+    if os.sep in seq.tail or "/" in seq.tail:
         return []
-    fs = found.frameSet()
-    candidates = sorted(int(f) for f in fs) if fs is not None else []
-    return [f for f in candidates if os.path.exists(seq.frame(f))]
+    name = re.compile(re.escape(prefix) + r"(-?\d+)" + re.escape(seq.tail))
+    try:
+        entries = os.listdir(folder or ".")
+    except OSError:
+        return []
+    found = set()
+    for entry in entries:
+        m = name.fullmatch(entry)
+        if m and _pad(int(m.group(1)), seq.width) == m.group(1):
+            found.add(int(m.group(1)))
+    return sorted(found)
 
 
-def output_path(template: str, input_path: str, frame: int) -> str:
-    """Fill an output template for one frame: ``{frame}`` ``{stem}`` … and then a sequence token.
+# --------------------------------------------------------------------------- output templates
+
+def output_path(template: str, input_path: str, frame: int | None) -> str:
+    """Fill an output template for one input: its fields, and its frame token (see the module notes).
 
     >>> output_path("out/soft.####.exr", "in/plate.1001.exr", 1001)
     'out/soft.1001.exr'
-    >>> output_path("out/{stem}_x.exr", "in/plate.1001.exr", 1001)
-    'out/plate.1001_x.exr'
+    >>> output_path("out/{stem}_blur_{frame:05d}{ext}", "in/plate.1001.exr", 1001)
+    'out/plate.1001_blur_01001.exr'
+    >>> output_path("out/{stem}.####{ext}", "in/v2.1001_1.exr", 7)
+    'out/v2.1001_1.0007.exr'
+
+    Parameters
+    ----------
+    template : str
+        The template; without a token or fields it is the output path as it is.
+    input_path : str
+        The input whose ``{stem}``, ``{name}``, ``{ext}`` and ``{dir}`` fill the fields.
+    frame : int or None
+        The frame number, None for an input that is not a frame of a sequence.
+
+    Raises
+    ------
+    UsageError
+        An unknown field, a range in the template, or a frame (token or ``{frame}``) with no frame.
     """
     name = os.path.basename(input_path)
     stem, ext = os.path.splitext(name)
+    fields = {"stem": stem, "name": name, "ext": ext, "dir": os.path.dirname(input_path) or "."}
+    if frame is not None:
+        fields["frame"] = frame
+    masked = _FIELD.sub(lambda f: "\0" * len(f.group()), template)
+    m = _find_token(template, masked)
+    if m is not None:
+        if frame is None:
+            raise UsageError(f"output {template!r} has a frame token ({m.group()}), and {input_path} is not a frame "
+                             "of a sequence")
+        head, own = _range_before(template, masked[:m.start()])
+        if own is not None:
+            raise UsageError(f"output {template!r}: a frame range in an output ({masked[len(head):m.start()]}); "
+                             f"an output takes the token alone ({m.group()})")
+        before, after = template[:m.start()], template[m.end():]
+        return (_fill(before, fields, template, input_path) + _pad(frame, _width(m.group()))
+                + _fill(after, fields, template, input_path))
+    return _fill(template, fields, template, input_path)
+
+
+def _fill(text: str, fields: dict, template: str, input_path: str) -> str:
     try:
-        filled = template.format(stem=stem, name=name, ext=ext, dir=os.path.dirname(input_path) or ".", frame=frame)
-    except (KeyError, IndexError, ValueError) as e:
-        raise UsageError(f"bad output template {template!r}: use {{frame}} {{stem}} {{name}} {{ext}} {{dir}} "
-                         f"or a frame token such as #### ({e})") from None
-    seq = parse(filled)
-    return seq.frame(frame) if seq is not None else filled
+        return text.format(**fields)
+    except KeyError as e:
+        if e.args and e.args[0] == "frame":
+            raise UsageError(f"output {template!r} has {{frame}}, and {input_path} is not a frame of a "
+                             "sequence") from None
+        raise UsageError(f"bad output template {template!r}: unknown field {e} (use {_FIELDS} or a frame token "
+                         "such as ####)") from None
+    except (IndexError, ValueError) as e:
+        raise UsageError(f"bad output template {template!r}: {e} (use {_FIELDS}, or {{{{ }}}} for a brace)") from None
+
+
+# --------------------------------------------------------------------------- jobs
+
+@dataclass
+class FrameJob(Job):
+    """A job of a frame sequence: its frame number, and whether its input exists."""
+
+    frame: int = 0
+    missing: bool = False
 
 
 def plan_jobs(paths: list[str], output: str | None, frames: str | None = None) -> list[Job]:
@@ -198,7 +410,7 @@ def plan_jobs(paths: list[str], output: str | None, frames: str | None = None) -
             raise UsageError(f"--frames selects frames of a sequence, and {p} is not one "
                              "(use plate.####.exr, plate.%04d.exr or plate.1001-1240#.exr)")
         else:
-            jobs += [Job(q, output_for(output, q)) for q in expand([p])]
+            jobs += [Job(q, output_path(output, q, None)) for q in expand([p])]
     if not jobs:
         raise UsageError("no input images")
     seen: dict[str, Job] = {}
@@ -268,5 +480,5 @@ def pair_frames(a_pattern: str, b_pattern: str, frames: str | None = None) -> li
     return pairs
 
 
-__all__ = ["FrameJob", "parse", "is_sequence", "frame_set", "frames_of", "output_path", "plan_jobs",
-           "drop_missing", "pair_frames"]
+__all__ = ["FrameJob", "Pattern", "MAX_FRAMES", "parse", "is_sequence", "frame_set", "range_text",
+           "frames_of", "output_path", "plan_jobs", "drop_missing", "pair_frames"]

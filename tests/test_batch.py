@@ -98,3 +98,30 @@ def test_no_match_is_an_input_error(folder):
 def test_quiet_prints_nothing(folder):
     r = invoke("blur", "--backend", "cpu", "-q", folder / "in" / "*.png", "-o", folder / "out" / "{name}")
     assert r.exit_code == 0 and r.output == ""
+
+
+def test_frame_numbered_plain_files_keep_their_names(tmp_path):
+    """Digits in a name are no frame token: plain inputs and outputs keep their names (issue 22)."""
+    (tmp_path / "in").mkdir()
+    write_png(tmp_path / "in" / "plate.1001.png", 1)
+    write_png(tmp_path / "in" / "v2.1001_1.png", 2)
+    r = invoke("blur", "--backend", "cpu", "--levels", "2", tmp_path / "in" / "*.png", "-o",
+               tmp_path / "out" / "{stem}_blur{ext}")
+    assert r.exit_code == 0, r.output
+    assert sorted(os.listdir(tmp_path / "out")) == ["plate.1001_blur.png", "v2.1001_1_blur.png"]
+    r = invoke("blur", "--backend", "cpu", "--levels", "2", tmp_path / "in" / "plate.1001.png",
+               tmp_path / "soft.1001_2.png")
+    assert r.exit_code == 0, r.output
+    assert (tmp_path / "soft.1001_2.png").exists()
+
+
+@pytest.mark.parametrize("args, message", [
+    (["IN/img0.png", "OUT/soft.####.png"], "a frame token in the output, and"),
+    (["IN/img0.png", "-o", "OUT/soft.####.png"], "has a frame token (####), and"),
+    (["IN/*.png", "-o", "OUT/soft_{frame}.png"], "has {frame}, and"),
+])
+def test_a_frame_in_the_output_of_a_plain_input_is_refused(folder, args, message):
+    args = [a.replace("IN", str(folder / "in")).replace("OUT", str(folder / "out")) for a in args]
+    r = invoke("blur", "--backend", "cpu", *args)
+    assert r.exit_code == 2 and message in r.output and r.output.count("\n") == 1
+    assert not (folder / "out").exists()

@@ -99,6 +99,77 @@ def test_plain_names_with_digits_are_not_sequences():
     assert sequence.is_sequence("plate.####.exr") and sequence.is_sequence("tex.<UDIM>.exr")
 
 
+@pytest.mark.parametrize("path", ["plate.1001.exr", "v2.1001_1.exr", "render.1001_1.exr",
+                                  "out/plate.1001_blur_01001.exr", "shot#3/plate.exr", "icon@@2x.png",
+                                  "a/b.c/d-1-3.exr"])
+def test_only_a_frame_token_makes_a_sequence(path):
+    """Digits alone are a name, not a frame (fileseq read plate.1001.exr as frame 1001 and refused v2.1001_1.exr)."""
+    assert not sequence.is_sequence(path) and sequence.parse(path) is None
+
+
+@pytest.mark.parametrize("pattern, frame, expected", [
+    ("soft.####_v2.exr", 7, "soft.0007_v2.exr"),          # the token need not end the name
+    ("shot#3/plate.##.exr", 7, "shot#3/plate.07.exr"),    # a folder's '#' is text
+    ("shot010####.exr", 7, "shot0100007.exr"),            # digits glued to the token are not a range
+    ("plate-1-3#.exr", 2, "plate-0002.exr"),              # a range after a separator
+    ("x.$F.exr", 1001, "x.1001.exr"),
+    ("x.%d.exr", -3, "x.-3.exr"),
+])
+def test_tokens_anywhere_in_the_file_name(pattern, frame, expected):
+    assert sequence.parse(pattern).frame(frame) == expected
+
+
+def test_two_tokens_in_a_name_are_refused():
+    with pytest.raises(UsageError, match=r"2 frame tokens in one name \(####, %04d\)"):
+        sequence.parse("plate.####.%04d.exr")
+
+
+# --------------------------------------------------------------------------- the range language
+
+@pytest.mark.parametrize("spec, expected", [
+    ("1001", [1001]),
+    ("1-5", [1, 2, 3, 4, 5]),
+    ("1-10x3", [1, 4, 7, 10]),
+    ("1-10:3", [1, 4, 7, 10]),                # OpenJD's step: the same as x (fileseq's : staggered)
+    ("1001-1007:2", [1001, 1003, 1005, 1007]),
+    ("5-1", [1, 2, 3, 4, 5]),                  # descending: the same frames, run ascending
+    ("10-1x4", [2, 6, 10]),                    # counted from the first frame written
+    ("10-1:-4", [2, 6, 10]),                   # OpenJD's descending spelling
+    ("-5--3", [-5, -4, -3]),
+    ("-2-1", [-2, -1, 0, 1]),
+    ("1-3,7,9-10", [1, 2, 3, 7, 9, 10]),
+    ("9,1-3,2", [1, 2, 3, 9]),                 # a list in any order, each frame once
+    (" 1 - 3 , 5 ", [1, 2, 3, 5]),             # OpenJD allows spaces
+])
+def test_range_spellings(spec, expected):
+    assert sequence.frame_set(spec) == expected
+
+
+@pytest.mark.parametrize("spec, message", [
+    ("abc", "not a frame range (examples: 1001-1240, 1001-1240x2, 1001-1240:2, 1,5-9)"),
+    ("1.5", "not a frame range"),
+    ("1,,2", "not a frame range"),
+    ("1-10y3", "fileseq's y (every frame but every N-th) is not supported"),
+    ("1-10:0", "a step must not be 0"),
+    ("1-10:-1", "a negative step needs a descending range"),
+    ("1-20000000", "more than 1000000 frames in one run"),
+])
+def test_bad_ranges_are_one_line_exit_2(tmp_path, spec, message):
+    write_sequence(tmp_path / "in", 1, 2)
+    r = invoke("blur", "--backend", "cpu", tmp_path / "in" / "plate.####.exr", "-o", tmp_path / "o.####.exr",
+               "--frames", spec)
+    assert r.exit_code == 2
+    assert r.output.startswith(f"pyramid: error: --frames {spec!r}: ") and message in r.output
+    assert r.output.count("\n") == 1 and not (tmp_path / "o.0001.exr").exists()
+
+
+def test_a_pattern_range_speaks_the_same_language():
+    assert names("plate.1-7:3#.exr") == ["plate.0001.exr", "plate.0004.exr", "plate.0007.exr"]
+    assert frames("plate.5-3#.exr") == [3, 4, 5]
+    with pytest.raises(UsageError, match=r"plate\.1-9y2#\.exr: range '1-9y2': fileseq's y"):
+        frames("plate.1-9y2#.exr")
+
+
 @pytest.mark.parametrize("template, expected", [
     ("out/soft.####.exr", "out/soft.0007.exr"),
     ("out/soft.#.exr", "out/soft.0007.exr"),
@@ -107,6 +178,11 @@ def test_plain_names_with_digits_are_not_sequences():
     ("out/soft_{frame}.exr", "out/soft_7.exr"),
     ("out/soft_{frame:05d}.exr", "out/soft_00007.exr"),
     ("out/{stem}_soft{ext}", "out/plate.0007_soft.exr"),
+    ("out/{stem}_blur_{frame:05d}{ext}", "out/plate.0007_blur_00007.exr"),   # fields combined, no token
+    ("out/{stem}.####{ext}", "out/plate.0007.0007.exr"),                    # fields and a token
+    ("{dir}/soft/{name}", "in/soft/plate.0007.exr"),
+    ("out/v2.1001_1.exr", "out/v2.1001_1.exr"),                              # a path as it is
+    ("out/{{stem}}_#.exr", "out/{stem}_0007.exr"),
 ])
 def test_output_mapping(template, expected):
     assert sequence.output_path(template, "in/plate.0007.exr", 7) == expected
@@ -114,6 +190,22 @@ def test_output_mapping(template, expected):
 
 def test_negative_frames_map_to_negative_outputs():
     assert sequence.output_path("o.####.exr", "plate.-003.exr", -3) == "o.-003.exr"
+
+
+def test_a_plain_output_is_never_renumbered():
+    """fileseq read soft.7.exr as frame 7 of a sequence and wrote frame 1001 to soft.1001.exr."""
+    assert sequence.output_path("out/soft.7.exr", "in/plate.1001.exr", 1001) == "out/soft.7.exr"
+
+
+@pytest.mark.parametrize("template, frame, message", [
+    ("out/{nope}.exr", 7, "unknown field 'nope'"),
+    ("out/soft.1-3#.exr", 7, r"a frame range in an output \(1-3\)"),
+    ("out/soft.####.exr", None, r"has a frame token \(####\), and in/a\.exr is not a frame of a sequence"),
+    ("out/soft_{frame}.exr", None, r"has \{frame\}, and in/a\.exr is not a frame of a sequence"),
+])
+def test_bad_output_templates(template, frame, message):
+    with pytest.raises(UsageError, match=message):
+        sequence.output_path(template, "in/a.exr", frame)
 
 
 def test_template_whose_frames_collide_is_a_usage_error(tmp_path):
@@ -182,6 +274,31 @@ def test_missing_frame_exits_3_naming_it_or_is_skipped_with_keep_going(tmp_path)
     assert "skipping 1 missing frame(s): 3" in r.output
     assert sorted(os.listdir(tmp_path / "out")) == ["soft.0001.exr", "soft.0002.exr", "soft.0004.exr",
                                                     "soft.0005.exr"]
+
+
+@pytest.mark.cli
+@pytest.mark.parametrize("command", [["blur", "--levels", "2"], ["apply", "box *v g"], ["mipmap"]])
+def test_single_outputs_are_named_freely(tmp_path, command):
+    """A frame file in, a name with digits out: IN OUT, -o, and one frame of a sequence (issue 22)."""
+    write_sequence(tmp_path / "in", 1001, 1001)
+    plate = tmp_path / "in" / "plate.1001.exr"
+    assert invoke(*command, "--backend", "cpu", plate, tmp_path / "v2.1001_1.exr").exit_code == 0
+    assert invoke(*command, "--backend", "cpu", plate, "-o", tmp_path / "render.1001_1.exr").exit_code == 0
+    r = invoke(*command, "--backend", "cpu", tmp_path / "in" / "plate.####.exr", "--frames", "1001",
+               "-o", tmp_path / "out" / "v2.1001_1.exr")
+    assert r.exit_code == 0, r.output
+    assert sorted(os.listdir(tmp_path)) == ["in", "out", "render.1001_1.exr", "v2.1001_1.exr"]
+    assert os.listdir(tmp_path / "out") == ["v2.1001_1.exr"]
+
+
+@pytest.mark.cli
+def test_combined_fields_and_stepped_frames_on_the_command_line(tmp_path):
+    write_sequence(tmp_path / "in", 1001, 1007)
+    r = invoke("blur", "--backend", "cpu", "--levels", "2", tmp_path / "in" / "plate.####.exr",
+               "-o", tmp_path / "out" / "{stem}_blur_{frame:05d}{ext}", "--frames", "1007-1001:3")
+    assert r.exit_code == 0, r.output
+    assert sorted(os.listdir(tmp_path / "out")) == ["plate.1001_blur_01001.exr", "plate.1004_blur_01004.exr",
+                                                    "plate.1007_blur_01007.exr"]
 
 
 @pytest.mark.cli
