@@ -712,8 +712,9 @@ _register()
 
 
 def run() -> None:  # console-script entry point
-    from .signals import install
+    from .signals import guard_streams, install
     install()  # SIGTERM/SIGHUP clean up like Ctrl-C (exit 143/129); SIGXFSZ ignored
+    guard_streams()  # a reader closing stdout (| head) drops the lines, not the frames
     main(prog_name="pyramid")
 
 
