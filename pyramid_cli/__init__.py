@@ -13,7 +13,7 @@ __version__ = "0.1.0"
 
 _API = ("apply", "blur", "pyramid", "laplacian", "collapse", "mipmap", "read_image", "write_image",
         "process_files", "as_pixels", "Session", "Work", "Filter", "Blur", "SigmaBlur", "Levels", "Laplacian",
-        "Collapse", "fill", "blend")
+        "Collapse", "fill", "blend", "Bands")
 __all__ = list(_API)
 
 

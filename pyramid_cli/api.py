@@ -16,6 +16,16 @@ filtering sRGB codes directly is the caller's choice (``read_image`` decodes fil
 Without ``session=``, a module-level session per backend is made on first use
 and closed at exit.
 
+Errors: a bad argument raises :class:`~pyramid_cli.errors.UsageError` and bad pixel data (NaN/Inf in
+a mask, nothing to fill from, an image too large) :class:`~pyramid_cli.errors.DataError`, both
+``ValueError`` s; a file that cannot be read raises :class:`~pyramid_cli.errors.InputError`, one
+that cannot be written :class:`~pyramid_cli.errors.OutputError`, a missing GL context
+:class:`~pyramid_cli.errors.BackendError` (these three are :class:`~pyramid_cli.errors.PyramidError`
+s, not ``ValueError``). Every message is the one the command line prints. What the command line
+warns about is a ``UserWarning`` here: a filter pair on two lattices
+(:class:`~pyramid_cli.errors.MixedLatticeWarning`: ``blur``, ``fill``, ``blend``), mask values outside
+[0, 1] (clipped).
+
 References
 ----------
 Kraus & Strengert, "Pyramid Filters Based on Bilinear Interpolation", GRAPP 2007:
@@ -26,11 +36,13 @@ from __future__ import annotations
 
 import atexit
 import os
+import warnings
 from collections.abc import Iterator, Sequence
 
 import numpy as np
 
 from . import catalogue, io, options
+from .errors import MixedLatticeWarning
 from .expr import Expr
 from .geometry import reduced
 from .session import Session
@@ -89,6 +101,25 @@ def _expr(expr: str | Expr) -> Expr:
 
 def _run(work: Work, arrays: list, session: Session | None, backend: str) -> list[np.ndarray]:
     return _session(session, backend).run(work, arrays)
+
+
+def _warn_work(work: Work, size=None) -> None:
+    """The work's warnings (:meth:`~pyramid_cli.work.Work.warnings`) as MixedLatticeWarnings at the caller's line."""
+    for message in work.warnings(size):
+        warnings.warn(message, MixedLatticeWarning, stacklevel=3)
+
+
+def _warn_mask(message: str) -> None:  # called by methods.mask_weights, under fill_inputs or mask_channels
+    warnings.warn(message, UserWarning, stacklevel=5)
+
+
+class Bands(list):
+    """Laplacian bands (a list of arrays) that remember the ``synthesis`` and ``border`` they were made with,
+    so that :func:`collapse` uses them and refuses others; a plain list works too, unchecked."""
+
+    def __init__(self, bands, *, analysis: str, synthesis: str, border: str):
+        super().__init__(bands)
+        self.analysis, self.synthesis, self.border = analysis, synthesis, border
 
 
 def _banded(work: Work, array, out: Sequence[np.ndarray] | None, memory, session: Session | None,
@@ -198,7 +229,8 @@ def blur(array, levels: int = 4, *, sigma: float | None = None, analysis: str = 
     analysis, synthesis : str
         A ⊗↓ filter (box, box4, quadratic, cubic, §4) and a ⊗↑ filter (nearest,
         midpoint, doosabin, cubic, fourpoint, §5), or one-step expressions.
-        The defaults are the paper's Figure 3b.
+        The defaults are the paper's Figure 3b. A pair on two lattices (``pyramid explain`` shows a
+        filter's) shifts the result by half a fine pixel per level and warns (MixedLatticeWarning).
     quasi : bool
         Apply the §5.5 quasi-interpolation prefilter at the coarsest level.
     border, backend, session, out, memory
@@ -225,6 +257,7 @@ def blur(array, levels: int = 4, *, sigma: float | None = None, analysis: str = 
         if not 1 <= levels <= 16:
             raise ValueError(f"levels must be 1 to 16, not {levels}")
         work = Blur(levels=levels, analysis=analysis, synthesis=synthesis, quasi=quasi, border=border)
+    _warn_work(work)
     if _bands_wanted(array, out, memory):
         return _banded(work, array, None if out is None else [out], memory, session, backend)[0]
     (result,) = _run(work, [as_pixels(array)], session, backend)
@@ -281,9 +314,9 @@ def laplacian(array, levels: int = 4, *, analysis: str = catalogue.ANALYSIS_DEFA
               memory: int | str | None = None) -> list[np.ndarray]:
     """Laplacian bands L_k = G_k − expand(G_k+1) for k < ``levels``, then the coarsest G_m.
 
-    :func:`collapse` (with the same ``synthesis`` and ``border``) sums them back to the
-    input, exactly up to float rounding. ``out`` (one array per band), ``memory`` or a memory-mapped
-    input run it band by band, as in :func:`apply`.
+    Returns a :class:`Bands` list that records ``synthesis`` and ``border``: :func:`collapse` sums it
+    back to the input with them, exactly up to float rounding. ``out`` (one array per band), ``memory``
+    or a memory-mapped input run it band by band, as in :func:`apply`.
 
     Examples
     --------
@@ -299,13 +332,37 @@ def laplacian(array, levels: int = 4, *, analysis: str = catalogue.ANALYSIS_DEFA
         raise ValueError(f"levels must be 1 to 16, not {levels}")
     work = Laplacian(levels=levels, analysis=analysis, synthesis=synthesis, border=border)
     if _bands_wanted(array, out, memory):
-        return _banded(work, array, out, memory, session, backend)
-    return _run(work, [as_pixels(array)], session, backend)
+        bands = _banded(work, array, out, memory, session, backend)
+    else:
+        bands = _run(work, [as_pixels(array)], session, backend)
+    return Bands(bands, analysis=analysis, synthesis=synthesis, border=work.border)
 
 
-def collapse(bands: Sequence, *, synthesis: str = catalogue.SYNTHESIS_DEFAULT, border: str = "clamp",
-             backend: str = "auto", session: Session | None = None) -> np.ndarray:
-    """Sum Laplacian bands back to the image: G_k = L_k + expand(G_k+1) (inverse of :func:`laplacian`)."""
+def collapse(bands: Sequence, *, synthesis: str | None = None, border: str | None = None, backend: str = "auto",
+             session: Session | None = None) -> np.ndarray:
+    """Sum Laplacian bands back to the image: G_k = L_k + expand(G_k+1) (inverse of :func:`laplacian`).
+
+    The image comes back only with the ``synthesis`` and ``border`` the bands were made with. The
+    :class:`Bands` that :func:`laplacian` returns record them: they are used by default, and others are
+    refused (ValueError), as ``pyramid collapse`` refuses what contradicts a file's record. A plain list
+    of arrays cannot say: its defaults are the paper's Doo-Sabin and ``"clamp"``, and a wrong one gives
+    a wrong image without an error. Band sizes and channel counts are checked either way.
+
+    Examples
+    --------
+    >>> import numpy as np, pyramid_cli as pyr
+    >>> a = np.random.default_rng(2).random((9, 8))
+    >>> bands = pyr.laplacian(a, 2, synthesis="nearest", border="mirror")
+    >>> bool(np.abs(pyr.collapse(bands) - a).max() < 1e-5)
+    True
+    >>> pyr.collapse(bands, synthesis="doosabin")
+    Traceback (most recent call last):
+    ...
+    pyramid_cli.errors.UsageError: the bands were made with synthesis 'nearest'; collapsing with 'doosabin' ...
+    """
+    recorded = {k: getattr(bands, k, None) for k in ("synthesis", "border")}
+    synthesis = _as_recorded("synthesis", synthesis, recorded["synthesis"], catalogue.SYNTHESIS_DEFAULT)
+    border = _as_recorded("border", border, recorded["border"], "clamp")
     bands = [as_pixels(b, f"band {k}") for k, b in enumerate(bands)]
     if len(bands) < 2:
         raise ValueError(f"collapse needs at least two bands, got {len(bands)}")
@@ -316,6 +373,21 @@ def collapse(bands: Sequence, *, synthesis: str = catalogue.SYNTHESIS_DEFAULT, b
                              f"{want + bands[0].shape[2:]}")
     (out,) = _run(Collapse(bands=len(bands), synthesis=synthesis, border=border), bands, session, backend)
     return out
+
+
+def _as_recorded(what: str, asked: str | None, recorded: str | None, default: str) -> str:
+    """``asked`` where it agrees with what :class:`Bands` record, the record where not asked."""
+    if asked is None:
+        return recorded or default
+    if recorded is not None:
+        from .pipeline import _canonical
+
+        if _canonical(what, asked) != _canonical(what, recorded):
+            from .errors import UsageError
+
+            raise UsageError(f"the bands were made with {what} {recorded!r}; collapsing with {asked!r} would not "
+                             "give the image back")
+    return asked
 
 
 def mipmap(array, *, analysis: str = catalogue.MIP_ANALYSIS_DEFAULT, border: str = "clamp", rounding: str = "down",
@@ -365,8 +437,9 @@ def fill(array, *, mask=None, holes: str | None = None, levels: int | None = Non
         H×W or H×W×C pixels, linear light; with an alpha channel premultiplied (as
         :func:`read_image` gives them).
     mask : array_like, optional
-        Weights in [0, 1] (H×W, or H×W×C one per channel): 1 known, 0 a hole. Implies
-        ``holes="mask"``.
+        Weights in [0, 1] (H×W, or H×W×C one per channel): 1 known, 0 a hole, between partly
+        known. Implies ``holes="mask"``. NaN/Inf raise; values outside [0, 1] are clipped with a
+        UserWarning.
     holes : {"alpha", "mask", "nan"}, optional
         Where the weights come from: the alpha channel (the last of 2 or 4 channels; the
         default without ``mask``), ``mask``, or every pixel with a NaN/Inf is a hole.
@@ -374,7 +447,8 @@ def fill(array, *, mask=None, holes: str | None = None, levels: int | None = Non
         Pull steps; default down to 1×1 (so every hole is filled, however large).
     analysis, synthesis : str
         The pull's ⊗↓ filter (default the 4×4 box, §4.2) and the push's ⊗↑ filter (default
-        Doo-Sabin, §5.3), or one-step expressions.
+        Doo-Sabin, §5.3), or one-step expressions. A pair on two lattices fills from beside the
+        holes (2–3× the error) and warns (MixedLatticeWarning).
     keep_alpha : bool
         With ``holes="alpha"``: return the input's alpha beside the filled colours, which are
         then straight (not multiplied by alpha), instead of an opaque image.
@@ -390,9 +464,9 @@ def fill(array, *, mask=None, holes: str | None = None, levels: int | None = Non
     Raises
     ------
     ValueError
-        No alpha channel for ``holes="alpha"``, a mask of another size.
-    pyramid_cli.errors.DataError
-        No known pixel at all.
+        No alpha channel for ``holes="alpha"``, a mask of another size or channel count
+        (:class:`~pyramid_cli.errors.UsageError`); no known pixel at all, NaN/Inf in the mask
+        or in a known pixel (:class:`~pyramid_cli.errors.DataError`).
 
     Examples
     --------
@@ -413,8 +487,10 @@ def fill(array, *, mask=None, holes: str | None = None, levels: int | None = Non
         raise ValueError(f"keep_alpha keeps the alpha the holes come from; with holes={holes!r} every channel "
                          "is filled")
     pixels = as_pixels(array)
-    colour, weight, premultiplied = fill_inputs(pixels, holes, None if mask is None else as_pixels(mask, "mask"))
+    colour, weight, premultiplied = fill_inputs(pixels, holes, None if mask is None else as_pixels(mask, "mask"),
+                                                warn=_warn_mask)
     work = Fill(levels=levels, analysis=analysis, synthesis=synthesis, premultiplied=premultiplied, border=border)
+    _warn_work(work, pixels.shape[:2])
     (out,) = _run(work, [colour, weight], session, backend)
     return fill_output(out, pixels, holes, keep_alpha=keep_alpha)
 
@@ -436,12 +512,15 @@ def blend(a, b, mask, *, levels: int | None = None, analysis: str = catalogue.AN
         H×W or H×W×C pixels of one shape.
     mask : array_like
         H×W (or H×W×1) weights in [0, 1], or H×W×C one per channel: 1 takes A, 0 takes B.
+        Another channel count or NaN/Inf raise ValueError; values outside [0, 1] are clipped
+        with a UserWarning.
     levels : int, optional
         Laplacian levels; default as many as the size allows while the coarsest level keeps 16
         pixels on its shorter side (:func:`pyramid_cli.methods.blend_levels`; 4 at 256×256, 7 at
         3840×2160): deeper bands would mix the two images' mean colours across the whole frame.
     analysis, synthesis : str
-        ⊗↓ and ⊗↑ filters (§4, §5); the defaults are the paper's Figure 3b.
+        ⊗↓ and ⊗↑ filters (§4, §5); the defaults are the paper's Figure 3b. A pair on two
+        lattices moves the seam (7.5 px at 4 levels) and warns (MixedLatticeWarning).
     border, backend, session
         As in :func:`apply`.
 
@@ -464,10 +543,11 @@ def blend(a, b, mask, *, levels: int | None = None, analysis: str = catalogue.AN
     pa, pb = as_pixels(a, "a"), as_pixels(b, "b")
     if pa.shape != pb.shape:
         raise ValueError(f"a has shape {pa.shape} and b {pb.shape}: they must have one shape")
-    m = mask_channels(as_pixels(mask, "mask"), pa)
+    m = mask_channels(as_pixels(mask, "mask"), pa, warn=_warn_mask)
     if levels is not None and levels < 0:
         raise ValueError(f"levels must be 0 or more, not {levels}")
     work = Blend(levels=levels, analysis=analysis, synthesis=synthesis, border=border)
+    _warn_work(work, pa.shape[:2])
     (out,) = _run(work, [pa, pb, m], session, backend)
     return out
 
@@ -539,4 +619,4 @@ def process_files(work: Work, inputs: Sequence[str], output: str | None = None, 
 
 __all__ = ["fill", "blend", "apply", "blur", "pyramid", "laplacian", "collapse", "mipmap", "read_image", "write_image",
            "process_files", "as_pixels", "Session", "Work", "Filter", "Blur", "SigmaBlur", "Levels", "Laplacian",
-           "Collapse"]
+           "Collapse", "Bands"]

@@ -301,6 +301,10 @@ def _reporter(opts: dict):
                     err=lambda msg: click.echo(msg, err=True), progress=_Bar if sys.stderr.isatty() else None)
 
 
+def _drop(msg: str) -> None:
+    """A Reporter's ``out`` where a command prints its own result (--json)."""
+
+
 def _session(opts: dict, reporter):
     from .session import Session
 
@@ -324,10 +328,19 @@ def memory_option(f):
                              "chosen from it; -v says which. Work that cannot fit is refused before it starts.")(f)
 
 
+def mixed_lattice_option(f):
+    return click.option("--allow-mixed-lattice", is_flag=True,
+                        help="Do not warn when the analysis and synthesis filters sit on different lattices (the "
+                             "result shifts by half a fine pixel per level; `pyramid explain` shows a filter's "
+                             "lattice).")(f)
+
+
 def _process(paths, work, opts: dict, mip_tile: int | None = None) -> None:
     from .pipeline import process
 
     reporter = _reporter(opts)
+    for message in work.warnings():  # said once, before the first input is read
+        reporter.warn(message)
     ro, wo = _read_write(opts)
     batch = {"read": ro, "write": wo, "reporter": reporter, "keep_going": opts["keep_going"],
              "skip_existing": opts["skip_existing"], "jobs": opts["jobs"], "mip_tile": mip_tile,
@@ -382,7 +395,7 @@ def apply(expression, paths, border: str, **opts) -> None:
 @click.option("--quasi", is_flag=True, help="Apply the §5.5 quasi-interpolation prefilter at the coarsest level.")
 @click.option("--sigma", type=float, help="Blur strength as a Gaussian sigma in input pixels: picks the levels "
               "and blends two neighbouring level counts, so the strength changes continuously.")
-@click.option("--allow-mixed-lattice", is_flag=True, help="Do not warn when analysis and synthesis lattices differ.")
+@mixed_lattice_option
 @border_option
 @io_options
 @batch_options
@@ -403,14 +416,11 @@ def blur(paths, levels: int, analysis: str, synthesis: str, quasi: bool, sigma: 
       pyramid blur 'plate.####.exr' -o 'soft.####.exr' --cluster local:4
       pyramid blur --levels 5 --memory 2G -v painting_32k.exr soft_32k.exr
     """
-    from .pyramids import lattice_mismatch
     from .work import Blur, SigmaBlur
 
-    warning = None if allow_mixed_lattice else lattice_mismatch(analysis, synthesis)
-    if warning and not opts["quiet"]:
-        click.echo(f"pyramid: warning: {warning}", err=True)
     if sigma is None:
-        work = Blur(levels=levels, analysis=analysis, synthesis=synthesis, quasi=quasi, border=border)
+        work = Blur(levels=levels, analysis=analysis, synthesis=synthesis, quasi=quasi, border=border,
+                    allow_mixed_lattice=allow_mixed_lattice)
     else:
         from .pyramids import sigma_blend
 
@@ -420,7 +430,8 @@ def blur(paths, levels: int, analysis: str, synthesis: str, quasi: bool, sigma: 
         if not opts["quiet"]:
             click.echo(f"pyramid: sigma {sigma:g}: {1 - t:.3f} × {m} level(s) + {t:.3f} × {m + 1} "
                        f"(the blend's equivalent kernel has standard deviation {sigma:g} px)", err=True)
-        work = SigmaBlur(sigma=sigma, analysis=analysis, synthesis=synthesis, border=border)
+        work = SigmaBlur(sigma=sigma, analysis=analysis, synthesis=synthesis, border=border,
+                         allow_mixed_lattice=allow_mixed_lattice)
     _process(paths, work, opts)
 
 
@@ -582,7 +593,8 @@ def mipmap(ctx: click.Context, paths, analysis, tile, wrap, swrap, twrap, consta
 @click.argument("input_path", metavar="INPUT")
 @click.argument("output_path", metavar="OUTPUT")
 @click.option("--mask", type=click.Path(dir_okay=False), help="Weight image: 1 known, 0 a hole, between partly "
-              "known (one channel, or one per channel; stored values, no sRGB decoding). Implies --holes mask.")
+              "known (one channel, one per channel, else its alpha channel; stored values, no sRGB decoding; NaN/Inf "
+              "refused, values outside 0 … 1 clipped with a warning). Implies --holes mask.")
 @click.option("--holes", type=_choice(["alpha", "mask", "nan"]), default=None,
               help="Where the weights come from: the alpha channel (default without --mask), --mask, or every "
                    "pixel with a NaN/Inf is a hole.")
@@ -595,17 +607,19 @@ def mipmap(ctx: click.Context, paths, analysis, tile, wrap, swrap, twrap, consta
 @click.option("--keep-alpha", is_flag=True, help="Keep the input's alpha and store the filled colours beside it "
               "unassociated (straight), instead of an opaque image: a PNG keeps its cut-out with colour under it.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object (pixels filled, levels, executor).")
+@mixed_lattice_option
 @border_option
 @io_options
-def fill(input_path, output_path, mask, holes, levels, analysis, synthesis, keep_alpha, as_json, border,
-         **opts) -> None:
+def fill(input_path, output_path, mask, holes, levels, analysis, synthesis, keep_alpha, as_json, allow_mixed_lattice,
+         border, **opts) -> None:
     """Fill holes from the pixels around them by pull-push (Kraus, GRAPP 2009).
 
     The known pixels are pulled down the analysis pyramid as premultiplied colours with
     their weights, then every level is composited over the expanded coarser one: holes of
     any size get a smooth fill, pixels of full weight stay bit for bit. The output is
     opaque (alpha 1, as oiiotool --fillholes writes it) unless --keep-alpha. An image
-    without a known pixel is bad pixel data (exit 5).
+    without a known pixel, or a mask with NaN/Inf, is bad pixel data (exit 5). Filters
+    on two lattices fill from beside the holes and are warned about.
 
     \b
     Example:
@@ -618,13 +632,13 @@ def fill(input_path, output_path, mask, holes, levels, analysis, synthesis, keep
     from .methods_files import fill_file
 
     reporter = _reporter(opts)
-    if as_json:
-        reporter.quiet = True
+    if as_json:  # the JSON object is the result; warnings still go to stderr
+        reporter.out = _drop
     ro, wo = _read_write(opts)
     with _session(opts, reporter) as session:
         info = fill_file(input_path, output_path, session, mask=mask, holes=holes, levels=levels, analysis=analysis,
-                         synthesis=synthesis, keep_alpha=keep_alpha, border=border, read=ro, write=wo,
-                         reporter=reporter)
+                         synthesis=synthesis, keep_alpha=keep_alpha, border=border,
+                         allow_mixed_lattice=allow_mixed_lattice, read=ro, write=wo, reporter=reporter)
     if as_json:
         click.echo(json.dumps(info, ensure_ascii=False))
 
@@ -642,31 +656,36 @@ def fill(input_path, output_path, mask, holes, levels, analysis, synthesis, keep
 @click.option("--synthesis", default=catalogue.SYNTHESIS_DEFAULT, show_default=True,
               help=f"{', '.join(catalogue.SYNTHESIS_FILTERS)}, or a ⊗↑ expression.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object (size, levels, executor).")
+@mixed_lattice_option
 @border_option
 @io_options
-def blend(a_path, b_path, mask_path, output_path, levels, analysis, synthesis, as_json, border, **opts) -> None:
+def blend(a_path, b_path, mask_path, output_path, levels, analysis, synthesis, as_json, allow_mixed_lattice, border,
+          **opts) -> None:
     """Join A and B along MASK without a seam (Burt & Adelson's multiresolution spline, 1983).
 
     Each Laplacian band of A and B is blended with the same level of the mask's analysis
     pyramid, and the bands are collapsed: fine detail meets over a narrow seam, coarse
-    shading over a wide one. MASK is 1 where A shows and 0 where B shows (one channel,
-    or one per channel; stored values, no sRGB decoding). A, B and MASK have one size.
+    shading over a wide one. MASK is 1 where A shows and 0 where B shows: one channel,
+    one per channel, else its alpha channel; stored values, no sRGB decoding; NaN/Inf
+    refused (exit 5), values outside 0 … 1 clipped with a warning. A, B and MASK have
+    one size. Filters on two lattices move the seam and are warned about.
 
     \b
     Example:
       pyramid blend apple.png orange.png left_half.png orapple.png
       pyramid blend --levels 5 plate.exr patch.exr matte.exr comp.exr
-      pyramid blend --analysis quadratic --synthesis cubic --json a.exr b.exr m.png out.exr
+      pyramid blend --analysis cubic --synthesis cubic --json a.exr b.exr m.png out.exr
     """
     from .methods_files import blend_files
 
     reporter = _reporter(opts)
-    if as_json:
-        reporter.quiet = True
+    if as_json:  # the JSON object is the result; warnings still go to stderr
+        reporter.out = _drop
     ro, wo = _read_write(opts)
     with _session(opts, reporter) as session:
         info = blend_files(a_path, b_path, mask_path, output_path, session, levels=levels, analysis=analysis,
-                           synthesis=synthesis, border=border, read=ro, write=wo, reporter=reporter)
+                           synthesis=synthesis, border=border, allow_mixed_lattice=allow_mixed_lattice, read=ro,
+                           write=wo, reporter=reporter)
     if as_json:
         click.echo(json.dumps(info, ensure_ascii=False))
 
@@ -736,8 +755,9 @@ _register()
 
 
 def run() -> None:  # console-script entry point
-    from .signals import install
+    from .signals import guard_streams, install
     install()  # SIGTERM/SIGHUP clean up like Ctrl-C (exit 143/129); SIGXFSZ ignored
+    guard_streams()  # a reader closing stdout (| head) drops the lines, not the frames
     main(prog_name="pyramid")
 
 

@@ -4,6 +4,12 @@ Every failure the tool reports on purpose is a :class:`PyramidError` whose
 ``exit_code`` comes from :data:`EXIT_CODES`; the CLI prints its one-line message
 and exits with that code. Anything else is a bug and exits with 1 and a
 traceback.
+
+For Python callers: :class:`UsageError` (a bad argument) and :class:`DataError` (bad pixel data)
+are also ``ValueError`` s; :class:`InputError` (a file that cannot be read), :class:`OutputError`
+(a file that cannot be written) and :class:`BackendError` (no GL context) are only
+:class:`PyramidError` s. :class:`MixedLatticeWarning` is the ``UserWarning`` of a filter pair on
+two lattices.
 """
 
 from __future__ import annotations
@@ -17,7 +23,7 @@ EXIT_CODES: dict[str, tuple[int, str]] = {
                  "unsupported format, zero size, not a regular file, several parts"),
     "output": (4, "an output cannot be written (disk full, quota, size limit, read-only folder), "
                   "or would overwrite an input without --force"),
-    "data": (5, "bad pixel data: NaN/Inf under --nan fail, image too large"),
+    "data": (5, "bad pixel data: NaN/Inf under --nan fail or in a mask, image too large"),
     "backend": (6, "the requested backend is unavailable (no EGL/OpenGL context)"),
     "interrupted": (130, "interrupted (Ctrl-C); 143 for SIGTERM, 129 for SIGHUP: no output half-written"),
 }
@@ -69,16 +75,30 @@ class ExpressionError(UsageError):
 
 
 class InputError(PyramidError):
+    """An input file cannot be read (missing, truncated, unsupported), or inputs that do not fit together."""
+
     kind = "input"
 
 
 class OutputError(PyramidError):
+    """An output cannot be written (disk full, read-only folder), or would overwrite an input."""
+
     kind = "output"
 
 
-class DataError(PyramidError):
+class DataError(PyramidError, ValueError):
+    """Bad pixel data: NaN/Inf where none may be, an image too large, a fill with no known pixel
+    (a ValueError for Python callers)."""
+
     kind = "data"
 
 
 class BackendError(PyramidError):
+    """The backend asked for is unavailable (no EGL/OpenGL context)."""
+
     kind = "backend"
+
+
+class MixedLatticeWarning(UserWarning):
+    """An analysis and a synthesis filter on different lattices: the result shifts
+    (:func:`pyramid_cli.pyramids.lattice_mismatch`)."""

@@ -34,6 +34,8 @@ normalisation their pull filter implies; ``K`` was also checked by measurement, 
 
 from __future__ import annotations
 
+import warnings
+from collections.abc import Callable
 from fractions import Fraction
 from functools import lru_cache
 
@@ -130,19 +132,20 @@ def blend_levels(size: tuple[int, int]) -> int:
 
 # ------------------------------------------------------------------ inputs and outputs
 def fill_inputs(pixels: np.ndarray, holes: str = "alpha", mask: np.ndarray | None = None,
-                alpha_channel: int | None = None, where: str = "") -> tuple[np.ndarray, np.ndarray, bool]:
+                alpha_channel: int | None = None, where: str = "", warn: Callable[[str], None] | None = None
+                ) -> tuple[np.ndarray, np.ndarray, bool]:
     """(colours, weights, premultiplied) for :func:`fill_plan` from an image (H, W) or (H, W, C).
 
     ``holes``: ``"alpha"`` weights are the alpha channel (``alpha_channel``, default the last of
     2 or 4 channels; the colours are the other channels, already premultiplied); ``"mask"``
-    weights are ``mask`` (one channel, or one per colour channel), clipped to [0, 1];
+    weights are ``mask`` (one channel, or one per colour channel; :func:`mask_weights`);
     ``"nan"`` a pixel is known where all its channels are finite. Weights come back with the
     colours' channel count (every pass is per channel).
 
     Raises
     ------
     DataError
-        No pixel has a positive weight (nothing to fill from).
+        No pixel has a positive weight (nothing to fill from), NaN/Inf in the mask or in a known pixel.
     UsageError
         No alpha channel, or a mask of another size or channel count.
     """
@@ -160,13 +163,8 @@ def fill_inputs(pixels: np.ndarray, holes: str = "alpha", mask: np.ndarray | Non
     elif holes == "mask":
         if mask is None:
             raise UsageError(f"{prefix}--holes mask needs a mask image")
-        m = np.asarray(mask, dtype=np.float32)
-        m = m[:, :, None] if m.ndim == 2 else m
-        if m.shape[:2] != a3.shape[:2] or m.shape[2] not in (1, a3.shape[2]):
-            raise UsageError(f"{prefix}the mask is {m.shape[1]}x{m.shape[0]} with {m.shape[2]} channel(s); the image "
-                             f"is {a3.shape[1]}x{a3.shape[0]} with {a3.shape[2]}: one channel or one per channel")
         colour = np.ascontiguousarray(a3, dtype=np.float32)
-        weight = np.clip(np.nan_to_num(m, nan=0.0), 0, 1)
+        weight = mask_weights(mask, a3, where, warn, "the image is")
         premultiplied = False
         if not np.all(np.isfinite(colour[np.broadcast_to(weight > 0, colour.shape)])):
             raise DataError(f"{prefix}NaN/Inf in a known pixel; use --holes nan to treat them as holes")
@@ -201,18 +199,50 @@ def fill_output(filled: np.ndarray, pixels: np.ndarray, holes: str = "alpha",
     return f3[:, :, 0] if a.ndim == 2 else f3
 
 
-def mask_channels(mask: np.ndarray, image: np.ndarray, where: str = "") -> np.ndarray:
-    """The blend mask with the image's channel count (one channel is repeated), as float32 in [0, 1]."""
+def mask_weights(mask: np.ndarray, image: np.ndarray, where: str = "", warn: Callable[[str], None] | None = None,
+                 image_is: str = "the image is") -> np.ndarray:
+    """A mask as weights for ``image``: float32 H×W×1 or H×W×C (one channel, or one per channel of the image).
+
+    A mask is weights: a NaN or Inf has no meaning there and is refused; values outside [0, 1] (a matte's
+    filter overshoot, say) are clipped, and ``warn`` (default :func:`warnings.warn`) is told how many and
+    their range. ``where`` (the mask's path) starts every message.
+
+    Raises
+    ------
+    UsageError
+        Another size, or a channel count that is neither one nor the image's (naming both).
+    DataError
+        NaN/Inf in the mask.
+    """
+    prefix = f"{where}: " if where else ""
     m = np.asarray(mask, dtype=np.float32)
     m = m[:, :, None] if m.ndim == 2 else m
     a = image[:, :, None] if image.ndim == 2 else image
-    prefix = f"{where}: " if where else ""
     if m.shape[:2] != a.shape[:2] or m.shape[2] not in (1, a.shape[2]):
-        raise UsageError(f"{prefix}the mask is {m.shape[1]}x{m.shape[0]} with {m.shape[2]} channel(s); the images "
-                         f"are {a.shape[1]}x{a.shape[0]} with {a.shape[2]}: one channel or one per channel")
-    m = np.ascontiguousarray(np.broadcast_to(np.clip(m, 0, 1), a.shape), dtype=np.float32)
+        raise UsageError(f"{prefix}the mask is {m.shape[1]}x{m.shape[0]} with {m.shape[2]} channel(s); {image_is} "
+                         f"{a.shape[1]}x{a.shape[0]} with {a.shape[2]}: one channel or one per channel")
+    finite = np.isfinite(m)
+    if not finite.all():
+        raise DataError(f"{prefix}{int(m.size - np.count_nonzero(finite))} NaN/Inf value(s) in the mask: weights "
+                        "must be numbers in [0, 1] (--nan zero reads a file's NaN/Inf as 0)")
+    outside = int(np.count_nonzero((m < 0) | (m > 1)))
+    if outside:
+        message = (f"{prefix}{outside} mask value(s) outside [0, 1] (from {float(m.min()):g} to {float(m.max()):g}) "
+                   "clipped to [0, 1]")
+        (warn or (lambda text: warnings.warn(text, UserWarning, stacklevel=3)))(message)
+        m = np.clip(m, 0, 1)
+    return np.ascontiguousarray(m, dtype=np.float32)
+
+
+def mask_channels(mask: np.ndarray, image: np.ndarray, where: str = "",
+                  warn: Callable[[str], None] | None = None) -> np.ndarray:
+    """The blend mask with the image's channel count (one channel is repeated), as float32 in [0, 1]
+    (:func:`mask_weights`: NaN/Inf refused, values outside [0, 1] clipped with a warning)."""
+    a = image[:, :, None] if image.ndim == 2 else image
+    m = mask_weights(mask, a, where, warn, "the images are")
+    m = np.ascontiguousarray(np.broadcast_to(m, a.shape), dtype=np.float32)
     return m[:, :, 0] if image.ndim == 2 else m
 
 
-__all__ = ["fill_plan", "blend_plan", "blend_levels", "fill_inputs", "fill_output", "mask_channels", "PULL_SCALE",
-           "FILL_ANALYSIS", "FILL_SYNTHESIS", "HOLES", "BLEND_COARSEST"]
+__all__ = ["fill_plan", "blend_plan", "blend_levels", "fill_inputs", "fill_output", "mask_weights", "mask_channels",
+           "PULL_SCALE", "FILL_ANALYSIS", "FILL_SYNTHESIS", "HOLES", "BLEND_COARSEST"]

@@ -12,17 +12,18 @@ import numpy as np
 
 from . import io
 from .errors import InputError, UsageError
-from .methods import fill_inputs, fill_output, mask_channels
+from .methods import fill_inputs, fill_output, mask_channels, mask_weights
 from .pipeline import ReadOptions, Reporter, WriteOptions, _announce_compiles, _read
 from .session import Session
 from .work import Blend, Fill
 
 
-def _read_mask(path: str, shape: tuple[int, ...], ro: ReadOptions) -> np.ndarray:
+def _read_mask(path: str, shape: tuple[int, ...], ro: ReadOptions, reporter: Reporter) -> np.ndarray:
     """A mask or weight image as stored values (no sRGB decoding, no alpha rules): H×W or H×W×C.
 
-    One channel is taken as it is; an image with as many channels as ``shape`` gives one weight per
-    channel; otherwise its alpha channel, else its first channel.
+    One channel is taken as it is, as many channels as ``shape`` give one weight per channel; any other
+    count takes the mask's alpha channel (an RGBA matte for an RGB image; -v says so), and without one is
+    refused naming both counts. NaN/Inf and values outside [0, 1] are :func:`~pyramid_cli.methods.mask_weights`'.
     """
     m = io.read_image(path, colorspace="linear", alpha="none", nan=ro.nan)
     px = m.pixels
@@ -32,13 +33,18 @@ def _read_mask(path: str, shape: tuple[int, ...], ro: ReadOptions) -> np.ndarray
     if px.shape[2] == 1 or px.shape[2] == channels:
         return px
     alpha = m.spec.alpha_channel
-    return px[:, :, alpha if 0 <= alpha < px.shape[2] else 0]
+    if not 0 <= alpha < px.shape[2]:
+        raise InputError(f"{path}: the mask has {px.shape[2]} channels ({', '.join(m.spec.channel_names)}) and no "
+                         f"alpha, the image {channels}: give one channel, one per channel, or an alpha channel")
+    reporter.detail(f"{path}: {px.shape[2]} channels for an image of {channels}: its alpha channel "
+                    f"{m.spec.channel_names[alpha]} is the mask")
+    return px[:, :, alpha]
 
 
 def fill_file(input_path: str, output_path: str, session: Session, *, mask: str | None = None,
               holes: str | None = None, levels: int | None = None, analysis: str = "box4",
               synthesis: str = "doosabin", keep_alpha: bool = False, border: str = "clamp",
-              read: ReadOptions | None = None, write: WriteOptions | None = None,
+              allow_mixed_lattice: bool = False, read: ReadOptions | None = None, write: WriteOptions | None = None,
               reporter: Reporter | None = None) -> dict:
     """Pull-push fill of one image file (:func:`pyramid_cli.api.fill`); returns what ``--json`` prints.
 
@@ -62,9 +68,12 @@ def fill_file(input_path: str, output_path: str, session: Session, *, mask: str 
     alpha = image.spec.alpha_channel if image.premultiplied else None
     if holes == "alpha" and alpha is None:
         raise UsageError(f"{input_path}: no alpha channel to take the holes from; give --mask IMAGE or --holes nan")
-    weights = _read_mask(mask, px.shape, ro) if mask else None
+    weights = mask_weights(_read_mask(mask, px.shape, ro, reporter), px, mask, reporter.warn) if mask else None
     colour, weight, premultiplied = fill_inputs(px, holes, weights, alpha, where=input_path)
-    work = Fill(levels=levels, analysis=analysis, synthesis=synthesis, premultiplied=premultiplied, border=border)
+    work = Fill(levels=levels, analysis=analysis, synthesis=synthesis, premultiplied=premultiplied, border=border,
+                allow_mixed_lattice=allow_mixed_lattice)
+    for message in work.warnings(px.shape[:2]):
+        reporter.warn(message)
     _announce_compiles(session, work, [colour, weight], reporter)
     (filled,) = session.run(work, [colour, weight])
     out = fill_output(filled, px, holes, alpha, keep_alpha)
@@ -104,8 +113,8 @@ def _levels(work, size) -> int:
 
 def blend_files(a_path: str, b_path: str, mask_path: str, output_path: str, session: Session, *,
                 levels: int | None = None, analysis: str = "box4", synthesis: str = "doosabin",
-                border: str = "clamp", read: ReadOptions | None = None, write: WriteOptions | None = None,
-                reporter: Reporter | None = None) -> dict:
+                border: str = "clamp", allow_mixed_lattice: bool = False, read: ReadOptions | None = None,
+                write: WriteOptions | None = None, reporter: Reporter | None = None) -> dict:
     """Multiresolution blend of two image files along a mask file (:func:`pyramid_cli.api.blend`)."""
     ro, wo, reporter = read or ReadOptions(), write or WriteOptions(), reporter or Reporter()
     io.check_write_options(output_path, wo.pixel_type, wo.compression)
@@ -114,10 +123,14 @@ def blend_files(a_path: str, b_path: str, mask_path: str, output_path: str, sess
     if a.pixels.shape != b.pixels.shape:
         raise InputError(f"{b_path}: {b.pixels.shape[1]}×{b.pixels.shape[0]} with {b.pixels.shape[2]} channel(s); "
                          f"{a_path} is {a.pixels.shape[1]}×{a.pixels.shape[0]} with {a.pixels.shape[2]}")
-    mask = mask_channels(_read_mask(mask_path, a.pixels.shape, ro), a.pixels, where=mask_path)
-    work = Blend(levels=levels, analysis=analysis, synthesis=synthesis, border=border)
+    mask = mask_channels(_read_mask(mask_path, a.pixels.shape, ro, reporter), a.pixels, where=mask_path,
+                         warn=reporter.warn)
+    work = Blend(levels=levels, analysis=analysis, synthesis=synthesis, border=border,
+                 allow_mixed_lattice=allow_mixed_lattice)
     images = [a.pixels, b.pixels, mask]
     work.check(tuple(im.shape[:2] for im in images), where=a_path)
+    for message in work.warnings(a.pixels.shape[:2]):
+        reporter.warn(message)
     _announce_compiles(session, work, images, reporter)
     (out,) = session.run(work, images)
     io.write_image(output_path, io.Image(out, a.spec), **wo.for_inputs([a_path, b_path, mask_path]))

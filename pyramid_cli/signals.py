@@ -21,6 +21,13 @@ a signal until the call returns and raises it then.
 
 ``install`` also ignores SIGXFSZ, so that a file size limit (``ulimit -f``) makes writes
 fail with EFBIG, reported as exit 4, instead of killing the process mid-write.
+
+A reader that closes standard output (``pyramid blur … | head -1``, a log viewer quitting) sends
+SIGPIPE, which Python ignores: the next write fails with EPIPE (BrokenPipeError), and a batch would
+stop part-way with exit 1. The work is the files, not the lines, so after :func:`guard_streams` a
+closed standard output or error drops what is written to it (its descriptor is pointed at
+/dev/null) and the run goes on: every frame is written, the exit code is what it would have been,
+and Python's flush at exit has nothing to complain about.
 """
 
 from __future__ import annotations
@@ -129,6 +136,46 @@ def install() -> None:
         signal.signal(signum, _handler)
     if hasattr(signal, "SIGXFSZ"):
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+
+
+class _Guarded:
+    """A text stream whose writes are dropped once its reader has gone (EPIPE); the rest is the stream's."""
+
+    def __init__(self, stream):
+        self._stream = stream
+
+    def write(self, text):
+        try:
+            return self._stream.write(text)
+        except BrokenPipeError:
+            self._drop()
+            return len(text)
+
+    def flush(self) -> None:
+        try:
+            self._stream.flush()
+        except BrokenPipeError:
+            self._drop()
+
+    def _drop(self) -> None:
+        # /dev/null under the same descriptor: what the stream still buffers, and every later write, goes there
+        null = os.open(os.devnull, os.O_WRONLY)
+        try:
+            os.dup2(null, self._stream.fileno())
+        finally:
+            os.close(null)
+
+    def __getattr__(self, name):
+        return getattr(self._stream, name)
+
+
+def guard_streams() -> None:
+    """Make a closed standard output or error drop what is written to it instead of raising
+    BrokenPipeError (the console script calls this once, at start-up)."""
+    for name in ("stdout", "stderr"):
+        stream = getattr(sys, name)
+        if stream is not None and not isinstance(stream, _Guarded):
+            setattr(sys, name, _Guarded(stream))
 
 
 def exit_code(exc: BaseException) -> int:

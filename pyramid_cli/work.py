@@ -27,6 +27,14 @@ def _border(name: str) -> str:
     return options.check("border", name, options.BORDERS)
 
 
+def _lattice_warnings(work, levels: int | None, method: str) -> list[str]:
+    """A filter pair on two lattices, unless the work allows it (``--allow-mixed-lattice``)."""
+    if work.allow_mixed_lattice:
+        return []
+    text = pyramids.lattice_mismatch(work.analysis, work.synthesis, levels, method)
+    return [text] if text else []
+
+
 @dataclass(frozen=True, kw_only=True)
 class Work:
     """A job: its plan for given input sizes, and its reference evaluation."""
@@ -48,6 +56,11 @@ class Work:
     def reference(self, images: list) -> list:
         """Every output by the float64 oracle (excluding the kept input)."""
         raise NotImplementedError
+
+    def warnings(self, size: Size | None = None) -> list[str]:
+        """What the caller should hear before this job runs on an input of ``size`` (rows, columns) or
+        any size: the command line prints each as ``pyramid: warning: …``, the API as a UserWarning."""
+        return []
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "border", _border(self.border))
@@ -76,13 +89,20 @@ class Filter(Work):
 
 @dataclass(frozen=True, kw_only=True)
 class Blur(Work):
-    """The pyramidal blur (paper §2, Figure 3): ``levels`` analysis steps, synthesis back up."""
+    """The pyramidal blur (paper §2, Figure 3): ``levels`` analysis steps, synthesis back up.
+
+    :meth:`warnings` names an analysis and synthesis on two lattices (as do :class:`SigmaBlur`'s,
+    :class:`Fill`'s and :class:`Blend`'s) unless ``allow_mixed_lattice`` (``--allow-mixed-lattice``)."""
 
     levels: int = 4
     analysis: str = catalogue.ANALYSIS_DEFAULT
     synthesis: str = catalogue.SYNTHESIS_DEFAULT
     quasi: bool = False
+    allow_mixed_lattice: bool = False
     label = "blur"
+
+    def warnings(self, size=None):
+        return _lattice_warnings(self, self.levels, "blur")
 
     def plan(self, sizes, strategy="cost"):
         return pyramids.blur_plan(tuple(sizes[0]), self.levels, self.analysis, self.synthesis, self.quasi, strategy,
@@ -100,7 +120,11 @@ class SigmaBlur(Work):
     sigma: float = 1.0
     analysis: str = catalogue.ANALYSIS_DEFAULT
     synthesis: str = catalogue.SYNTHESIS_DEFAULT
+    allow_mixed_lattice: bool = False
     label = "blur"
+
+    def warnings(self, size=None):
+        return _lattice_warnings(self, None, "blur")
 
     def check(self, sizes, where=""):
         from .limits import check_sigma
@@ -194,8 +218,12 @@ class Fill(Work):
     analysis: str = "box4"
     synthesis: str = "doosabin"
     premultiplied: bool = True
+    allow_mixed_lattice: bool = False
     n_inputs = 2
     label = "fill"
+
+    def warnings(self, size=None):
+        return _lattice_warnings(self, None, "fill")
 
     def plan(self, sizes, strategy="cost"):
         from .methods import fill_plan
@@ -223,6 +251,7 @@ class Blend(Work):
     levels: int | None = None
     analysis: str = catalogue.ANALYSIS_DEFAULT
     synthesis: str = catalogue.SYNTHESIS_DEFAULT
+    allow_mixed_lattice: bool = False
     n_inputs = 3
     label = "blend"
 
@@ -230,6 +259,9 @@ class Blend(Work):
         from .methods import blend_levels
 
         return blend_levels(tuple(size)) if self.levels is None else self.levels
+
+    def warnings(self, size=None):
+        return _lattice_warnings(self, self.count(size) if size is not None else self.levels, "blend")
 
     def check(self, sizes, where=""):
         if len({tuple(s[:2]) for s in sizes}) > 1:

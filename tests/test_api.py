@@ -122,9 +122,40 @@ def test_bad_arguments_raise_value_errors_with_the_cli_message(call, message):
     assert message in str(info.value)
 
 
-def test_project_errors_are_value_errors_for_usage_only():
+def test_project_errors_are_pyramid_errors():
     with pytest.raises(PyramidError):
         pyr.apply("doosabin * g", np.ones((3, 3)))
+
+
+def test_data_errors_are_value_errors_as_the_readme_says_and_file_errors_are_not(tmp_path):
+    from pyramid_cli.errors import DataError, InputError
+
+    with pytest.raises(ValueError, match="no known pixel") as info:
+        pyr.fill(np.zeros((4, 4)), mask=np.zeros((4, 4)), backend="cpu")
+    assert isinstance(info.value, DataError)
+    with pytest.raises(InputError) as info:
+        pyr.read_image(tmp_path / "missing.exr")
+    assert not isinstance(info.value, ValueError)
+    for name in ("UsageError", "DataError", "InputError", "OutputError", "BackendError"):
+        assert name in api.__doc__
+
+
+@pytest.mark.parametrize("backend", ["cpu", "reference"])
+def test_collapse_uses_the_synthesis_and_border_the_bands_were_made_with_and_refuses_others(backend):
+    a = np.random.default_rng(9).random((33, 20, 3))
+    bands = pyr.laplacian(a, 3, synthesis="nearest", border="mirror", backend=backend)
+    assert (bands.synthesis, bands.border) == ("nearest", "mirror")
+    np.testing.assert_allclose(pyr.collapse(bands, backend=backend), a, rtol=0, atol=1e-5)
+    np.testing.assert_allclose(pyr.collapse(bands, synthesis="h_nearest ⊗↑ g", border="mirror", backend=backend), a,
+                               rtol=0, atol=1e-5)
+    with pytest.raises(ValueError, match="the bands were made with synthesis 'nearest'; collapsing with 'doosabin'"):
+        pyr.collapse(bands, synthesis="doosabin", backend=backend)
+    with pytest.raises(ValueError, match="the bands were made with border 'mirror'; collapsing with 'clamp'"):
+        pyr.collapse(bands, border="clamp", backend=backend)
+    plain = list(bands)  # a plain list cannot say: the defaults, unchecked (a wrong image, as documented)
+    assert np.abs(pyr.collapse(plain, backend=backend) - a).max() > 0.01
+    np.testing.assert_allclose(pyr.collapse(plain, synthesis="nearest", border="mirror", backend=backend), a,
+                               rtol=0, atol=1e-5)
 
 
 def test_write_and_read_an_array_round_trip(tmp_path):

@@ -284,3 +284,54 @@ def test_collapse_follows_the_recorded_synthesis_and_border_and_refuses_a_contra
         assert not (tmp_path / "wrong.exr").exists()
     r = invoke("collapse", "-q", "--synthesis", "doosabin", str(bands), str(tmp_path / "alias.exr"))  # chaikin's name
     assert r.exit_code == 0, r.output
+
+
+def _console(*args: str) -> list[str]:
+    """The console script's entry point (``run``), as a process."""
+    return [sys.executable, "-m", "pyramid_cli.cli", *args]
+
+
+@pytest.mark.parametrize("broken", [False, True], ids=["all-good", "one-bad"])
+def test_a_reader_closing_stdout_loses_no_frame_and_changes_no_exit_code(tmp_path, broken):
+    """`pyramid blur 'in/*.png' -o … | head -1`: the reader goes after one line, and the run goes on (issue 22)."""
+    import pyramid_cli as pyr
+
+    (tmp_path / "in").mkdir()
+    rng = np.random.default_rng(12)
+    for k in range(12):
+        pyr.write_image(tmp_path / "in" / f"f{k:02d}.png", rng.random((48, 40, 3)), pixel_type="uint8")
+    if broken:
+        (tmp_path / "in" / "f12.png").write_bytes(b"")  # refused before libpng opens it (which prints on its own)
+    args = ["blur", "--backend", "cpu", "--levels", "2", "in/*.png", "-o", "out/{stem}.png"]
+    proc = subprocess.Popen(_console(*args, *(["--keep-going"] if broken else [])), cwd=tmp_path,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    assert proc.stdout.readline().startswith("wrote out/f")
+    proc.stdout.close()  # the reader is gone
+    try:
+        code = proc.wait(timeout=120)
+    finally:
+        proc.kill()
+    err = proc.stderr.read()
+    summary = f"pyramid: 12 written, 0 up to date, {int(broken)} failed\n"
+    if broken:
+        assert code == 3 and err.startswith(summary) and "f12.png" in err and err.count("\n") == 2, err
+    else:
+        assert code == 0 and err == summary, err
+    assert sorted(os.listdir(tmp_path / "out")) == [f"f{k:02d}.png" for k in range(12)]  # no temporaries
+    for k in range(12):
+        src = pyr.read_image(tmp_path / "in" / f"f{k:02d}.png").pixels
+        np.testing.assert_allclose(pyr.read_image(tmp_path / "out" / f"f{k:02d}.png").pixels,
+                                   pyr.blur(src, 2, backend="cpu"), rtol=0, atol=1 / 255 + 1e-6)
+
+
+@pytest.mark.parametrize("args", [["explain", "box4 *v g"], ["plan", "box4 *v g", "--size", "64x64"],
+                                  ["farm-template", "--frames", "1-9", "--", "blur", "a.####.exr", "-o", "b.####.exr"]],
+                         ids=lambda a: a[0])
+def test_printing_commands_exit_0_quietly_when_stdout_is_closed(args):
+    proc = subprocess.Popen(_console(*args), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc.stdout.close()  # closed before the command prints
+    try:
+        code = proc.wait(timeout=60)
+    finally:
+        proc.kill()
+    assert (code, proc.stderr.read()) == (0, "")

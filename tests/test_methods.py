@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import os
 import tempfile
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -461,3 +462,149 @@ def test_plan_report_and_estimate_describe_pointwise_passes():
     text = render(p)
     assert "pointwise blend(" in text and "pointwise" in json.dumps(to_json(p))
     assert estimate_seconds(p) > 0
+
+
+# ------------------------------------------------------------------ saying what they do (issue 22)
+MIXED = ("quadratic", "cubic")  # dual ⊗↓, primal ⊗↑: the pair blend --help used to show
+
+
+def _seam(levels, analysis, synthesis):
+    """Where a blend of ones (left, mask 1) into zeros crosses ½ on a 256-wide row; the mask's edge is at 127.5."""
+    mask = np.zeros((32, 256))
+    mask[:, :128] = 1
+    row = pyr.blend(np.ones_like(mask), np.zeros_like(mask), mask, levels=levels, analysis=analysis,
+                    synthesis=synthesis, backend="cpu")[16]
+    i = int(np.argmax(row < 0.5))
+    return i - 1 + (0.5 - row[i - 1]) / (row[i] - row[i - 1])
+
+
+def test_api_blend_fill_and_blur_warn_on_a_mixed_pair_and_the_warning_says_what_it_costs():
+    """quadratic ⊗↓ / cubic ⊗↑ moves a blend's seam by 7.5 px at 4 levels (a matched pair: 0) and fills a hole
+    with 2–3× the error; each call says so, the matched pairs say nothing."""
+    from pyramid_cli.errors import MixedLatticeWarning
+
+    assert abs(_seam(4, "box4", "doosabin") - 127.5) < 0.01 and abs(_seam(4, "cubic", "cubic") - 127.5) < 0.1
+    with pytest.warns(MixedLatticeWarning, match=r"moves the seam, about 7\.5 px after 4 level") as caught:
+        shifted = _seam(4, *MIXED)
+    assert abs(shifted - 127.5 - 7.5) < 0.01 and caught[0].filename == __file__
+    ramp = np.tile(np.linspace(0, 1, 128, dtype=np.float32), (128, 1))
+    known = np.ones_like(ramp)
+    known[32:96, 32:96] = 0
+    with pytest.warns(MixedLatticeWarning, match=r"2–3× the error.*synthesis nearest or doosabin"):
+        mixed = np.abs(pyr.fill(ramp, mask=known, analysis=MIXED[0], synthesis=MIXED[1], backend="cpu") - ramp)
+    matched = np.abs(pyr.fill(ramp, mask=known, analysis=MIXED[0], synthesis="doosabin", backend="cpu") - ramp)
+    assert 2 < mixed[known == 0].mean() / matched[known == 0].mean() < 3.5
+    with pytest.warns(MixedLatticeWarning, match=r"half a fine pixel per level \(DESIGN.md §4\), about 1\.5 px"):
+        pyr.blur(ramp, 2, analysis="box4", synthesis="midpoint", backend="cpu")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        pyr.blur(ramp, 2, analysis="cubic", synthesis="fourpoint", backend="cpu")
+        pyr.blend(ramp, ramp, known, analysis="cubic", synthesis="cubic", backend="cpu")
+        pyr.fill(ramp, mask=known, backend="cpu")
+
+
+@pytest.mark.parametrize("command", ["fill", "blend", "blur"])
+def test_cli_fill_blend_and_blur_warn_on_a_mixed_pair_unless_allowed(files, tmp_path, command):
+    inputs = {"fill": ["--mask", files / "m.exr", files / "a.exr"], "blur": [files / "a.exr"],
+              "blend": [files / "a.exr", files / "b.exr", files / "m.exr"]}[command]
+    mixed = ["--analysis", MIXED[0], "--synthesis", MIXED[1], "--backend", "cpu"]
+    r = _invoke(command, *mixed, *inputs, tmp_path / "o.exr")
+    assert r.exit_code == 0, r.output
+    assert r.stderr.startswith(f"pyramid: warning: analysis {MIXED[0]} sits on the dual lattice and synthesis "
+                               f"{MIXED[1]} on the primal one: "), r.stderr
+    assert r.stderr.count("\n") == 1 and (tmp_path / "o.exr").exists()
+    for extra in (["--allow-mixed-lattice"], ["-q"]):
+        r = _invoke(command, *mixed, *extra, *inputs, tmp_path / "o.exr")
+        assert r.exit_code == 0 and "warning" not in r.output, r.output
+    if command != "blur":  # --json prints the result on stdout and still warns on stderr
+        r = _invoke(command, *mixed, "--json", *inputs, tmp_path / "o.exr")
+        assert r.exit_code == 0 and json.loads(r.stdout)["synthesis"] == MIXED[1]
+        assert r.stderr.startswith("pyramid: warning: analysis") and r.stderr.count("\n") == 1, r.stderr
+
+
+def test_blend_help_and_readme_show_pairs_on_one_lattice():
+    import re
+
+    from pyramid_cli.pyramids import lattice_mismatch
+
+    readme = (Path(__file__).parents[1] / "README.md").read_text()
+    text = _invoke("blend", "--help").output + _invoke("fill", "--help").output + readme
+    pairs = re.findall(r"pyramid (?:blend|fill|blur) [^\n]*--analysis (\S+) --synthesis (\S+)", text)
+    assert ("cubic", "cubic") in pairs
+    assert [p for p in pairs if lattice_mismatch(*p)] == []
+
+
+def _mask_file(path, pixels, channel_names=None):
+    pyr.write_image(path, np.asarray(pixels, np.float32), pixel_type="float", channel_names=channel_names)
+    return path
+
+
+@pytest.mark.parametrize("command", ["fill", "blend"])
+def test_a_nan_in_a_mask_is_refused_naming_the_mask_and_nan_zero_reads_it_as_zero(files, tmp_path, command):
+    m = pyr.read_image(files / "m.exr").pixels[..., :1].copy()
+    m[10, 10:14] = np.nan
+    bad = _mask_file(tmp_path / "nan_mask.exr", m)
+    args = (["fill", "--mask", bad, files / "a.exr"] if command == "fill"
+            else ["blend", files / "a.exr", files / "b.exr", bad])
+    r = _invoke(*args, tmp_path / "o.exr", "--backend", "cpu")
+    assert r.exit_code == 5, r.output
+    assert r.output == (f"pyramid: error: {bad}: 4 NaN/Inf value(s) in the mask: weights must be numbers in [0, 1] "
+                        "(--nan zero reads a file's NaN/Inf as 0)\n")
+    assert not (tmp_path / "o.exr").exists()
+    r = _invoke(*args, tmp_path / "o.exr", "--backend", "cpu", "--nan", "zero")
+    assert r.exit_code == 0, r.output
+    assert np.all(np.isfinite(pyr.read_image(tmp_path / "o.exr").pixels))
+
+
+def test_api_refuses_a_nan_in_a_mask_as_a_value_error():
+    a = np.random.default_rng(3).random((8, 8, 3))
+    m = np.ones((8, 8))
+    m[2, 2] = np.nan
+    for call in (lambda: pyr.blend(a, a, m, backend="cpu"), lambda: pyr.fill(a, mask=m, backend="cpu")):
+        with pytest.raises(DataError, match=r"1 NaN/Inf value\(s\) in the mask") as info:
+            call()
+        assert isinstance(info.value, ValueError)
+
+
+@pytest.mark.parametrize("command", ["fill", "blend"])
+def test_mask_values_outside_0_1_are_clipped_with_a_warning_that_counts_them(files, tmp_path, command):
+    m = pyr.read_image(files / "m.exr").pixels[..., 0].copy()
+    m[0, :5] = 1.25
+    m[1, :3] = -0.5
+    over = _mask_file(tmp_path / "over.exr", m)
+    clipped = _mask_file(tmp_path / "clipped.exr", np.clip(m, 0, 1))
+    outs = []
+    for mask, name in [(over, "o1.exr"), (clipped, "o2.exr")]:
+        args = (["fill", "--mask", mask, files / "a.exr"] if command == "fill"
+                else ["blend", files / "a.exr", files / "b.exr", mask])
+        r = _invoke(*args, tmp_path / name, "--backend", "cpu")
+        assert r.exit_code == 0, r.output
+        outs.append((r.stderr, pyr.read_image(tmp_path / name).pixels))
+    assert outs[0][0] == (f"pyramid: warning: {over}: 8 mask value(s) outside [0, 1] (from -0.5 to 1.25) clipped "
+                          "to [0, 1]\n")
+    assert outs[1][0] == ""
+    np.testing.assert_array_equal(outs[0][1], outs[1][1])
+    a = pyr.read_image(files / "a.exr").pixels
+    with pytest.warns(UserWarning, match=r"8 mask value\(s\) outside \[0, 1\]") as caught:
+        pyr.blend(a, a, m, backend="cpu") if command == "blend" else pyr.fill(a, mask=m, backend="cpu")
+    assert caught[0].filename == __file__
+
+
+def test_mask_channels_one_or_the_images_or_an_alpha_else_refused_naming_both(files, tmp_path):
+    m = pyr.read_image(files / "m.exr").pixels[..., 0]
+    noise = np.random.default_rng(4).random(m.shape)
+    rg = _mask_file(tmp_path / "rg.exr", np.stack([m, noise], axis=2), ["R", "G"])
+    ya = _mask_file(tmp_path / "ya.exr", np.stack([noise, m], axis=2))  # Y, A: the alpha is the mask
+    for args in (["blend", files / "a.exr", files / "b.exr", rg], ["fill", "--mask", rg, files / "a.exr"]):
+        r = _invoke(*args, tmp_path / "o.exr", "--backend", "cpu")
+        assert r.exit_code == 3, r.output
+        assert r.output == (f"pyramid: error: {rg}: the mask has 2 channels (R, G) and no alpha, the image 3: give "
+                            "one channel, one per channel, or an alpha channel\n")
+        assert not (tmp_path / "o.exr").exists()
+    r = _invoke("blend", files / "a.exr", files / "b.exr", ya, tmp_path / "ya_out.exr", "--backend", "cpu", "-v")
+    assert r.exit_code == 0 and f"{ya}: 2 channels for an image of 3: its alpha channel A is the mask" in r.stderr
+    a, b = pyr.read_image(files / "a.exr").pixels, pyr.read_image(files / "b.exr").pixels
+    np.testing.assert_allclose(pyr.read_image(tmp_path / "ya_out.exr").pixels, pyr.blend(a, b, m, backend="cpu"),
+                               rtol=0, atol=1e-6)
+    with pytest.raises(ValueError, match="the mask is 64x64 with 2 channel"):
+        pyr.blend(a, b, np.stack([m, noise], axis=2), backend="cpu")
