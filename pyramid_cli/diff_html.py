@@ -21,7 +21,7 @@ import numpy as np
 
 from .atomic import atomic_path
 from .errors import OutputError, PyramidError
-from .goldens import STATUS_CODES, CompareOptions, PairResult
+from .goldens import REPORT_MARKER, STATUS_CODES, CompareOptions, PairResult
 
 __all__ = ["display", "write_html"]
 
@@ -201,6 +201,8 @@ def write_html(folder: str, results: Sequence[PairResult], opts: CompareOptions,
     img_dir = os.path.join(folder, "img")
     try:
         os.makedirs(img_dir, exist_ok=True)
+        with open(os.path.join(folder, REPORT_MARKER), "w", encoding="utf-8") as f:
+            f.write("A pyramid diff --html report: folder comparisons skip this folder.\n")
     except OSError as exc:
         raise OutputError(f"cannot write {folder}: {exc.strerror or exc}") from None
     order = sorted(range(len(results)), key=lambda i: (-STATUS_CODES[results[i].status], i))

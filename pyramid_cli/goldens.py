@@ -324,6 +324,9 @@ def _listing(arg: str) -> tuple[str, dict[str, str]]:
                 found[os.path.relpath(p, base)] = p
         return base, found
     for root, dirs, files in os.walk(arg):
+        if root != arg and REPORT_MARKER in files:  # an HTML report written into out/ is not an output
+            dirs[:] = []
+            continue
         dirs[:] = sorted(d for d in dirs if not d.startswith("."))
         for f in sorted(files):
             if f.startswith(".") or os.path.splitext(f)[1][1:].lower() not in exts:
@@ -331,6 +334,11 @@ def _listing(arg: str) -> tuple[str, dict[str, str]]:
             p = os.path.join(root, f)
             found[os.path.relpath(p, arg)] = p
     return arg, found
+
+
+#: The file that marks a folder as a ``--html`` report (written by :mod:`pyramid_cli.diff_html`), so that a
+#: report kept beside the outputs (``--html out/diff-report``) is never compared or copied as a golden.
+REPORT_MARKER = ".pyramid-diff-report"
 
 
 @dataclass
@@ -378,6 +386,8 @@ def pair_inputs(a: str, b: str) -> Pairing:
     if not a_dir and not a_pat:
         ref = os.path.join(b, os.path.basename(a)) if b_dir else b
         return Pairing(pairs=[(a, a, [ref], ref)], extras=[], many=False)
+    if a_dir and not os.path.lexists(b):  # a golden folder not made yet: every golden is missing (--update makes it)
+        b_dir = True
     if (a_dir and not b_dir and not b_pat) or (a_pat and not b_pat and not b_dir):
         from .errors import UsageError
 

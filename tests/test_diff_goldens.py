@@ -180,6 +180,26 @@ def test_update_dry_run_lists_and_writes_nothing(tree):
     assert obj["dry_run"] is True and len(obj["updated"]) == 2
 
 
+def test_a_golden_folder_not_made_yet_is_every_golden_missing_and_update_makes_it(tree, tmp_path):
+    out, _ = tree
+    new = tmp_path / "tests" / "golden"  # the first `make golden-update` of a project (README's Makefile)
+    res = run(out, new)
+    assert res.exit_code == 2 and "missing" in res.stdout and not new.exists()
+    res = run("--update", out, new)
+    assert res.exit_code == 2 and digest(new) == digest(out)
+    assert run(out, new).exit_code == 0
+
+
+def test_an_html_report_inside_the_outputs_is_never_compared_or_copied(tree):
+    out, gold = tree
+    assert run(out, gold, "--html", out / "diff-report").exit_code == 2
+    assert (out / "diff-report" / "img").is_dir()
+    before = digest(gold)
+    res = run("--update", out, gold)
+    assert "diff-report" not in res.stdout
+    assert {k for k in digest(gold) if k not in before} == {"new.exr"}
+
+
 def test_update_single_file(tmp_path):
     a = write(tmp_path / "a.exr", img(1) + 1)
     b = write(tmp_path / "b.exr", img(1))
