@@ -314,7 +314,7 @@ def _assert_every_frame(pattern: str) -> None:
     from pyramid_cli.sequence import parse
 
     seq = parse(pattern)
-    folder = Path(seq.dirname())
+    folder = Path(seq.frame(0)).parent
     assert sorted(p.name for p in folder.iterdir() if not p.name.startswith(".")) == \
         [Path(seq.frame(f)).name for f in range(1001, 1241)]
 

@@ -145,6 +145,35 @@ def test_range_spellings(spec, expected):
     assert sequence.frame_set(spec) == expected
 
 
+def test_the_range_language_is_filesequence_where_the_two_agree():
+    """fileseq is the oracle of the spellings both languages share (x steps, lists, negative frames,
+    descending parts); only ``:`` (a step here, fileseq's stagger) and ``y`` (refused here) differ."""
+    fileseq = pytest.importorskip("fileseq")
+    rng = np.random.default_rng(22)
+    for _ in range(400):
+        parts = []
+        for _ in range(rng.integers(1, 4)):
+            a, b = (int(v) for v in rng.integers(-30, 60, size=2))
+            step = int(rng.integers(1, 6))
+            parts.append(str(a) if rng.random() < 0.2 else f"{a}-{b}" + (f"x{step}" if rng.random() < 0.5 else ""))
+        spec = ",".join(parts)
+        assert sequence.frame_set(spec) == sorted({int(f) for f in fileseq.FrameSet(spec)}), spec
+
+
+@pytest.mark.parametrize("pattern", ["sh/plate.####.exr", "sh/plate.#.exr", "sh/plate.@@.exr", "sh/plate.%05d.exr",
+                                     "sh/plate.$F3.exr", "sh/tex.<UDIM>.exr", "sh/tex.%(UDIM)d.exr",
+                                     "sh/plate.1-9x2#.exr", "sh/plate.-3-3@@@.exr"])
+def test_frame_paths_are_filesequence_s(pattern):
+    fileseq = pytest.importorskip("fileseq")
+    pad = fileseq.PAD_STYLE_HASH4 if "#." in pattern and "##" not in pattern else fileseq.PAD_STYLE_HASH1
+    theirs = fileseq.FileSequence(pattern, pad_style=pad, allow_subframes=False)
+    ours = sequence.parse(pattern)
+    for f in (1001, 1002, 1011, 1099) if ours.udim else (-12, -1, 0, 7, 1001, 12345):  # UDIMs are 1001 and up
+        assert ours.frame(f) == theirs.frame(f), (pattern, f)
+    if theirs.frameSet() is not None:
+        assert list(ours.frames) == sorted(int(f) for f in theirs.frameSet())
+
+
 @pytest.mark.parametrize("spec, message", [
     ("abc", "not a frame range (examples: 1001-1240, 1001-1240x2, 1001-1240:2, 1,5-9)"),
     ("1.5", "not a frame range"),
