@@ -260,7 +260,7 @@ def batch_options(f):
 
 
 def sequence_options() -> list:
-    """--frames, --shard, --cluster, --chunk (frame sequences, array jobs, a Dask cluster)."""
+    """--frames, --shard, --cluster, --chunk, --cluster-timeout (frame sequences, array jobs, a Dask cluster)."""
     return [
         click.option("--frames", metavar="RANGE", help="Frames of sequence inputs (plate.####.exr, plate.%04d.exr, "
                      "plate.1001-1240#.exr, tex.<UDIM>.exr) to process, e.g. 1001-1240x2 (default: the pattern's "
@@ -268,10 +268,15 @@ def sequence_options() -> list:
         click.option("--shard", metavar="K/N|auto", help="Process only the K-th (from 1) of N contiguous chunks of "
                      "the jobs; auto reads the array task from Slurm, SGE, AWS Batch, Kubernetes, LSF or PBS "
                      "(auto/N where the scheduler does not publish the count)."),
-        click.option("--cluster", metavar="ADDRESS", help="Run on a Dask cluster: tcp://HOST:8786, or local:N for N "
-                     "worker processes on this machine (needs pip install 'bilinear-pyramid[cluster]')."),
+        click.option("--cluster", metavar="ADDRESS", help="Run on a Dask cluster: a scheduler address "
+                     "(tcp://HOST:8786, HOST:PORT, tls://, ws://, ...), a scheduler file (dask scheduler "
+                     "--scheduler-file), or local:N for N worker processes on this machine (needs pip install "
+                     "'bilinear-pyramid[cluster]')."),
         click.option("--chunk", type=click.IntRange(1), metavar="N", help="Jobs per cluster task (default: about "
                      "four tasks per worker, at most 16 jobs)."),
+        click.option("--cluster-timeout", type=click.FloatRange(0, min_open=True), metavar="SECONDS",
+                     help="How long --cluster waits to connect (or for its scheduler file), and with no worker "
+                          "connected before the frames not done fail (default 30)."),
     ]
 
 
@@ -325,7 +330,8 @@ def _process(paths, work, opts: dict, mip_tile: int | None = None) -> None:
     ro, wo = _read_write(opts)
     batch = {"read": ro, "write": wo, "reporter": reporter, "keep_going": opts["keep_going"],
              "skip_existing": opts["skip_existing"], "jobs": opts["jobs"], "mip_tile": mip_tile,
-             "frames": opts["frames"], "shard": opts["shard"], "cluster": opts["cluster"], "chunk": opts["chunk"]}
+             "frames": opts["frames"], "shard": opts["shard"], "cluster": opts["cluster"], "chunk": opts["chunk"],
+             "cluster_timeout": opts["cluster_timeout"]}
     if opts.get("memory") is not None:
         from .stream import parse_size
 
