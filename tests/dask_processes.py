@@ -70,13 +70,10 @@ class DaskProcesses:
         self.workers.append(self._start(f"workers{len(self.workers)}", [
             "worker", "--nworkers", str(n), "--nthreads", "1", "--scheduler-file", str(self.scheduler_file),
             "--no-dashboard", "--host", "127.0.0.1"]))
-        _wait_for(lambda: self.count_workers() >= n, timeout, f"{n} worker(s) did not join")
-
-    def count_workers(self) -> int:
         from distributed import Client
 
-        with Client(scheduler_file=str(self.scheduler_file), timeout="10s") as client:
-            return len(client.nthreads())
+        with Client(scheduler_file=str(self.scheduler_file), timeout="10s", set_as_default=False) as client:
+            client.wait_for_workers(n, timeout=timeout)
 
     def kill_scheduler(self) -> None:
         """SIGKILL the scheduler (no goodbye to its clients)."""

@@ -125,6 +125,13 @@ def test_frames_not_done_read_as_runs():
     assert cluster.describe_jobs(jobs) == "in/0.exr, in/1.exr, in/2.exr, in/3.exr, in/4.exr and 2 more"
 
 
+def test_a_chunks_lines_go_back_in_job_order():
+    """Two writes overlap in a chunk, so their lines can come in either order: the client gets them in job order."""
+    jobs = [SimpleNamespace(input="a.exr", output="/o/a.exr"), SimpleNamespace(input="b.exr", output="/o/b.exr")]
+    said = [("out", "wrote /o/b.exr (8×8, cpu)"), ("err", "pyramid: warning: x"), ("out", "wrote /o/a.exr (8×8, cpu)")]
+    assert cluster._in_job_order(said, jobs) == [said[2], said[1], said[0]]
+
+
 @pytest.mark.cli
 def test_chunk_and_cluster_timeout_without_cluster_are_refused(tmp_path):
     write_sequence(tmp_path / "in", 1, 2)
