@@ -588,7 +588,8 @@ def write_image(path: str | os.PathLike[str], image, *, like: io.Image | None = 
 def process_files(work: Work, inputs: Sequence[str], output: str | None = None, *, template: str | None = None,
                   backend: str = "auto", session: Session | None = None, keep_going: bool = False,
                   skip_existing: bool = False, jobs: int = 2, quiet: bool = True, frames: str | None = None,
-                  shard=None, cluster=None, chunk: int | None = None, **io_options) -> int:
+                  shard=None, cluster=None, chunk: int | None = None, cluster_timeout: float | None = None,
+                  **io_options) -> int:
     """Run a job on files through the CLI's pipeline: ``inputs[0]`` → ``output``, or every input → ``template``.
 
     ``work`` is a :mod:`pyramid_cli.work` value (``Filter``, ``Blur``, …); ``io_options``
@@ -596,7 +597,8 @@ def process_files(work: Work, inputs: Sequence[str], output: str | None = None, 
     be frame sequences (``plate.####.exr``; ``frames="1001-1240x2"`` selects); ``shard``
     (``"K/N"`` or ``"auto"``) keeps one chunk of the jobs; ``cluster`` (a Dask address,
     ``"local:N"`` or a ``distributed.Client``) runs them on a Dask cluster in tasks of
-    ``chunk`` jobs. Returns the batch's exit code (0 when every file was written); a
+    ``chunk`` jobs, waiting up to ``cluster_timeout`` seconds (default 30) to connect and with
+    no worker connected. Returns the batch's exit code (0 when every file was written); a
     single file's failure raises.
     """
     from .pipeline import ReadOptions, Reporter, WriteOptions, process
@@ -613,7 +615,7 @@ def process_files(work: Work, inputs: Sequence[str], output: str | None = None, 
         runner = _session(session, backend)
     report = process(paths, template, work, runner, read=ro, write=wo, reporter=Reporter(quiet=quiet),
                      keep_going=keep_going, skip_existing=skip_existing, jobs=jobs, frames=frames, shard=shard,
-                     cluster=cluster, chunk=chunk)
+                     cluster=cluster, chunk=chunk, cluster_timeout=cluster_timeout)
     return report.exit_code
 
 

@@ -262,7 +262,7 @@ def batch_options(f):
 
 
 def sequence_options() -> list:
-    """--frames, --shard, --cluster, --chunk (frame sequences, array jobs, a Dask cluster)."""
+    """--frames, --shard, --cluster, --chunk, --cluster-timeout (frame sequences, array jobs, a Dask cluster)."""
     return [
         click.option("--frames", metavar="RANGE", help="Frames of sequence inputs (plate.####.exr, plate.%04d.exr, "
                      "plate.1001-1240#.exr, tex.<UDIM>.exr) to process: 1001-1240, 1001-1240x2 or 1001-1240:2 (both "
@@ -274,10 +274,15 @@ def sequence_options() -> list:
                      "count (Kubernetes), auto/FIRST-LAST[:STEP] the array's range as submitted (LSF, PBS, Torque: "
                      "auto/5-9 for bsub -J 'x[5-9]'), or PYRAMID_SHARD_COUNT / PYRAMID_SHARD_ARRAY. A task that "
                      "cannot be placed exits 2 before any work."),
-        click.option("--cluster", metavar="ADDRESS", help="Run on a Dask cluster: tcp://HOST:8786, or local:N for N "
-                     "worker processes on this machine (needs pip install 'bilinear-pyramid[cluster]')."),
+        click.option("--cluster", metavar="ADDRESS", help="Run on a Dask cluster: a scheduler address "
+                     "(tcp://HOST:8786, HOST:PORT, tls://, ws://, ...), a scheduler file (dask scheduler "
+                     "--scheduler-file), or local:N for N worker processes on this machine (needs pip install "
+                     "'bilinear-pyramid[cluster]')."),
         click.option("--chunk", type=click.IntRange(1), metavar="N", help="Jobs per cluster task (default: about "
                      "four tasks per worker, at most 16 jobs)."),
+        click.option("--cluster-timeout", type=click.FloatRange(0, min_open=True), metavar="SECONDS",
+                     help="How long --cluster waits to connect (or for its scheduler file), and with no worker "
+                          "connected before the frames not done fail (default 30)."),
     ]
 
 
@@ -344,7 +349,8 @@ def _process(paths, work, opts: dict, mip_tile: int | None = None) -> None:
     ro, wo = _read_write(opts)
     batch = {"read": ro, "write": wo, "reporter": reporter, "keep_going": opts["keep_going"],
              "skip_existing": opts["skip_existing"], "jobs": opts["jobs"], "mip_tile": mip_tile,
-             "frames": opts["frames"], "shard": opts["shard"], "cluster": opts["cluster"], "chunk": opts["chunk"]}
+             "frames": opts["frames"], "shard": opts["shard"], "cluster": opts["cluster"], "chunk": opts["chunk"],
+             "cluster_timeout": opts["cluster_timeout"]}
     if opts.get("memory") is not None:
         from .stream import parse_size
 

@@ -24,7 +24,7 @@ EXIT_CODES: dict[str, tuple[int, str]] = {
     "output": (4, "an output cannot be written (disk full, quota, size limit, read-only folder), "
                   "or would overwrite an input without --force"),
     "data": (5, "bad pixel data: NaN/Inf under --nan fail or in a mask, image too large"),
-    "backend": (6, "the requested backend is unavailable (no EGL/OpenGL context)"),
+    "backend": (6, "the requested backend is unavailable (no EGL/OpenGL context; a Dask cluster lost)"),
     "interrupted": (130, "interrupted (Ctrl-C); 143 for SIGTERM, 129 for SIGHUP: no output half-written"),
 }
 

@@ -108,7 +108,7 @@ def process(paths: list[str], template: str | None, work: Work, session: Session
             read: ReadOptions | None = None, write: WriteOptions | None = None, reporter: Reporter | None = None,
             keep_going: bool = False, skip_existing: bool = False, jobs: int = 2,
             mip_tile: int | None = None, frames: str | None = None, shard=None, cluster=None,
-            chunk: int | None = None, memory: int | None = None) -> batch.Report:
+            chunk: int | None = None, memory: int | None = None, cluster_timeout: float | None = None) -> batch.Report:
     """Run ``work`` on every input of ``paths`` (``IN OUT``, or inputs with ``template``).
 
     One session for the whole batch; decoding and encoding overlap the work in ``jobs``
@@ -122,13 +122,16 @@ def process(paths: list[str], template: str | None, work: Work, session: Session
     contiguous chunk of the job list; ``cluster`` (an address, ``"local:N"`` or a
     ``distributed.Client``) runs the jobs on a Dask cluster in chunks of ``chunk`` jobs,
     each worker with its own session like ``session`` (``session`` may then be None:
-    ``Session()``'s defaults).
+    ``Session()``'s defaults), connecting and waiting for workers up to ``cluster_timeout``
+    seconds (:mod:`pyramid_cli.cluster`).
 
     One input of ``apply``, ``blur`` or ``mipmap`` whose whole-picture run would not fit ``memory`` bytes
     (default: a quarter of the available memory) streams from file to file in bands
     (:mod:`pyramid_cli.stream`); images that fit run whole.
     """
     ro, wo, reporter = read or ReadOptions(), write or WriteOptions(), reporter or Reporter()
+    if cluster is None and (chunk is not None or cluster_timeout is not None):
+        raise UsageError("--chunk and --cluster-timeout are for --cluster runs")
     job_list = batch.plan_jobs(list(paths), template, frames=frames)
     many = len(job_list) > 1
     if shard is not None:
@@ -159,7 +162,7 @@ def process(paths: list[str], template: str | None, work: Work, session: Session
 
         report = run_cluster(job_list, work, cluster, session=session, read=ro, write=wo, reporter=reporter,
                              keep_going=keep_going, skip_existing=skip_existing, jobs=jobs, mip_tile=mip_tile,
-                             chunk=chunk, many=many)
+                             chunk=chunk, many=many, timeout=cluster_timeout)
     else:
         report = run_jobs(job_list, work, session, read=ro, write=wo, reporter=reporter, keep_going=keep_going,
                           skip_existing=skip_existing, jobs=jobs, mip_tile=mip_tile, many=many)
@@ -169,8 +172,11 @@ def process(paths: list[str], template: str | None, work: Work, session: Session
         if not reporter.quiet:
             reporter.err(f"pyramid: {len(report.done)} written, {len(report.skipped)} up to date, "
                          f"{len(report.failed)} failed")
-        for _job, err in report.failed:
-            reporter.error(str(err))
+        said = set()
+        for _job, err in report.failed:  # a lost cluster's one error names all the frames it failed
+            if id(err) not in said:
+                said.add(id(err))
+                reporter.error(str(err))
     return report
 
 
@@ -193,6 +199,11 @@ def _texture_channels(image: io.Image, work, path: str, reporter: Reporter) -> i
     new = dataclasses.replace(spec, channel_names=names, alpha_channel=alpha,
                               alpha_mode=spec.alpha_mode if alpha >= 0 else "none", channel_pixel_types=[])
     return io.Image(apply_channels(px, kept, len(names)), new)
+
+
+def wrote_line(path: str, width: int, height: int, levels: int | None, executor: str) -> str:
+    """A batch's line for one output: ``wrote PATH (W×H[, N MIP levels], EXECUTOR)``."""
+    return f"wrote {path} ({width}×{height}{f', {levels} MIP levels' if levels else ''}, {executor})"
 
 
 def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: ReadOptions, write: WriteOptions,
@@ -250,8 +261,7 @@ def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: R
             io.write_image(job.output, images[0], **options)
         if not show_bar:
             h, w = images[0].pixels.shape[:2]
-            levels = f", {len(images)} MIP levels" if mip_tile else ""
-            reporter.result(f"wrote {job.output} ({w}×{h}{levels}, {session.ran})")
+            reporter.result(wrote_line(job.output, w, h, len(images) if mip_tile else None, session.ran))
 
     show_bar = many and not reporter.quiet and reporter.progress is not None
     run_options = {"keep_going": keep_going, "skip_existing": skip_existing, "workers": jobs,
@@ -390,5 +400,5 @@ def collapse_files(inputs: list[str], output_path: str, session: Session, *, syn
     return output_path
 
 
-__all__ = ["ReadOptions", "WriteOptions", "Reporter", "process", "run_jobs", "write_levels_files", "collapse_files",
-           "level_path"]
+__all__ = ["ReadOptions", "WriteOptions", "Reporter", "process", "run_jobs", "wrote_line", "write_levels_files",
+           "collapse_files", "level_path"]
