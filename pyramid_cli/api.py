@@ -613,6 +613,8 @@ def process_files(work: Work, inputs: Sequence[str], output: str | None = None, 
         runner = SessionSpec(backend)
     else:
         runner = _session(session, backend)
+    if quiet:  # the pipeline says them only where it prints
+        _warn_work(work)
     report = process(paths, template, work, runner, read=ro, write=wo, reporter=Reporter(quiet=quiet),
                      keep_going=keep_going, skip_existing=skip_existing, jobs=jobs, frames=frames, shard=shard,
                      cluster=cluster, chunk=chunk, cluster_timeout=cluster_timeout)

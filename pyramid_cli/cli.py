@@ -344,8 +344,6 @@ def _process(paths, work, opts: dict, mip_tile: int | None = None) -> None:
     from .pipeline import process
 
     reporter = _reporter(opts)
-    for message in work.warnings():  # said once, before the first input is read
-        reporter.warn(message)
     ro, wo = _read_write(opts)
     batch = {"read": ro, "write": wo, "reporter": reporter, "keep_going": opts["keep_going"],
              "skip_existing": opts["skip_existing"], "jobs": opts["jobs"], "mip_tile": mip_tile,

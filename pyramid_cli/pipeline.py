@@ -130,6 +130,8 @@ def process(paths: list[str], template: str | None, work: Work, session: Session
     (:mod:`pyramid_cli.stream`); images that fit run whole.
     """
     ro, wo, reporter = read or ReadOptions(), write or WriteOptions(), reporter or Reporter()
+    for message in work.warnings():  # said once, before the first input is read (the CLI and process_files)
+        reporter.warn(message)
     if cluster is None and (chunk is not None or cluster_timeout is not None):
         raise UsageError("--chunk and --cluster-timeout are for --cluster runs")
     job_list = batch.plan_jobs(list(paths), template, frames=frames)

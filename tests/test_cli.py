@@ -325,7 +325,8 @@ def test_a_reader_closing_stdout_loses_no_frame_and_changes_no_exit_code(tmp_pat
 
 
 @pytest.mark.parametrize("args", [["explain", "box4 *v g"], ["plan", "box4 *v g", "--size", "64x64"],
-                                  ["farm-template", "--frames", "1-9", "--", "blur", "/sh/a.####.exr", "-o", "/sh/b.####.exr"]],
+                                  ["farm-template", "--frames", "1-9", "--", "blur", "/sh/a.####.exr",
+                                   "-o", "/sh/b.####.exr"]],
                          ids=lambda a: a[0])
 def test_printing_commands_exit_0_quietly_when_stdout_is_closed(args):
     proc = subprocess.Popen(_console(*args), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)

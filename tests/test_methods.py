@@ -503,6 +503,18 @@ def test_api_blend_fill_and_blur_warn_on_a_mixed_pair_and_the_warning_says_what_
         pyr.fill(ramp, mask=known, backend="cpu")
 
 
+def test_process_files_warns_on_a_mixed_pair_once(tmp_path):
+    from pyramid_cli.errors import MixedLatticeWarning
+
+    for k in range(3):
+        pyr.write_image(str(tmp_path / f"in{k}.exr"), np.full((8, 8, 3), k / 3, np.float32))
+    with pytest.warns(MixedLatticeWarning, match="half a fine pixel per level") as caught:
+        code = pyr.process_files(pyr.Blur(levels=2, analysis=MIXED[0], synthesis=MIXED[1]),
+                                 [str(tmp_path / "in*.exr")], template=str(tmp_path / "out" / "{stem}.exr"),
+                                 backend="cpu")
+    assert code == 0 and len(caught) == 1 and caught[0].filename == __file__
+
+
 @pytest.mark.parametrize("command", ["fill", "blend", "blur"])
 def test_cli_fill_blend_and_blur_warn_on_a_mixed_pair_unless_allowed(files, tmp_path, command):
     inputs = {"fill": ["--mask", files / "m.exr", files / "a.exr"], "blur": [files / "a.exr"],
