@@ -103,13 +103,14 @@ def _prepare_quietly(prepare: Callable[[Job], None], job: Job) -> None:
 
 def run(jobs: list[Job], read: Callable, work: Callable, write: Callable, *, keep_going: bool = False,
         skip_existing: bool = False, workers: int = 1, progress: Callable[[Job], None] | None = None,
-        prepare: Callable[[Job], None] | None = None) -> Report:
+        prepare: Callable[[Job], None] | None = None, written: Callable[[Job, object], None] | None = None) -> Report:
     """Run ``write(job, work(read(job)))`` for each job, overlapping I/O with work when ``workers`` > 1.
 
-    ``prepare(job)`` runs once, for the first job, while its read is under way (a cold
-    start's set-up overlapped with the first decode); its PyramidErrors are ignored, as
-    the read and the work report them. Stops at the first failure unless ``keep_going``;
-    failures are collected in the report.
+    ``written(job, value)`` receives what ``write`` returned, in this thread and in job order
+    (writes run in worker threads and may end in another order). ``prepare(job)`` runs once,
+    for the first job, while its read is under way (a cold start's set-up overlapped with the
+    first decode); its PyramidErrors are ignored, as the read and the work report them. Stops
+    at the first failure unless ``keep_going``; failures are collected in the report.
     """
     report = Report()
     todo = []
@@ -139,10 +140,13 @@ def run(jobs: list[Job], read: Callable, work: Callable, write: Callable, *, kee
         while pending_writes and (block or pending_writes[0][1].done()):
             j, f = pending_writes.pop(0)
             try:
-                f.result()
-                report.done.append(j)
+                value = f.result()
             except PyramidError as e:
                 report.failed.append((j, e))
+            else:
+                report.done.append(j)
+                if written is not None:
+                    written(j, value)
 
     try:
         for job, fut in reads():
@@ -155,8 +159,10 @@ def run(jobs: list[Job], read: Callable, work: Callable, write: Callable, *, kee
                 image = fut.result() if fut is not None else read(job)
                 result = work(image)
                 if pool is None:
-                    write(job, result)
+                    value = write(job, result)
                     report.done.append(job)
+                    if written is not None:
+                        written(job, value)
                 else:
                     pending_writes.append((job, pool.submit(write, job, result)))
                     settle(block=False)

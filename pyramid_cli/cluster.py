@@ -494,22 +494,6 @@ def _line_from_disk(job: batch.Job, work, mip_tile: int | None, executor: str) -
     return wrote_line(job.output, shape[1], shape[0], levels, executor)
 
 
-def _in_job_order(messages: list[tuple[str, str]], jobs: list[batch.Job]) -> list[tuple[str, str]]:
-    """``messages`` with the ``wrote`` lines in job order (a job's line is printed when its write ends, and two
-    writes overlap); other lines keep their places."""
-    prefixes = [f"wrote {j.output} (" for j in jobs]
-    places = [n for n, (stream, _) in enumerate(messages) if stream == "out"]
-    keys, last = [], -1
-    for n in places:
-        last = next((k for k, p in enumerate(prefixes) if messages[n][1].startswith(p)), last)
-        keys.append(last)
-    ordered = [messages[n] for _, n in sorted(zip(keys, places, strict=True), key=lambda kn: kn[0])]
-    out = list(messages)
-    for n, message in zip(places, ordered, strict=True):
-        out[n] = message
-    return out
-
-
 def _crash_hook(jobs: list[batch.Job]) -> bool:
     flag = os.environ.get(CRASH_VARIABLE)
     if not flag or len(jobs) < 2:
@@ -583,7 +567,7 @@ def run_chunk(jobs: list[batch.Job], work, read, write, *, keep_going: bool, ski
                 report.done += r.done
                 report.skipped += r.skipped
                 report.failed += r.failed
-    return ChunkResult(report, _in_job_order(messages, jobs), session.ran or session.name)
+    return ChunkResult(report, messages, session.ran or session.name)
 
 
 def _session_spec(session) -> SessionSpec:

@@ -261,12 +261,15 @@ def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: R
             io.write_levels(job.output, images, mode="mipmap", tile=mip_tile, meta=meta, **options)
         else:
             io.write_image(job.output, images[0], **options)
+        h, w = images[0].pixels.shape[:2]
+        return wrote_line(job.output, w, h, len(images) if mip_tile else None, session.ran)
+
+    def written(job, line):  # in job order, whichever write ended first
         if not show_bar:
-            h, w = images[0].pixels.shape[:2]
-            reporter.result(wrote_line(job.output, w, h, len(images) if mip_tile else None, session.ran))
+            reporter.result(line)
 
     show_bar = many and not reporter.quiet and reporter.progress is not None
-    run_options = {"keep_going": keep_going, "skip_existing": skip_existing, "workers": jobs,
+    run_options = {"keep_going": keep_going, "skip_existing": skip_existing, "workers": jobs, "written": written,
                    # GL compiles and allocates while the first image decodes; so does the CPU executor for MIP maps
                    # (loading its kernels, about 0.3 s of a cold process, beside the read and the source's hash)
                    "prepare": prepare if session.on_gl or mip_tile else None}

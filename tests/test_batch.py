@@ -125,3 +125,26 @@ def test_a_frame_in_the_output_of_a_plain_input_is_refused(folder, args, message
     r = invoke("blur", "--backend", "cpu", *args)
     assert r.exit_code == 2 and message in r.output and r.output.count("\n") == 1
     assert not (folder / "out").exists()
+
+
+def test_lines_are_said_in_job_order_whichever_write_ends_first():
+    """Writes overlap in worker threads; what they return reaches ``written`` in job order, in the calling thread."""
+    import threading
+
+    from pyramid_cli import batch
+
+    jobs = [batch.Job(f"in{k}", f"out{k}") for k in range(6)]
+
+    def write(job, value):
+        time.sleep(0.05 if job.input == "in0" else 0.0)  # the first write ends last
+        return value
+
+    said, threads = [], set()
+
+    def written(job, value):
+        said.append(value)
+        threads.add(threading.get_ident())
+
+    report = batch.run(jobs, lambda j: j.input, lambda v: v.upper(), write, workers=3, written=written)
+    assert said == ["IN0", "IN1", "IN2", "IN3", "IN4", "IN5"] and len(report.done) == 6
+    assert threads == {threading.get_ident()}
