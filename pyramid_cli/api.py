@@ -16,8 +16,8 @@ filtering sRGB codes directly is the caller's choice (``read_image`` decodes fil
 Without ``session=``, a module-level session per backend is made on first use
 and closed at exit.
 
-Errors: a bad argument raises :class:`~pyramid_cli.errors.UsageError` and bad pixel data (NaN/Inf in
-a mask, nothing to fill from, an image too large) :class:`~pyramid_cli.errors.DataError`, both
+Errors: a bad argument raises :class:`~pyramid_cli.errors.UsageError` and bad pixel data (nothing to
+fill from, an image too large) :class:`~pyramid_cli.errors.DataError`, both
 ``ValueError`` s; a file that cannot be read raises :class:`~pyramid_cli.errors.InputError`, one
 that cannot be written :class:`~pyramid_cli.errors.OutputError`, a missing GL context
 :class:`~pyramid_cli.errors.BackendError` (these three are :class:`~pyramid_cli.errors.PyramidError`
@@ -438,8 +438,8 @@ def fill(array, *, mask=None, holes: str | None = None, levels: int | None = Non
         :func:`read_image` gives them).
     mask : array_like, optional
         Weights in [0, 1] (H×W, or H×W×C one per channel): 1 known, 0 a hole, between partly
-        known. Implies ``holes="mask"``. NaN/Inf raise; values outside [0, 1] are clipped with a
-        UserWarning.
+        known. Implies ``holes="mask"``. NaN/Inf are kept (they spread) and values outside [0, 1]
+        clipped, each with a UserWarning.
     holes : {"alpha", "mask", "nan"}, optional
         Where the weights come from: the alpha channel (the last of 2 or 4 channels; the
         default without ``mask``), ``mask``, or every pixel with a NaN/Inf is a hole.
@@ -465,8 +465,8 @@ def fill(array, *, mask=None, holes: str | None = None, levels: int | None = Non
     ------
     ValueError
         No alpha channel for ``holes="alpha"``, a mask of another size or channel count
-        (:class:`~pyramid_cli.errors.UsageError`); no known pixel at all, NaN/Inf in the mask
-        or in a known pixel (:class:`~pyramid_cli.errors.DataError`).
+        (:class:`~pyramid_cli.errors.UsageError`); no known pixel at all, NaN/Inf in a known
+        pixel (:class:`~pyramid_cli.errors.DataError`).
 
     Examples
     --------
@@ -512,8 +512,8 @@ def blend(a, b, mask, *, levels: int | None = None, analysis: str = catalogue.AN
         H×W or H×W×C pixels of one shape.
     mask : array_like
         H×W (or H×W×1) weights in [0, 1], or H×W×C one per channel: 1 takes A, 0 takes B.
-        Another channel count or NaN/Inf raise ValueError; values outside [0, 1] are clipped
-        with a UserWarning.
+        Another channel count raises ValueError; NaN/Inf are kept (they spread) and values
+        outside [0, 1] clipped, each with a UserWarning.
     levels : int, optional
         Laplacian levels; default as many as the size allows while the coarsest level keeps 16
         pixels on its shorter side (:func:`pyramid_cli.methods.blend_levels`; 4 at 256×256, 7 at

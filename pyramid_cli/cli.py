@@ -598,7 +598,7 @@ def mipmap(ctx: click.Context, paths, analysis, tile, wrap, swrap, twrap, consta
 @click.argument("output_path", metavar="OUTPUT")
 @click.option("--mask", type=click.Path(dir_okay=False), help="Weight image: 1 known, 0 a hole, between partly "
               "known (one channel, one per channel, else its alpha channel; stored values, no sRGB decoding; NaN/Inf "
-              "refused, values outside 0 … 1 clipped with a warning). Implies --holes mask.")
+              "kept with a warning as in an image, values outside 0 … 1 clipped with one). Implies --holes mask.")
 @click.option("--holes", type=_choice(["alpha", "mask", "nan"]), default=None,
               help="Where the weights come from: the alpha channel (default without --mask), --mask, or every "
                    "pixel with a NaN/Inf is a hole.")
@@ -622,7 +622,7 @@ def fill(input_path, output_path, mask, holes, levels, analysis, synthesis, keep
     their weights, then every level is composited over the expanded coarser one: holes of
     any size get a smooth fill, pixels of full weight stay bit for bit. The output is
     opaque (alpha 1, as oiiotool --fillholes writes it) unless --keep-alpha. An image
-    without a known pixel, or a mask with NaN/Inf, is bad pixel data (exit 5). Filters
+    without a known pixel is bad pixel data (exit 5). Filters
     on two lattices fill from beside the holes and are warned about.
 
     \b
@@ -671,7 +671,7 @@ def blend(a_path, b_path, mask_path, output_path, levels, analysis, synthesis, a
     pyramid, and the bands are collapsed: fine detail meets over a narrow seam, coarse
     shading over a wide one. MASK is 1 where A shows and 0 where B shows: one channel,
     one per channel, else its alpha channel; stored values, no sRGB decoding; NaN/Inf
-    refused (exit 5), values outside 0 … 1 clipped with a warning. A, B and MASK have
+    kept with a warning (as in an image; --nan), values outside 0 … 1 clipped with one. A, B and MASK have
     one size. Filters on two lattices move the seam and are warned about.
 
     \b

@@ -23,7 +23,7 @@ EXIT_CODES: dict[str, tuple[int, str]] = {
                  "unsupported format, zero size, not a regular file, several parts"),
     "output": (4, "an output cannot be written (disk full, quota, size limit, read-only folder), "
                   "or would overwrite an input without --force"),
-    "data": (5, "bad pixel data: NaN/Inf under --nan fail or in a mask, image too large"),
+    "data": (5, "bad pixel data: NaN/Inf under --nan fail, image too large"),
     "backend": (6, "the requested backend is unavailable (no EGL/OpenGL context; a Dask cluster lost)"),
     "interrupted": (130, "interrupted (Ctrl-C); 143 for SIGTERM, 129 for SIGHUP: no output half-written"),
 }

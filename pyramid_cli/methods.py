@@ -200,46 +200,45 @@ def fill_output(filled: np.ndarray, pixels: np.ndarray, holes: str = "alpha",
 
 
 def mask_weights(mask: np.ndarray, image: np.ndarray, where: str = "", warn: Callable[[str], None] | None = None,
-                 image_is: str = "the image is") -> np.ndarray:
+                 image_is: str = "the image is", nan_hint: str = "numpy.nan_to_num(mask) reads them as 0"
+                 ) -> np.ndarray:
     """A mask as weights for ``image``: float32 H×W×1 or H×W×C (one channel, or one per channel of the image).
 
-    A mask is weights: a NaN or Inf has no meaning there and is refused; values outside [0, 1] (a matte's
-    filter overshoot, say) are clipped, and ``warn`` (default :func:`warnings.warn`) is told how many and
-    their range. ``where`` (the mask's path) starts every message.
+    NaN/Inf are kept, as in an image under ``--nan keep``, and spread through the filter: ``warn``
+    (default :func:`warnings.warn`) says how many, with ``nan_hint`` (the CLI's: ``--nan zero`` or
+    ``--nan fail``). Values outside [0, 1] (a matte's filter overshoot, say) are clipped, and ``warn`` is
+    told how many and their range. ``where`` (the mask's path) starts every message.
 
     Raises
     ------
     UsageError
         Another size, or a channel count that is neither one nor the image's (naming both).
-    DataError
-        NaN/Inf in the mask.
     """
     prefix = f"{where}: " if where else ""
+    say = warn or (lambda text: warnings.warn(text, UserWarning, stacklevel=3))
     m = np.asarray(mask, dtype=np.float32)
     m = m[:, :, None] if m.ndim == 2 else m
     a = image[:, :, None] if image.ndim == 2 else image
     if m.shape[:2] != a.shape[:2] or m.shape[2] not in (1, a.shape[2]):
         raise UsageError(f"{prefix}the mask is {m.shape[1]}x{m.shape[0]} with {m.shape[2]} channel(s); {image_is} "
                          f"{a.shape[1]}x{a.shape[0]} with {a.shape[2]}: one channel or one per channel")
-    finite = np.isfinite(m)
-    if not finite.all():
-        raise DataError(f"{prefix}{int(m.size - np.count_nonzero(finite))} NaN/Inf value(s) in the mask: weights "
-                        "must be numbers in [0, 1] (--nan zero reads a file's NaN/Inf as 0)")
+    bad = int(m.size - np.count_nonzero(np.isfinite(m)))
+    if bad:
+        say(f"{prefix}{bad} NaN/Inf value(s) kept in the mask; they spread through the filter ({nan_hint})")
     outside = int(np.count_nonzero((m < 0) | (m > 1)))
     if outside:
-        message = (f"{prefix}{outside} mask value(s) outside [0, 1] (from {float(m.min()):g} to {float(m.max()):g}) "
-                   "clipped to [0, 1]")
-        (warn or (lambda text: warnings.warn(text, UserWarning, stacklevel=3)))(message)
+        say(f"{prefix}{outside} mask value(s) outside [0, 1] (from {float(np.nanmin(m)):g} to "
+            f"{float(np.nanmax(m)):g}) clipped to [0, 1]")
         m = np.clip(m, 0, 1)
     return np.ascontiguousarray(m, dtype=np.float32)
 
 
 def mask_channels(mask: np.ndarray, image: np.ndarray, where: str = "",
-                  warn: Callable[[str], None] | None = None) -> np.ndarray:
+                  warn: Callable[[str], None] | None = None, nan_hint: str | None = None) -> np.ndarray:
     """The blend mask with the image's channel count (one channel is repeated), as float32 in [0, 1]
-    (:func:`mask_weights`: NaN/Inf refused, values outside [0, 1] clipped with a warning)."""
+    (:func:`mask_weights`: NaN/Inf kept with a warning, values outside [0, 1] clipped with one)."""
     a = image[:, :, None] if image.ndim == 2 else image
-    m = mask_weights(mask, a, where, warn, "the images are")
+    m = mask_weights(mask, a, where, warn, "the images are", *([nan_hint] if nan_hint else []))
     m = np.ascontiguousarray(np.broadcast_to(m, a.shape), dtype=np.float32)
     return m[:, :, 0] if image.ndim == 2 else m
 

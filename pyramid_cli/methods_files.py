@@ -13,7 +13,7 @@ import numpy as np
 from . import io
 from .errors import InputError, UsageError
 from .methods import fill_inputs, fill_output, mask_channels, mask_weights
-from .pipeline import ReadOptions, Reporter, WriteOptions, _announce_compiles, _read
+from .pipeline import NAN_HINT, ReadOptions, Reporter, WriteOptions, _announce_compiles, _read
 from .session import Session
 from .work import Blend, Fill
 
@@ -68,8 +68,10 @@ def fill_file(input_path: str, output_path: str, session: Session, *, mask: str 
     alpha = image.spec.alpha_channel if image.premultiplied else None
     if holes == "alpha" and alpha is None:
         raise UsageError(f"{input_path}: no alpha channel to take the holes from; give --mask IMAGE or --holes nan")
-    weights = mask_weights(_read_mask(mask, px.shape, ro, reporter), px, mask, reporter.warn) if mask else None
-    colour, weight, premultiplied = fill_inputs(px, holes, weights, alpha, where=input_path)
+    weights = (mask_weights(_read_mask(mask, px.shape, ro, reporter), px, mask, reporter.warn, nan_hint=NAN_HINT)
+               if mask else None)
+    # the weights are checked, and what they hold said, above
+    colour, weight, premultiplied = fill_inputs(px, holes, weights, alpha, where=input_path, warn=lambda _: None)
     work = Fill(levels=levels, analysis=analysis, synthesis=synthesis, premultiplied=premultiplied, border=border,
                 allow_mixed_lattice=allow_mixed_lattice)
     for message in work.warnings(px.shape[:2]):
@@ -124,7 +126,7 @@ def blend_files(a_path: str, b_path: str, mask_path: str, output_path: str, sess
         raise InputError(f"{b_path}: {b.pixels.shape[1]}×{b.pixels.shape[0]} with {b.pixels.shape[2]} channel(s); "
                          f"{a_path} is {a.pixels.shape[1]}×{a.pixels.shape[0]} with {a.pixels.shape[2]}")
     mask = mask_channels(_read_mask(mask_path, a.pixels.shape, ro, reporter), a.pixels, where=mask_path,
-                         warn=reporter.warn)
+                         warn=reporter.warn, nan_hint=NAN_HINT)
     work = Blend(levels=levels, analysis=analysis, synthesis=synthesis, border=border,
                  allow_mixed_lattice=allow_mixed_lattice)
     images = [a.pixels, b.pixels, mask]

@@ -22,6 +22,9 @@ from .errors import UsageError
 from .session import Session
 from .work import Collapse, Laplacian, Levels, Work
 
+#: What a warning about NaN/Inf kept in an input (an image or a mask) advises.
+NAN_HINT = "--nan zero or --nan fail to change that"
+
 
 @dataclass
 class ReadOptions:
@@ -99,8 +102,7 @@ def _read(path: str, ro: ReadOptions, reporter: Reporter, keep_half: bool = Fals
     integer = image.spec.pixel_type in ("uint8", "uint16") and not image.spec.channel_pixel_types
     bad = io.count_nonfinite(image.pixels) if ro.nan == "keep" and not integer else 0  # decoded codes are finite
     if bad:
-        reporter.warn(f"{path}: {bad} NaN/Inf value(s) kept; they spread through the filter "
-                      "(--nan zero or --nan fail to change that)")
+        reporter.warn(f"{path}: {bad} NaN/Inf value(s) kept; they spread through the filter ({NAN_HINT})")
     return image
 
 

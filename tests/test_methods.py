@@ -552,30 +552,34 @@ def _mask_file(path, pixels, channel_names=None):
 
 
 @pytest.mark.parametrize("command", ["fill", "blend"])
-def test_a_nan_in_a_mask_is_refused_naming_the_mask_and_nan_zero_reads_it_as_zero(files, tmp_path, command):
+def test_a_nan_in_a_mask_is_treated_as_in_an_image(files, tmp_path, command):
+    """--nan keep (the default): kept with a warning naming the mask, as an image's NaN is; zero: read as 0;
+    fail: refused (exit 5). A blend mask's NaN used to spread to thousands of pixels silently."""
     m = pyr.read_image(files / "m.exr").pixels[..., :1].copy()
     m[10, 10:14] = np.nan
     bad = _mask_file(tmp_path / "nan_mask.exr", m)
     args = (["fill", "--mask", bad, files / "a.exr"] if command == "fill"
             else ["blend", files / "a.exr", files / "b.exr", bad])
     r = _invoke(*args, tmp_path / "o.exr", "--backend", "cpu")
-    assert r.exit_code == 5, r.output
-    assert r.output == (f"pyramid: error: {bad}: 4 NaN/Inf value(s) in the mask: weights must be numbers in [0, 1] "
-                        "(--nan zero reads a file's NaN/Inf as 0)\n")
-    assert not (tmp_path / "o.exr").exists()
-    r = _invoke(*args, tmp_path / "o.exr", "--backend", "cpu", "--nan", "zero")
     assert r.exit_code == 0, r.output
+    assert r.stderr == (f"pyramid: warning: {bad}: 4 NaN/Inf value(s) kept in the mask; they spread through the "
+                        "filter (--nan zero or --nan fail to change that)\n")
+    assert np.isnan(pyr.read_image(tmp_path / "o.exr").pixels).any()
+    r = _invoke(*args, tmp_path / "o.exr", "--backend", "cpu", "--nan", "zero")
+    assert r.exit_code == 0 and r.stderr == "", r.output
     assert np.all(np.isfinite(pyr.read_image(tmp_path / "o.exr").pixels))
+    r = _invoke(*args, tmp_path / "o2.exr", "--backend", "cpu", "--nan", "fail")
+    assert r.exit_code == 5 and str(bad) in r.stderr and not (tmp_path / "o2.exr").exists(), r.output
 
 
-def test_api_refuses_a_nan_in_a_mask_as_a_value_error():
+def test_api_warns_of_a_nan_in_a_mask():
     a = np.random.default_rng(3).random((8, 8, 3))
     m = np.ones((8, 8))
     m[2, 2] = np.nan
     for call in (lambda: pyr.blend(a, a, m, backend="cpu"), lambda: pyr.fill(a, mask=m, backend="cpu")):
-        with pytest.raises(DataError, match=r"1 NaN/Inf value\(s\) in the mask") as info:
+        with pytest.warns(UserWarning, match=r"1 NaN/Inf value\(s\) kept in the mask.*numpy\.nan_to_num") as caught:
             call()
-        assert isinstance(info.value, ValueError)
+        assert len(caught) == 1 and caught[0].filename == __file__
 
 
 @pytest.mark.parametrize("command", ["fill", "blend"])
