@@ -36,8 +36,9 @@ def _read_mask(path: str, shape: tuple[int, ...], ro: ReadOptions, reporter: Rep
     if not 0 <= alpha < px.shape[2]:
         raise InputError(f"{path}: the mask has {px.shape[2]} channels ({', '.join(m.spec.channel_names)}) and no "
                          f"alpha, the image {channels}: give one channel, one per channel, or an alpha channel")
-    reporter.detail(f"{path}: {px.shape[2]} channels for an image of {channels}: its alpha channel "
-                    f"{m.spec.channel_names[alpha]} is the mask")
+    # which channel of such a file holds the matte is a guess (its colour may, its alpha may be 1): say it
+    reporter.warn(f"{path}: {px.shape[2]} channels for an image of {channels}: its alpha channel "
+                  f"{m.spec.channel_names[alpha]} is the mask")
     return px[:, :, alpha]
 
 
