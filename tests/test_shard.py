@@ -304,13 +304,18 @@ def test_verbose_source_says_where_each_fact_came_from():
     assert s.source.startswith("SLURM_ARRAY_TASK_ID=7 of 1-19:2: first index from SLURM_ARRAY_TASK_MIN")
 
 
+def _blur_sequence(tmp_path, first, last):
+    """Frames ``first``–``last`` on disk; the output folder and a blur command over them without --shard."""
+    write_sequence(tmp_path / "in", first, last)
+    out = tmp_path / "out"
+    return out, ["blur", "--backend", "cpu", "--levels", "1", str(tmp_path / "in" / "plate.####.exr"),
+                 "-o", str(out / "soft.####.exr")]
+
+
 @pytest.mark.cli
 def test_cli_lsf_array_from_5_refuses_without_its_start_and_does_each_frame_once_with_it(tmp_path):
     """The issue's report: bsub -J 'x[5-9]' over 24 frames wrote 14 and every task exited 0."""
-    write_sequence(tmp_path / "in", 1001, 1024)
-    out = tmp_path / "out"
-    base = ["blur", "--backend", "cpu", "--levels", "1", str(tmp_path / "in" / "plate.####.exr"),
-            "-o", str(out / "soft.####.exr")]
+    out, base = _blur_sequence(tmp_path, 1001, 1024)
     runner = CliRunner()
     for env in lsf(5, 9, 1):
         r = runner.invoke(main, [*base, "--shard", "auto"], env=env)
@@ -329,10 +334,7 @@ def test_cli_lsf_array_from_5_refuses_without_its_start_and_does_each_frame_once
 @pytest.mark.cli
 def test_cli_pbs_array_from_0_does_each_frame_once(tmp_path):
     """The issue's report: PBS -J 0-3 with auto/4: task 0 exited 2 and its frames were never done."""
-    write_sequence(tmp_path / "in", 1, 10)
-    out = tmp_path / "out"
-    base = ["blur", "--backend", "cpu", "--levels", "1", str(tmp_path / "in" / "plate.####.exr"),
-            "-o", str(out / "soft.####.exr")]
+    out, base = _blur_sequence(tmp_path, 1, 10)
     runner = CliRunner()
     for env in pbs_pro(0, 3, 1):  # a count alone cannot place a PBS task: every task refuses
         r = runner.invoke(main, [*base, "--shard", "auto/4"], env=env)
