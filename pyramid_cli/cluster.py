@@ -166,25 +166,16 @@ def require() -> None:
 
 # ------------------------------------------------------------------ addresses
 def describe_jobs(jobs: list[batch.Job], most: int = 12) -> str:
-    """Jobs as a person reads them: ``frames 1005–1012, 1020`` (runs of frames), else their inputs."""
+    """Jobs as a person reads them: ``frames 1005-1012,1020`` (a range ``--frames`` takes), else their inputs."""
     frames = [getattr(j, "frame", None) for j in jobs]
     if not jobs or any(f is None for f in frames):
         names = [j.input for j in jobs]
         more = f" and {len(names) - 5} more" if len(names) > 5 else ""
         return ", ".join(names[:5]) + more
-    runs: list[str] = []
-    i = 0
-    while i < len(frames):
-        j, step = i, (frames[i + 1] - frames[i]) if i + 1 < len(frames) else 0
-        while step > 0 and j + 1 < len(frames) and frames[j + 1] - frames[j] == step:
-            j += 1
-        if j > i and (step == 1 or j - i >= 2):
-            runs.append(f"{frames[i]}–{frames[j]}" + (f"x{step}" if step > 1 else ""))
-            i = j + 1
-        else:
-            runs.append(str(frames[i]))
-            i += 1
-    text = ", ".join(runs[:most]) + (f" and {len(runs) - most} more" if len(runs) > most else "")
+    from .sequence import range_text
+
+    runs = range_text(frames).split(",")
+    text = ",".join(runs[:most]) + (f" and {len(runs) - most} more" if len(runs) > most else "")
     return ("frame " if len(frames) == 1 else "frames ") + text
 
 

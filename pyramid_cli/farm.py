@@ -52,9 +52,10 @@ def openjd_range(frames: str) -> str:
     """
     from .sequence import frame_set, range_text
 
-    text = range_text(frame_set(frames))
+    chosen = frame_set(frames)
+    text = range_text(chosen)
     if len(text) > MAX_PARAMETER:
-        raise UsageError(f"--frames {frames[:40]!r}…: its {len(frame_set(frames))} frames take {len(text)} characters "
+        raise UsageError(f"--frames {frames[:40]!r}…: its {len(chosen)} frames take {len(text)} characters "
                          f"as an Open Job Description range, more than a job parameter holds ({MAX_PARAMETER}); "
                          "split the job")
     return text
@@ -157,7 +158,7 @@ def check_plan(paths: Sequence[str], output: str | None, frames: str) -> None:
         What the first task would have failed with, in one line.
     """
     from .batch import plan_jobs
-    from .sequence import frame_set, parse
+    from .sequence import frame_set, parse, range_text
 
     for p in [*paths, *([output] if output is not None else [])]:
         if not _absolute(p):
@@ -170,8 +171,6 @@ def check_plan(paths: Sequence[str], output: str | None, frames: str) -> None:
         if seq is not None and seq.frames is not None:
             outside = sorted(set(wanted) - set(seq.frames))
             if outside:
-                from .sequence import range_text
-
                 raise UsageError(f"--frames {frames!r}: frames {range_text(outside)[:60]} are outside {p}'s own range "
                                  "and would never be made (give the pattern without a range)")
 

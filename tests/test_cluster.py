@@ -58,12 +58,10 @@ def not_done(frames: list[int]) -> str:
 
 
 def expand(text: str) -> list[int]:
-    """``frames 3–4, 9`` back to [3, 4, 9]."""
-    out = []
-    for piece in text.split(" ", 1)[1].split(", "):
-        first, _, last = piece.partition("–")
-        out += range(int(first), int(last or first) + 1)
-    return out
+    """``frames 3-5,9`` back to [3, 4, 5, 9], as --frames reads it."""
+    from pyramid_cli.sequence import frame_set
+
+    return frame_set(text.split(" ", 1)[1])
 
 
 def moved(lines: list[str], a: str, b: str) -> list[str]:
@@ -118,9 +116,9 @@ def test_chunks_and_default_size():
 
 
 def test_frames_not_done_read_as_runs():
-    assert not_done([1005, 1006, 1007, 1008, 1020]) == "frames 1005–1008, 1020"
-    assert not_done([1001, 1003, 1005, 1007, 1010]) == "frames 1001–1007x2, 1010"
-    assert not_done([7]) == "frame 7" and not_done([3, 4]) == "frames 3–4"
+    assert not_done([1005, 1006, 1007, 1008, 1020]) == "frames 1005-1008,1020"
+    assert not_done([1001, 1003, 1005, 1007, 1010]) == "frames 1001-1007:2,1010"  # what --frames reads back
+    assert not_done([7]) == "frame 7" and not_done([3, 4]) == "frames 3,4"
     jobs = [SimpleNamespace(input=f"in/{k}.exr") for k in range(7)]
     assert cluster.describe_jobs(jobs) == "in/0.exr, in/1.exr, in/2.exr, in/3.exr, in/4.exr and 2 more"
 
@@ -241,7 +239,7 @@ def test_a_worker_killed_mid_chunk_loses_no_line(tmp_path, dask_cluster, command
     assert many.out == moved(one.out, "one", "many")
     assert many.err[-1] == one.err[-1] == "pyramid: 20 written, 0 up to date, 0 failed"
     assert only_ours(many.err), many.err
-    assert any(re.fullmatch(r"pyramid: cluster: worker tcp://127\.0\.0\.1:\d+ lost; chunk \d \(frames \d+–\d+\) "
+    assert any(re.fullmatch(r"pyramid: cluster: worker tcp://127\.0\.0\.1:\d+ lost; chunk \d \(frames \d+-\d+\) "
                             r"rescheduled.*", line) for line in many.err), many.err
     names = outputs(tmp_path / "one")
     assert len(names) == 20 and outputs(tmp_path / "many") == names  # no temporary file left, nothing extra
@@ -324,9 +322,9 @@ def test_a_chunk_the_cluster_gives_up_on_counts_what_it_wrote(tmp_path, dask_clu
         f"pyramid: {len(written)} written, 0 up to date, {len(missing)} failed", r.err
     named = []
     for line in errors:
-        m = re.fullmatch(r"pyramid: error: cluster tcp://\S+: chunk \d \((frames \d+–\d+)\): its workers died running "
+        m = re.fullmatch(r"pyramid: error: cluster tcp://\S+: chunk \d \((frames [\d,:-]+)\): its workers died running "
                          r"it more often than the scheduler allows \(distributed.scheduler.allowed-failures\); "
-                         r"(frames? [\d–, ]+) not done", line)
+                         r"(frames? [\d,:-]+) not done", line)
         assert m, line
         named.append(m.group(2))
     assert sorted(f for text in named for f in expand(text)) == missing
