@@ -46,7 +46,7 @@ from .errors import MixedLatticeWarning
 from .expr import Expr
 from .geometry import reduced
 from .session import Session
-from .work import Blur, Collapse, Filter, Laplacian, Levels, SigmaBlur, Work
+from .work import Blur, Collapse, Filter, Laplacian, Levels, SigmaBlur, Work, same_setting
 
 _sessions: dict[str, Session] = {}
 
@@ -379,14 +379,11 @@ def _as_recorded(what: str, asked: str | None, recorded: str | None, default: st
     """``asked`` where it agrees with what :class:`Bands` record, the record where not asked."""
     if asked is None:
         return recorded or default
-    if recorded is not None:
-        from .pipeline import _canonical
+    if recorded is not None and not same_setting(what, asked, recorded):
+        from .errors import UsageError
 
-        if _canonical(what, asked) != _canonical(what, recorded):
-            from .errors import UsageError
-
-            raise UsageError(f"the bands were made with {what} {recorded!r}; collapsing with {asked!r} would not "
-                             "give the image back")
+        raise UsageError(f"the bands were made with {what} {recorded!r}; collapsing with {asked!r} would not "
+                         "give the image back")
     return asked
 
 

@@ -20,7 +20,7 @@ import numpy as np
 from . import batch, catalogue, io
 from .errors import UsageError
 from .session import Session
-from .work import Collapse, Laplacian, Levels, Work
+from .work import Collapse, Laplacian, Levels, Work, same_setting
 
 #: What a warning about NaN/Inf kept in an input (an image or a mask) advises.
 NAN_HINT = "--nan zero or --nan fail to change that"
@@ -364,19 +364,10 @@ def _as_recorded(band: io.Image, path: str, what: str, asked: str | None, defaul
     recorded = band.spec.attributes.get(f"pyramid:{what}")
     if asked is None:
         return recorded or default
-    if recorded is not None and _canonical(what, asked) != _canonical(what, recorded):
+    if recorded is not None and not same_setting(what, asked, recorded):
         raise UsageError(f"{path}: the bands were made with --{what} {recorded} (recorded in the file); "
                          f"collapsing with --{what} {asked} would not give the image back")
     return asked
-
-
-def _canonical(what: str, value: str):
-    if what == "synthesis":
-        from .expr import Op, steps
-        from .pyramids import _one_step
-
-        return steps(_one_step(value, Op.UP))
-    return value
 
 
 def collapse_files(inputs: list[str], output_path: str, session: Session, *, synthesis: str | None = None,

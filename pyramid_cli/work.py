@@ -181,6 +181,16 @@ class Laplacian(Work):
         return pyramids.laplacian_reference(images[0], self.levels, self.analysis, self.synthesis, self.border)
 
 
+def same_setting(what: str, a: str, b: str) -> bool:
+    """Do two spellings of a Laplacian pyramid's ``synthesis`` filter (as one ⊗↑ step) or ``border`` mean the
+    same? What ``collapse`` checks against the setting its bands record (a file's, or :class:`api.Bands`')."""
+    if what == "synthesis":
+        from .expr import Op, steps
+
+        return steps(pyramids._one_step(a, Op.UP)) == steps(pyramids._one_step(b, Op.UP))
+    return a == b
+
+
 @dataclass(frozen=True, kw_only=True)
 class Collapse(Work):
     """G_0 = L_0 + expand(L_1 + expand(… G_m)): one input per band."""
@@ -287,4 +297,4 @@ class Blend(Work):
                                         self.border)]
 
 
-__all__ = ["Work", "Filter", "Blur", "SigmaBlur", "Levels", "Laplacian", "Collapse", "Fill", "Blend"]
+__all__ = ["Work", "Filter", "Blur", "SigmaBlur", "Levels", "Laplacian", "Collapse", "Fill", "Blend", "same_setting"]
