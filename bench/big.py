@@ -6,7 +6,7 @@ read+write.
     python bench/big.py --data /tmp/pyramid-big      # where the inputs are made once and kept
 
 Inputs are made once, procedurally (a gradient plus noise, zip-compressed RGBA half), written band by
-band through pyramid_cli.io's streaming writer so that making a 32K file needs no 8 GiB array; they
+band through pyramid_cli.imageio's streaming writer so that making a 32K file needs no 8 GiB array; they
 live under ``--data`` (default /tmp/pyramid-bench-big), never in the repository.
 
 Contenders, each in a fresh process whose peak RSS is its own (``bench/scripts/peak_rss.py``):
@@ -45,7 +45,7 @@ PEAK = [sys.executable, str(HERE / "scripts" / "peak_rss.py")]
 
 def make_input(path: Path, n: int, band: int = 256) -> None:
     """An n×n RGBA half EXR: a gradient plus noise, band by band (deterministic)."""
-    from pyramid_cli import io
+    from pyramid_cli import imageio as io
 
     if path.exists():
         return

@@ -1,12 +1,12 @@
 #!/usr/bin/env python3
-"""Calibrate the planner's cost model (``pyramid_cli/cost.py``) on this machine's GL.
+"""Calibrate the planner's cost model (``pyramid_cli/plan/cost.py``) on this machine's GL.
 
     python bench/calibrate.py              # measure, fit, print; writes nothing
-    python bench/calibrate.py --write      # and write pyramid_cli/cost_model.json (+ the raw points
+    python bench/calibrate.py --write      # and write pyramid_cli/plan/cost_model.json (+ the raw points
                                            #   to bench/results/calibration-latest.json)
     python bench/calibrate.py --quick      # two sizes, few repetitions: a smoke run (seconds)
 
-Method. Synthetic single passes run on the real :class:`~pyramid_cli.gl.GLExecutor`,
+Method. Synthetic single passes run on the real :class:`~pyramid_cli.exec.gl.GLExecutor`,
 built with :class:`pyramid_cli.plan.Builder` from literal masks whose taps are
 k bilinear (2×2 blocks of equal weights, like ``[1 1; 1 1]/4``) or k single-texel
 fetches (isolated weights, like ``[1 0 1]/2``): ⊗ (stride 1), ⊗↓ (stride 2, reading
@@ -16,7 +16,7 @@ a plan of 1 + n copies of the pass (each reading the input) and a plan of one, o
 so upload and read-back cancel and the executor's own per-pass work (uniforms,
 targets, the draw call) is included; each plan is warm (compiled, pool filled), the
 read-back syncs, and of interleaved repetitions the fastest is kept (the least
-disturbed). The five constants of :class:`~pyramid_cli.cost.CostModel` are fitted by
+disturbed). The five constants of :class:`~pyramid_cli.plan.cost.CostModel` are fitted by
 least squares on relative error with non-negative constants (every subset of
 constants is tried; the best non-negative solution wins). When bilinear and
 single-texel fetches come out within 10 % of each other they are merged into one.
@@ -46,11 +46,11 @@ if str(ROOT) not in sys.path:  # run from a checkout even without the editable i
 
 import numpy as np  # noqa: E402
 
-from pyramid_cli import cost  # noqa: E402
 from pyramid_cli import plan as planner  # noqa: E402
-from pyramid_cli.expr import Named, Op  # noqa: E402
+from pyramid_cli.core.expr import Named, Op  # noqa: E402
+from pyramid_cli.plan import cost  # noqa: E402
 
-MODEL_JSON = ROOT / "pyramid_cli" / cost.MODEL_FILE
+MODEL_JSON = ROOT / "pyramid_cli" / "plan" / cost.MODEL_FILE
 RAW_JSON = ROOT / "bench" / "results" / "calibration-latest.json"
 PHASES = [(0, 0), (0, 1), (1, 0), (1, 1)]
 MERGE_WITHIN = 0.10
@@ -259,7 +259,7 @@ def main(argv=None) -> int:
     ap.add_argument("--no-validate", action="store_true", help="skip timing the named filters' recipes")
     args = ap.parse_args(argv)
 
-    from pyramid_cli.gl import GLExecutor
+    from pyramid_cli.exec.gl import GLExecutor
 
     started = perf()
     rng = np.random.default_rng(7)

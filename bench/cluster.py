@@ -57,8 +57,8 @@ def _sequence(folder: Path, n: int, rows: int, cols: int, half: bool) -> str:
 
 
 def _process(pattern: str, out: str, session, **kw) -> float:
-    from pyramid_cli import pipeline
-    from pyramid_cli.work import Blur
+    from pyramid_cli.jobs.work import Blur
+    from pyramid_cli.run import pipeline
 
     t0 = perf()
     report = pipeline.process([pattern], out, Blur(levels=5), session, reporter=pipeline.Reporter(quiet=True), **kw)
@@ -69,7 +69,7 @@ def _process(pattern: str, out: str, session, **kw) -> float:
 
 
 def per_frame(tmp: Path, quick: bool) -> dict:
-    from pyramid_cli.session import Session
+    from pyramid_cli.exec.session import Session
 
     side = (512, 512) if quick else (2160, 3840)
     n_big = 3 if quick else 4
@@ -98,9 +98,9 @@ def dask(tmp: Path, quick: bool) -> dict:
         import distributed
     except ImportError:
         return {"skipped": "distributed is not installed (pip install 'bilinear-pyramid[cluster]')"}
-    from pyramid_cli import batch, cluster, pipeline
-    from pyramid_cli.session import Session
-    from pyramid_cli.work import Blur
+    from pyramid_cli.exec.session import Session
+    from pyramid_cli.jobs.work import Blur
+    from pyramid_cli.run import batch, cluster, pipeline
 
     n_empty = 100 if quick else 400
     pattern = _sequence(tmp / "dask", 64, 32, 32, False)

@@ -101,7 +101,7 @@ def in_process(src: Path, reps: int, backend: str) -> dict[str, list[float]]:
     """The fills alone, warm, in this process: OpenImageIO's ImageBufAlgo.fillholes_pushpull (what oiiotool
     --fillholes calls) and pyramid_cli.fill on the same float32 pixels, interleaved."""
     import pyramid_cli as pyr
-    from pyramid_cli.session import Session
+    from pyramid_cli.exec.session import Session
 
     buf = oiio.ImageBuf(str(src))
     buf.read(force=True, convert=oiio.FLOAT)

@@ -171,7 +171,7 @@ def machine_info() -> dict:
             versions[mod] = None
     info["versions"] = versions
     try:
-        from pyramid_cli.gl import GLExecutor
+        from pyramid_cli.exec.gl import GLExecutor
 
         with GLExecutor() as ex:
             gl_info = ex.info()
@@ -289,11 +289,11 @@ def _filter_contenders(session, split, plan, img, peer_fns, copy_in, copy_plan) 
 
 
 def scenario_filter(args, libs: dict, report: dict) -> None:
-    from pyramid_cli.geometry import level_sizes
-    from pyramid_cli.parse import parse
+    from pyramid_cli.core.geometry import level_sizes
+    from pyramid_cli.core.parse import parse
+    from pyramid_cli.exec.session import Session
     from pyramid_cli.plan import plan as make_plan
-    from pyramid_cli.pyramids import blur_plan
-    from pyramid_cli.session import Session
+    from pyramid_cli.workflows.pyramids import blur_plan
 
     rows, cols = (270, 480) if args.quick else (2160, 3840)
     reps = args.reps or (2 if args.quick else 5)
@@ -445,14 +445,14 @@ def in_process_profile(path: Path, out: Path) -> dict:
     """``pyramid blur --levels 5`` in this process, split as the CLI runs it: read (half kept half) /
     context / plan / compile / texture allocation (the CLI overlaps these with the read) / upload /
     passes / read-back / write."""
-    from pyramid_cli import io
-    from pyramid_cli.gl import GLExecutor
-    from pyramid_cli.pyramids import blur_plan
+    from pyramid_cli import imageio as io
+    from pyramid_cli.exec.gl import GLExecutor
+    from pyramid_cli.workflows.pyramids import blur_plan
 
     t = {}
     t["fresh interpreter + imports (subprocess)"] = cmd_time([sys.executable, "-c", (
-        "import numpy, OpenImageIO, moderngl, click, pyramid_cli.cli, pyramid_cli.io, pyramid_cli.session, "
-        "pyramid_cli.gl, pyramid_cli.pyramids")])
+        "import numpy, OpenImageIO, moderngl, click, pyramid_cli.cli, pyramid_cli.imageio, pyramid_cli.exec.session, "
+        "pyramid_cli.exec.gl, pyramid_cli.workflows.pyramids")])
     t0 = perf()
     image = io.read_image(str(path), keep_half=True)
     t["read (io.read_image)"] = perf() - t0
@@ -696,7 +696,7 @@ def _binomial(n: int) -> np.ndarray:
 
 def _cpu_compile_times(tmp: Path, rows: int, cols: int) -> dict:
     """Cold compile (empty cache folder, fresh process) and cached load (a second fresh process) of the blur plan."""
-    from pyramid_cli import cpu
+    from pyramid_cli.exec import cpu
 
     folder = tmp / "cpu-cache-cold"
     env = dict(os.environ, **{cpu.CACHE_ENV: str(folder)})
@@ -714,10 +714,10 @@ def _cpu_compile_times(tmp: Path, rows: int, cols: int) -> dict:
 
 def scenario_cpu(args, libs: dict, report: dict, tmp: Path) -> None:
     """The compiled CPU executor (numba) side by side with OpenCV, scikit-image, GL on llvmpipe, memcpy."""
-    from pyramid_cli import cpu
-    from pyramid_cli.parse import parse
+    from pyramid_cli.core.parse import parse
+    from pyramid_cli.exec import cpu
     from pyramid_cli.plan import plan as make_plan
-    from pyramid_cli.pyramids import blur_plan, level_sizes
+    from pyramid_cli.workflows.pyramids import blur_plan, level_sizes
 
     sc = report["scenarios"]["cpu"] = {"cases": [], "notes": []}
     ok, why = cpu.available()
@@ -748,7 +748,7 @@ def scenario_cpu(args, libs: dict, report: dict, tmp: Path) -> None:
         sc["compile"] = {"error": " ".join(str(e).split())[:400]}
     runner = None
     try:
-        from pyramid_cli.session import Session
+        from pyramid_cli.exec.session import Session
 
         runner = Session("gl")
         sc["gl_renderer"] = runner.name
@@ -980,8 +980,8 @@ def scenario_gpu(args, libs: dict, report: dict) -> None:
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     import torch_peer as tp
 
-    from pyramid_cli.gl import GLExecutor
-    from pyramid_cli.pyramids import blur_plan
+    from pyramid_cli.exec.gl import GLExecutor
+    from pyramid_cli.workflows.pyramids import blur_plan
 
     cuda = device.type == "cuda"
     rows, cols = (270, 480) if args.quick else (2160, 3840)

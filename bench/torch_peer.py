@@ -3,10 +3,10 @@
 Used by ``bench/run.py --only gpu`` as the GPU peer of the GL executor, and by
 ``tests/test_torch_peer.py``, which checks it against the numpy reference at every pixel.
 
-It computes the same thing as :mod:`pyramid_cli.reference` with the clamp border, on NCHW
+It computes the same thing as :mod:`pyramid_cli.reference.filters` with the clamp border, on NCHW
 tensors of any device and floating dtype (float64, float32, float16):
 
-- every weight comes from the project's exact masks (:func:`pyramid_cli.algebra.step_of`, i.e.
+- every weight comes from the project's exact masks (:func:`pyramid_cli.core.algebra.step_of`, i.e.
   the catalogue's matrices through the paper's offsets ``⌊i − n/2⌋``), not typed in here;
 - ``h ⊗↓ᵐ g`` (§4) is one ``conv2d`` of stride 2ᵐ: with 0-based indices, output ``r`` reads
   input ``2ᵐ·r + 2ᵐ − 1 − d`` for each mask offset ``d`` (the 1-based ``g[2ᵐr − d]``);
@@ -18,8 +18,8 @@ tensors of any device and floating dtype (float64, float32, float16):
   step's taps reach outside the image (replicate padding is exactly the reference's clamped
   index, at any width, even for a 1×1 image);
 - channels never mix: an (N, C, H, W) tensor runs as (N·C, 1, H, W);
-- the pyramid blur takes its steps and crops from :func:`pyramid_cli.pyramids.blur_steps`,
-  the function :func:`pyramid_cli.pyramids.blur_plan` plans from, so odd sizes are cropped
+- the pyramid blur takes its steps and crops from :func:`pyramid_cli.workflows.pyramids.blur_steps`,
+  the function :func:`pyramid_cli.workflows.pyramids.blur_plan` plans from, so odd sizes are cropped
   the same way (each synthesis back to its level's size).
 
 Each step reads the result of the one before it, as the reference does (a written operator
@@ -43,9 +43,9 @@ ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT) not in sys.path:  # run from a checkout even without the editable install
     sys.path.insert(0, str(ROOT))
 
-from pyramid_cli import algebra  # noqa: E402
-from pyramid_cli.expr import Expr, Filter, Named, Op, steps  # noqa: E402
-from pyramid_cli.pyramids import blur_steps  # noqa: E402
+from pyramid_cli.core import algebra  # noqa: E402
+from pyramid_cli.core.expr import Expr, Filter, Named, Op, steps  # noqa: E402
+from pyramid_cli.workflows.pyramids import blur_steps  # noqa: E402
 
 Size = tuple[int, int]
 

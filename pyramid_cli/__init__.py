@@ -19,7 +19,7 @@ __all__ = list(_API)
 
 def __getattr__(name: str):
     if name in _API:
-        from . import api
+        from pyramid_cli import api
 
         return getattr(api, name)
     raise AttributeError(f"module 'pyramid_cli' has no attribute {name!r}")

@@ -3,8 +3,8 @@
 Functions on numpy arrays (``apply``, ``blur``, ``pyramid``, ``laplacian``,
 ``collapse``, ``mipmap``, and the methods built on them: ``fill``, ``blend``), image files
 (``read_image``, ``write_image``,
-``process_files``), and :class:`~pyramid_cli.session.Session`, which owns one
-executor for many calls. They describe jobs as :mod:`pyramid_cli.work` values and
+``process_files``), and :class:`~pyramid_cli.exec.session.Session`, which owns one
+executor for many calls. They describe jobs as :mod:`pyramid_cli.jobs.work` values and
 run them through the same session and pipeline as the ``pyramid`` command.
 
 Arrays: 2-D is one channel, 3-D is H×W×C with any C. float16/32/64 are taken as
@@ -16,14 +16,14 @@ filtering sRGB codes directly is the caller's choice (``read_image`` decodes fil
 Without ``session=``, a module-level session per backend is made on first use
 and closed at exit.
 
-Errors: a bad argument raises :class:`~pyramid_cli.errors.UsageError` and bad pixel data (nothing to
-fill from, an image too large) :class:`~pyramid_cli.errors.DataError`, both
-``ValueError`` s; a file that cannot be read raises :class:`~pyramid_cli.errors.InputError`, one
-that cannot be written :class:`~pyramid_cli.errors.OutputError`, a missing GL context
-:class:`~pyramid_cli.errors.BackendError` (these three are :class:`~pyramid_cli.errors.PyramidError`
+Errors: a bad argument raises :class:`~pyramid_cli.core.errors.UsageError` and bad pixel data (nothing to
+fill from, an image too large) :class:`~pyramid_cli.core.errors.DataError`, both
+``ValueError`` s; a file that cannot be read raises :class:`~pyramid_cli.core.errors.InputError`, one
+that cannot be written :class:`~pyramid_cli.core.errors.OutputError`, a missing GL context
+:class:`~pyramid_cli.core.errors.BackendError` (these three are :class:`~pyramid_cli.core.errors.PyramidError`
 s, not ``ValueError``). Every message is the one the command line prints. What the command line
 warns about is a ``UserWarning`` here: a filter pair on two lattices
-(:class:`~pyramid_cli.errors.MixedLatticeWarning`: ``blur``, ``fill``, ``blend``), mask values outside
+(:class:`~pyramid_cli.core.errors.MixedLatticeWarning`: ``blur``, ``fill``, ``blend``), mask values outside
 [0, 1] (clipped).
 
 References
@@ -41,12 +41,13 @@ from collections.abc import Iterator, Sequence
 
 import numpy as np
 
-from . import catalogue, io, options
-from .errors import MixedLatticeWarning
-from .expr import Expr
-from .geometry import reduced
-from .session import Session
-from .work import Blur, Collapse, Filter, Laplacian, Levels, SigmaBlur, Work, same_setting
+from pyramid_cli import imageio as io
+from pyramid_cli.core import catalogue, options
+from pyramid_cli.core.errors import MixedLatticeWarning
+from pyramid_cli.core.expr import Expr
+from pyramid_cli.core.geometry import reduced
+from pyramid_cli.exec.session import Session
+from pyramid_cli.jobs.work import Blur, Collapse, Filter, Laplacian, Levels, SigmaBlur, Work, same_setting
 
 _sessions: dict[str, Session] = {}
 
@@ -93,7 +94,7 @@ def as_pixels(array, name: str = "array") -> np.ndarray:
 
 def _expr(expr: str | Expr) -> Expr:
     if isinstance(expr, str):
-        from .parse import parse
+        from pyramid_cli.core.parse import parse
 
         return parse(expr)
     return expr
@@ -104,7 +105,8 @@ def _run(work: Work, arrays: list, session: Session | None, backend: str) -> lis
 
 
 def _warn_work(work: Work, size=None) -> None:
-    """The work's warnings (:meth:`~pyramid_cli.work.Work.warnings`) as MixedLatticeWarnings at the caller's line."""
+    """The work's warnings (:meth:`~pyramid_cli.jobs.work.Work.warnings`) as MixedLatticeWarnings at the
+    caller's line."""
     for message in work.warnings(size):
         warnings.warn(message, MixedLatticeWarning, stacklevel=3)
 
@@ -124,11 +126,12 @@ class Bands(list):
 
 def _banded(work: Work, array, out: Sequence[np.ndarray] | None, memory, session: Session | None,
             backend: str) -> list[np.ndarray]:
-    """One image through ``work`` band by band (:mod:`pyramid_cli.tiles`): a memory-mapped input is read
+    """One image through ``work`` band by band (:mod:`pyramid_cli.exec.tiles`): a memory-mapped input is read
     a band at a time and the results written into ``out`` (one array per output of the plan, after level 0
     for a job that keeps its input; a memmap keeps it on disk), within ``memory`` bytes of working set
     (default: a quarter of the available memory), the pixels of the whole run."""
-    from . import stream, tiles
+    from pyramid_cli.exec import tiles
+    from pyramid_cli.run import stream
 
     a = array if isinstance(array, np.ndarray) else np.asarray(array)
     if a.ndim not in (2, 3) or 0 in a.shape:
@@ -149,7 +152,7 @@ def _banded(work: Work, array, out: Sequence[np.ndarray] | None, memory, session
             raise ValueError(f"{name}: expected a float array of shape {shape}, got {o.dtype} {tuple(o.shape)}")
     budget = stream.parse_size(memory) if isinstance(memory, str) else memory or stream.default_memory()
     channels = a.shape[2] if a.ndim == 3 else 1
-    from .session import EmulatorExecutor
+    from pyramid_cli.exec.session import EmulatorExecutor
 
     executor = tiles.Emulator() if isinstance(s.executor, EmulatorExecutor) else s.executor
     choice = stream.choose(plan, channels, budget, in_bytes=max(4, a.dtype.itemsize), force=True,
@@ -358,7 +361,7 @@ def collapse(bands: Sequence, *, synthesis: str | None = None, border: str | Non
     >>> pyr.collapse(bands, synthesis="doosabin")
     Traceback (most recent call last):
     ...
-    pyramid_cli.errors.UsageError: the bands were made with synthesis 'nearest'; collapsing with 'doosabin' ...
+    pyramid_cli.core.errors.UsageError: the bands were made with synthesis 'nearest'; collapsing with 'doosabin' ...
     """
     recorded = {k: getattr(bands, k, None) for k in ("synthesis", "border")}
     synthesis = _as_recorded("synthesis", synthesis, recorded["synthesis"], catalogue.SYNTHESIS_DEFAULT)
@@ -380,7 +383,7 @@ def _as_recorded(what: str, asked: str | None, recorded: str | None, default: st
     if asked is None:
         return recorded or default
     if recorded is not None and not same_setting(what, asked, recorded):
-        from .errors import UsageError
+        from pyramid_cli.core.errors import UsageError
 
         raise UsageError(f"the bands were made with {what} {recorded!r}; collapsing with {asked!r} would not "
                          "give the image back")
@@ -408,7 +411,7 @@ def mipmap(array, *, analysis: str = catalogue.MIP_ANALYSIS_DEFAULT, border: str
     >>> [lv.shape for lv in pyr.mipmap(np.ones((5, 8, 4)), rounding="up")]
     [(5, 8, 4), (3, 4, 4), (2, 2, 4), (1, 1, 4)]
     """
-    from .mip import TextureLevels
+    from pyramid_cli.workflows.mip import TextureLevels
 
     work = TextureLevels(levels=None, analysis=analysis, border=border, rounding=rounding)
     if _bands_wanted(array, out, memory):
@@ -462,8 +465,8 @@ def fill(array, *, mask=None, holes: str | None = None, levels: int | None = Non
     ------
     ValueError
         No alpha channel for ``holes="alpha"``, a mask of another size or channel count
-        (:class:`~pyramid_cli.errors.UsageError`); no known pixel at all, NaN/Inf in a known
-        pixel (:class:`~pyramid_cli.errors.DataError`).
+        (:class:`~pyramid_cli.core.errors.UsageError`); no known pixel at all, NaN/Inf in a known
+        pixel (:class:`~pyramid_cli.core.errors.DataError`).
 
     Examples
     --------
@@ -476,8 +479,8 @@ def fill(array, *, mask=None, holes: str | None = None, levels: int | None = Non
     >>> [round(float(v), 2) for v in filled[2]]
     [0.0, 0.12, 0.2, 0.32, 0.48, 0.64, 0.8, 0.88, 1.0]
     """
-    from .methods import fill_inputs, fill_output
-    from .work import Fill
+    from pyramid_cli.jobs.work import Fill
+    from pyramid_cli.workflows.methods import fill_inputs, fill_output
 
     holes = holes or ("mask" if mask is not None else "alpha")
     if keep_alpha and holes != "alpha":
@@ -513,7 +516,7 @@ def blend(a, b, mask, *, levels: int | None = None, analysis: str = catalogue.AN
         outside [0, 1] clipped, each with a UserWarning.
     levels : int, optional
         Laplacian levels; default as many as the size allows while the coarsest level keeps 16
-        pixels on its shorter side (:func:`pyramid_cli.methods.blend_levels`; 4 at 256×256, 7 at
+        pixels on its shorter side (:func:`pyramid_cli.workflows.methods.blend_levels`; 4 at 256×256, 7 at
         3840×2160): deeper bands would mix the two images' mean colours across the whole frame.
     analysis, synthesis : str
         ⊗↓ and ⊗↑ filters (§4, §5); the defaults are the paper's Figure 3b. A pair on two
@@ -534,8 +537,8 @@ def blend(a, b, mask, *, levels: int | None = None, analysis: str = catalogue.AN
     >>> pyr.blend(a, b, left, levels=2)[8, ::3].round(3)
     array([0.   , 0.094, 0.328, 0.672, 0.906, 1.   ], dtype=float32)
     """
-    from .methods import mask_channels
-    from .work import Blend
+    from pyramid_cli.jobs.work import Blend
+    from pyramid_cli.workflows.methods import mask_channels
 
     pa, pb = as_pixels(a, "a"), as_pixels(b, "b")
     if pa.shape != pb.shape:
@@ -555,7 +558,7 @@ def read_image(path: str | os.PathLike[str], *, colorspace: str = "auto", alpha:
     """Read an image file into linear-light float32 pixels (alpha premultiplied) and its metadata.
 
     ``colorspace``, ``alpha`` and ``nan`` are the CLI's ``--colorspace``, ``--alpha`` and
-    ``--nan``; see :func:`pyramid_cli.io.read_image`. The result's ``pixels`` is H×W×C.
+    ``--nan``; see :func:`pyramid_cli.imageio.read_image`. The result's ``pixels`` is H×W×C.
     """
     return io.read_image(path, colorspace=colorspace, alpha=alpha, nan=nan)
 
@@ -564,7 +567,7 @@ def write_image(path: str | os.PathLike[str], image, *, like: io.Image | None = 
                 pixel_type: str | None = None, colorspace: str | None = None, alpha: str | None = None,
                 dither: bool = False, compression: str | None = None, force: bool = False,
                 channel_names: list[str] | None = None) -> None:
-    """Write an :class:`~pyramid_cli.io.Image` (like its source) or an array of linear pixels, atomically.
+    """Write an :class:`~pyramid_cli.imageio.Image` (like its source) or an array of linear pixels, atomically.
 
     An array is stored like ``like`` (an image from :func:`read_image`: its type,
     channels, colour and alpha rules and metadata) or, without it, as float where the
@@ -589,8 +592,8 @@ def process_files(work: Work, inputs: Sequence[str], output: str | None = None, 
                   **io_options) -> int:
     """Run a job on files through the CLI's pipeline: ``inputs[0]`` → ``output``, or every input → ``template``.
 
-    ``work`` is a :mod:`pyramid_cli.work` value (``Filter``, ``Blur``, …); ``io_options``
-    are :class:`~pyramid_cli.pipeline.ReadOptions` and ``WriteOptions`` fields. Inputs may
+    ``work`` is a :mod:`pyramid_cli.jobs.work` value (``Filter``, ``Blur``, …); ``io_options``
+    are :class:`~pyramid_cli.run.pipeline.ReadOptions` and ``WriteOptions`` fields. Inputs may
     be frame sequences (``plate.####.exr``; ``frames="1001-1240x2"`` selects); ``shard``
     (``"K/N"`` or ``"auto"``) keeps one chunk of the jobs; ``cluster`` (a Dask address,
     ``"local:N"`` or a ``distributed.Client``) runs them on a Dask cluster in tasks of
@@ -598,14 +601,14 @@ def process_files(work: Work, inputs: Sequence[str], output: str | None = None, 
     no worker connected. Returns the batch's exit code (0 when every file was written); a
     single file's failure raises.
     """
-    from .pipeline import ReadOptions, Reporter, WriteOptions, process
+    from pyramid_cli.run.pipeline import ReadOptions, Reporter, WriteOptions, process
 
     read_keys = {"colorspace", "alpha", "nan"}
     ro = ReadOptions(**{k: v for k, v in io_options.items() if k in read_keys})
     wo = WriteOptions(**{k: v for k, v in io_options.items() if k not in read_keys})
     paths = [*inputs, output] if template is None else list(inputs)
     if cluster is not None and session is None:
-        from .cluster import SessionSpec
+        from pyramid_cli.run.cluster import SessionSpec
 
         runner = SessionSpec(backend)
     else:

@@ -13,11 +13,11 @@ from importlib.resources import files
 
 import numpy as np
 
-from . import io
-from .parse import parse
-from .session import Session
-from .sheet import contact_sheet
-from .work import Blur, Filter
+from pyramid_cli import imageio as io
+from pyramid_cli.core.parse import parse
+from pyramid_cli.exec.session import Session
+from pyramid_cli.jobs.work import Blur, Filter
+from pyramid_cli.run.sheet import contact_sheet
 
 SAMPLES = str(files("pyramid_cli.samples"))
 
@@ -60,8 +60,8 @@ def apple_orange(size: int = 256) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def _methods(session: Session, outdir: str, like: io.ImageInfo) -> list[str]:
     """The pyramid methods: the apple, the orange, the hard cut and the multiresolution blend; then the blend
     with rectangular holes and filled, and with 2 % of its pixels kept and filled."""
-    from .methods import fill_inputs, fill_output, mask_channels
-    from .work import Blend, Fill
+    from pyramid_cli.jobs.work import Blend, Fill
+    from pyramid_cli.workflows.methods import fill_inputs, fill_output, mask_channels
 
     written = []
     a, b, mask = apple_orange(256)

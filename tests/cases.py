@@ -16,8 +16,8 @@ GRID_CHANNELS = [None, 3, 4, 6, 1]  # None: a 2-D (H, W) image
 
 def step(builder, source, text, crop=None):
     """One written step of ``text`` on image ``source`` of a plan Builder."""
-    from pyramid_cli.expr import steps
-    from pyramid_cli.parse import parse
+    from pyramid_cli.core.expr import steps
+    from pyramid_cli.core.parse import parse
 
     ((op, f, stride),) = steps(parse(text))
     return builder.step(source, op, f, stride, crop)

@@ -8,12 +8,12 @@ import os
 
 import pytest
 
-from pyramid_cli.errors import BackendError
+from pyramid_cli.core.errors import BackendError
 
 
 @pytest.fixture(scope="session")
 def gl_executor():
-    from pyramid_cli.gl import GLExecutor
+    from pyramid_cli.exec.gl import GLExecutor
 
     executor = GLExecutor()
     try:

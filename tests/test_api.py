@@ -8,12 +8,14 @@ import numpy as np
 import pytest
 
 import pyramid_cli as pyr
-from pyramid_cli import api, pyramids, reference
-from pyramid_cli.border import Border
-from pyramid_cli.errors import PyramidError
-from pyramid_cli.geometry import mip_levels
-from pyramid_cli.mip import mip_reference
-from pyramid_cli.parse import parse
+from pyramid_cli import api
+from pyramid_cli.core.border import Border
+from pyramid_cli.core.errors import PyramidError
+from pyramid_cli.core.geometry import mip_levels
+from pyramid_cli.core.parse import parse
+from pyramid_cli.reference import filters as reference
+from pyramid_cli.workflows import pyramids
+from pyramid_cli.workflows.mip import mip_reference
 
 SIZES = [(1, 1), (1, 7), (5, 3), (17, 13), (129, 67)]
 CHANNELS = [1, 3, 4, 6]
@@ -128,7 +130,7 @@ def test_project_errors_are_pyramid_errors():
 
 
 def test_data_errors_are_value_errors_as_the_readme_says_and_file_errors_are_not(tmp_path):
-    from pyramid_cli.errors import DataError, InputError
+    from pyramid_cli.core.errors import DataError, InputError
 
     with pytest.raises(ValueError, match="no known pixel") as info:
         pyr.fill(np.zeros((4, 4)), mask=np.zeros((4, 4)), backend="cpu")
@@ -179,7 +181,7 @@ def test_process_files_runs_the_cli_pipeline(tmp_path):
 def test_docstring_examples_run():
     result = doctest.testmod(api, optionflags=doctest.ELLIPSIS)
     assert result.attempted >= 8 and result.failed == 0
-    from pyramid_cli import session
+    from pyramid_cli.exec import session
 
     assert doctest.testmod(session).failed == 0
 

@@ -8,9 +8,9 @@ import OpenImageIO as oiio
 import pytest
 from click.testing import CliRunner
 
-from pyramid_cli.batch import output_for, plan_jobs
 from pyramid_cli.cli import main
-from pyramid_cli.errors import UsageError
+from pyramid_cli.core.errors import UsageError
+from pyramid_cli.run.batch import output_for, plan_jobs
 
 pytestmark = pytest.mark.cli
 
@@ -131,7 +131,7 @@ def test_lines_are_said_in_job_order_whichever_write_ends_first():
     """Writes overlap in worker threads; what they return reaches ``written`` in job order, in the calling thread."""
     import threading
 
-    from pyramid_cli import batch
+    from pyramid_cli.run import batch
 
     jobs = [batch.Job(f"in{k}", f"out{k}") for k in range(6)]
 

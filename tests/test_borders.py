@@ -1,6 +1,6 @@
 """Border modes belong to the Plan (DESIGN.md §1): every executor runs clamp, mirror, wrap and zero.
 
-The reference folds indices with :func:`pyramid_cli.border.fold`; the checker below folds
+The reference folds indices with :func:`pyramid_cli.core.border.fold`; the checker below folds
 them independently, by the definitions in DESIGN.md §1, so a wrong fold in both is caught.
 """
 
@@ -10,10 +10,11 @@ import numpy as np
 import pytest
 
 from cases import NAMED
-from pyramid_cli import emulate, reference
-from pyramid_cli.border import Border, fold_index
-from pyramid_cli.parse import parse
+from pyramid_cli.core.border import Border, fold_index
+from pyramid_cli.core.parse import parse
+from pyramid_cli.exec import emulate
 from pyramid_cli.plan import check, plan
+from pyramid_cli.reference import filters as reference
 
 BORDERS = ["clamp", "mirror", "wrap", "zero"]
 SIZES = [(1, 1), (1, 7), (7, 1), (5, 3), (17, 13)]

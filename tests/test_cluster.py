@@ -23,9 +23,9 @@ from dask_processes import DaskProcesses
 from test_sequence import write_sequence
 
 import pyramid_cli as pyr
-from pyramid_cli import cluster
 from pyramid_cli.cli import main
-from pyramid_cli.errors import UsageError
+from pyramid_cli.core.errors import UsageError
+from pyramid_cli.run import cluster
 
 WORK = pyr.Blur(levels=2)
 HANG = 120  # seconds after which a run counts as hung: far beyond any run here, even on a loaded machine
@@ -59,7 +59,7 @@ def not_done(frames: list[int]) -> str:
 
 def expand(text: str) -> list[int]:
     """``frames 3-5,9`` back to [3, 4, 5, 9], as --frames reads it."""
-    from pyramid_cli.sequence import frame_set
+    from pyramid_cli.run.sequence import frame_set
 
     return frame_set(text.split(" ", 1)[1])
 

@@ -1,4 +1,4 @@
-"""The calibrated cost model (pyramid_cli/cost.py): the committed constants, the size-dependent
+"""The calibrated cost model (pyramid_cli/plan/cost.py): the committed constants, the size-dependent
 choice it drives, exactness on both sides of every flip, and why the planner never fuses
 written steps (DESIGN.md §1, §5)."""
 
@@ -12,11 +12,14 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from pyramid_cli import algebra, cost, emulate, reference
 from pyramid_cli import plan as planner
 from pyramid_cli.cli import main
-from pyramid_cli.expr import Named, Op
-from pyramid_cli.parse import parse
+from pyramid_cli.core import algebra
+from pyramid_cli.core.expr import Named, Op
+from pyramid_cli.core.parse import parse
+from pyramid_cli.exec import emulate
+from pyramid_cli.plan import cost
+from pyramid_cli.reference import filters as reference
 
 ROOT = Path(__file__).resolve().parent.parent
 # Named filters the planner chooses for: the paper's decomposition has several passes.
@@ -61,8 +64,8 @@ def test_model_is_loaded_once_and_shipped_as_package_data():
         import tomllib
 
         setup = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
-        assert "pyramid_cli" in setup["packages"]
-        assert cost.MODEL_FILE in setup["package-data"]["pyramid_cli"]
+        assert "pyramid_cli.plan" in setup["packages"]
+        assert cost.MODEL_FILE in setup["package-data"]["pyramid_cli.plan"]
 
 
 @pytest.mark.parametrize("change, message", [

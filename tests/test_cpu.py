@@ -16,19 +16,21 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import pyramid_cli.exec.gl.shaders as generate
 from cases import CHAINS as WRITTEN
 from cases import GRID_CHANNELS, GRID_SIZES, NAMED, several_inputs_and_outputs, step
-from pyramid_cli import emulate, pyramids, reference
-from pyramid_cli.border import Border
-from pyramid_cli.errors import BackendError
-from pyramid_cli.geometry import mip_levels
-from pyramid_cli.parse import parse
+from pyramid_cli.core.border import Border
+from pyramid_cli.core.errors import BackendError
+from pyramid_cli.core.geometry import mip_levels
+from pyramid_cli.core.parse import parse
+from pyramid_cli.exec import emulate
 from pyramid_cli.plan import Builder, check, plan
-from pyramid_cli.shaders import generate
+from pyramid_cli.reference import filters as reference
+from pyramid_cli.workflows import pyramids
 
 pytest.importorskip("numba")
 
-from pyramid_cli import cpu  # noqa: E402
+from pyramid_cli.exec import cpu  # noqa: E402
 
 CHAINS = NAMED + [c for c in WRITTEN if c not in NAMED] + ["box *v (midpoint *^ g)", "g"]
 SIZES = GRID_SIZES
@@ -309,7 +311,8 @@ def test_without_numba_is_a_backend_error_naming_the_fix(monkeypatch):
 
 
 def test_importing_the_planner_does_not_import_numba():
-    code = ("import sys, pyramid_cli.plan, pyramid_cli.emulate, pyramid_cli.pyramids, pyramid_cli.session; "
+    code = ("import sys, pyramid_cli.plan, pyramid_cli.exec.emulate, pyramid_cli.workflows.pyramids, "
+            "pyramid_cli.exec.session; "
             "print('numba' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT)
     assert out.stdout.strip() == "False"
@@ -344,7 +347,7 @@ def test_a_second_process_compiles_nothing(tmp_path):
 @pytest.mark.parametrize("border", BORDERS)
 def test_cpu_plans_fuse_each_step_and_equal_reference(ex, border):
     """The "fused" strategy (the CPU executor's): one pass per written step, the same numbers at every pixel."""
-    from pyramid_cli.expr import steps
+    from pyramid_cli.core.expr import steps
 
     rng = np.random.default_rng(7)
     for text in BORDER_CHAINS + ["(doosabin)^2 *^ ((box4)^2 *v g)", "fourpoint *^ (cubic *v g)"]:

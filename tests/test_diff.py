@@ -1,4 +1,4 @@
-"""Tests for ``pyramid diff`` (pyramid_cli.diff and pyramid_cli.diff_cli).
+"""Tests for ``pyramid diff`` (pyramid_cli.diff.compare and pyramid_cli.cli.diff).
 
 Fixture images are written with OpenImageIO directly as float EXR (so the
 values read back are exactly the float32 values written), and every expected
@@ -22,8 +22,8 @@ import OpenImageIO as oiio
 import pytest
 from click.testing import CliRunner
 
-from pyramid_cli import diff as D
-from pyramid_cli.diff_cli import diff
+from pyramid_cli.cli.diff import diff
+from pyramid_cli.diff import compare as D
 
 # ---------------------------------------------------------------------------
 # Helpers

@@ -15,8 +15,8 @@ import OpenImageIO as oiio
 import pytest
 from click.testing import CliRunner
 
-from pyramid_cli import goldens
-from pyramid_cli.diff_cli import diff, idiff_argv
+from pyramid_cli.cli.diff import diff, idiff_argv
+from pyramid_cli.diff import goldens
 
 DATA = Path(__file__).parent / "data"
 SAMPLES = Path(__file__).parent.parent / "samples"

@@ -24,7 +24,7 @@ import OpenImageIO as oiio
 import pytest
 from click.testing import CliRunner
 
-from pyramid_cli.diff_cli import diff
+from pyramid_cli.cli.diff import diff
 
 
 def _idiff() -> str | None:

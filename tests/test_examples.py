@@ -311,7 +311,7 @@ def _run_array_script(text: str, stage: Path) -> None:
 
 
 def _assert_every_frame(pattern: str) -> None:
-    from pyramid_cli.sequence import parse
+    from pyramid_cli.run.sequence import parse
 
     seq = parse(pattern)
     folder = Path(seq.frame(0)).parent

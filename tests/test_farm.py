@@ -15,9 +15,9 @@ import pytest
 from click.testing import CliRunner
 from test_sequence import write_sequence
 
-from pyramid_cli import farm, sequence
 from pyramid_cli.cli import main
-from pyramid_cli.errors import UsageError
+from pyramid_cli.core.errors import UsageError
+from pyramid_cli.run import farm, sequence
 
 BIN = os.path.dirname(sys.executable)
 

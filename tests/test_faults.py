@@ -22,9 +22,9 @@ import numpy as np
 import OpenImageIO as oiio
 import pytest
 
-from pyramid_cli import io as pio
-from pyramid_cli.atomic import atomic_path, atomic_paths
-from pyramid_cli.errors import InputError, OutputError
+from pyramid_cli import imageio as pio
+from pyramid_cli.core.errors import InputError, OutputError
+from pyramid_cli.imageio.atomic import atomic_path, atomic_paths
 
 pytestmark = [pytest.mark.cli, pytest.mark.slow]  # real processes, signals and full disks: seconds each
 
@@ -321,7 +321,7 @@ print("finished")
 
 
 def test_signals_module_direct():
-    from pyramid_cli import signals
+    from pyramid_cli.core import signals
 
     e = signals.Interrupted(signal.SIGTERM)
     assert isinstance(e, KeyboardInterrupt) and signals.exit_code(e) == 143

@@ -5,12 +5,13 @@ from functools import cache
 import numpy as np
 import pytest
 
+import pyramid_cli.exec.gl.shaders as generate
 from cases import GRID_CHANNELS, GRID_SIZES, several_inputs_and_outputs
-from pyramid_cli import emulate, reference
-from pyramid_cli.errors import BackendError, DataError
-from pyramid_cli.parse import parse
+from pyramid_cli.core.errors import BackendError, DataError
+from pyramid_cli.core.parse import parse
+from pyramid_cli.exec import emulate
 from pyramid_cli.plan import plan
-from pyramid_cli.shaders import generate
+from pyramid_cli.reference import filters as reference
 
 CHAINS = [
     "box *v g", "box^nw *v g", "box4 *v g", "quadratic *v g", "cubic *v g", "bartlett *v g",
@@ -113,7 +114,7 @@ def test_quarter_taps_are_exact_at_non_power_of_two_sizes(gl, text):
 @gl_mark
 @pytest.mark.parametrize("text", ["gauss7", "(doosabin)^2 *^ ((box4)^2 *v g)", "fourpoint", "box4 *v g"])
 def test_half_precision_within_half_tolerance(gl, text):
-    from pyramid_cli.gl import GLExecutor
+    from pyramid_cli.exec.gl import GLExecutor
 
     size = (33, 20)
     image = random_image(size, 3, seed=11)
@@ -130,7 +131,7 @@ def test_half_precision_within_half_tolerance(gl, text):
 
 @gl_mark
 def test_half_precision_does_not_hold_values_above_65504(gl):
-    from pyramid_cli.gl import GLExecutor
+    from pyramid_cli.exec.gl import GLExecutor
 
     image = np.full((2, 3), 1e5, dtype=np.float32)
     _, p = planned("g", (2, 3))
@@ -143,7 +144,7 @@ def test_half_precision_does_not_hold_values_above_65504(gl):
 
 @gl_mark
 def test_program_cache_compiles_each_shape_once(gl):
-    from pyramid_cli.gl import GLExecutor
+    from pyramid_cli.exec.gl import GLExecutor
 
     _, p = planned("gauss5", (17, 13), "paper")  # the paper's passes: the cost model fuses tiny images
     shapes = {generate.shape(ps) for ps in p.passes}
@@ -168,7 +169,7 @@ def test_program_cache_compiles_each_shape_once(gl):
 @gl_mark
 def test_executors_and_probes_interleave(gl):
     """Each executor makes its own context current: another context, or available(), cannot steal its calls."""
-    from pyramid_cli.gl import GLExecutor, available
+    from pyramid_cli.exec.gl import GLExecutor, available
 
     image = random_image((9, 5), 3, seed=5)
     expr, p = planned("cubic *^ g", (9, 5))
@@ -213,7 +214,7 @@ def test_compile_error_shows_numbered_source(gl, monkeypatch):
 def test_no_context_is_a_backend_error_naming_the_fix(monkeypatch):
     import moderngl
 
-    from pyramid_cli import gl as glmod
+    from pyramid_cli.exec import gl as glmod
 
     def refuse(*args, **kwargs):
         raise Exception("libEGL.so.1: cannot open shared object file")
@@ -227,7 +228,7 @@ def test_no_context_is_a_backend_error_naming_the_fix(monkeypatch):
 
 
 def test_texture_sizes_are_powers_of_two():
-    from pyramid_cli.gl import texture_size
+    from pyramid_cli.exec.gl import texture_size
 
     assert texture_size((1, 1)) == (1, 1)
     assert texture_size((2160, 3840)) == (4096, 4096)
@@ -331,8 +332,8 @@ def test_half_read_back_rounds_like_numpy(gl):
 
 @gl_mark
 def test_prepare_compiles_and_allocates_ahead(gl):
-    from pyramid_cli.gl import GLExecutor
-    from pyramid_cli.pyramids import blur_plan
+    from pyramid_cli.exec.gl import GLExecutor
+    from pyramid_cli.workflows.pyramids import blur_plan
 
     p = blur_plan((45, 70), 3)
     with GLExecutor() as fresh:
@@ -351,7 +352,7 @@ def test_prepare_compiles_and_allocates_ahead(gl):
 @gl_mark
 def test_runs_after_clear_pool(gl):
     """clear_pool deletes the framebuffer last bound; the next run must still make its own."""
-    from pyramid_cli.gl import GLExecutor
+    from pyramid_cli.exec.gl import GLExecutor
 
     expr, p = planned("box4 *v g", (16, 16))
     image = random_image((16, 16), 4, seed=9)

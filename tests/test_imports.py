@@ -19,27 +19,31 @@ import sys
 import pytest
 
 PACKAGE = pathlib.Path(__file__).resolve().parents[1] / "pyramid_cli"
-CORE = ["expr", "parse", "catalogue", "algebra", "plan", "plan.lower", "plan.report", "geometry", "border", "options",
-        "errors", "cost", "work"]
+CORE = ["core.expr", "core.parse", "core.catalogue", "core.algebra", "plan", "plan.lower", "plan.report", "core.geometry",
+        "core.border", "core.options", "core.errors", "plan.cost", "jobs.work"]
 
 # third-party package -> the modules allowed to import it
 ONLY_IN = {
-    "moderngl": {"gl"},
-    "glcontext": {"gl"},
-    "OpenImageIO": {"io", "io_raw"},
-    "click": {"cli", "diff_cli"},
-    "numba": {"cpu", "cpu_codegen"},
+    "moderngl": {"exec.gl"},
+    "glcontext": {"exec.gl"},
+    "OpenImageIO": {"imageio"},
+    "click": {"cli"},
+    "numba": {"exec.cpu"},
 }
 
 
 def modules() -> dict[str, pathlib.Path]:
-    """Every module of the package by dotted name relative to it ("gl", "plan.lower", "shaders.generate")."""
-    found = {".".join(p.relative_to(PACKAGE).with_suffix("").parts): p for p in PACKAGE.rglob("*.py")}
+    """Every module of the package by dotted name relative to it ("exec.gl", "plan.lower", "exec.gl.shaders")."""
+    found = {}
+    for p in PACKAGE.rglob("*.py"):
+        parts = p.relative_to(PACKAGE).with_suffix("").parts
+        found[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = p
     return found
 
 
 def imports_of(path: pathlib.Path) -> set[str]:
-    """Top-level names of every module ``path`` imports (relative imports as ``.name``)."""
+    """Top-level names of every module ``path`` imports; the package's own modules by their dotted name
+    relative to it (``.core.algebra``)."""
     out: set[str] = set()
     for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
         if isinstance(node, ast.Import):
@@ -48,6 +52,8 @@ def imports_of(path: pathlib.Path) -> set[str]:
             if node.level:
                 base = (node.module or "").split(".")[0]
                 out |= {f".{base}"} if base else {f".{a.name}" for a in node.names}
+            elif (node.module or "").startswith("pyramid_cli."):
+                out.add(node.module[len("pyramid_cli"):])
             else:
                 out.add((node.module or "").split(".")[0])
     return out
@@ -57,11 +63,13 @@ def violations(found: dict[str, set[str]]) -> list[str]:
     bad = []
     for module, names in found.items():
         for package, allowed in ONLY_IN.items():
-            if package in names and module not in allowed:
+            if package in names and not any(module == a or module.startswith(a + ".") for a in allowed):
                 bad.append(f"{module} imports {package} (only {', '.join(sorted(allowed))} may)")
-    for forbidden in (".algebra", ".plan"):
-        if forbidden in found.get("reference", set()):
-            bad.append(f"reference imports {forbidden[1:]}")
+    for module, names in found.items():
+        if module == "reference" or module.startswith("reference."):
+            for forbidden in (".core.algebra", ".plan"):
+                if any(n == forbidden or n.startswith(forbidden + ".") for n in names):
+                    bad.append(f"{module} imports {forbidden[1:]}")
     return bad
 
 
@@ -75,10 +83,11 @@ def test_the_check_catches_a_forbidden_import(tmp_path):
     plan_src = tmp_path / "lower.py"
     lower = (PACKAGE / "plan" / "lower.py").read_text(encoding="utf-8")
     plan_src.write_text(lower + "\n\ndef f():\n    import moderngl\n")
-    ref_src = tmp_path / "reference.py"
-    ref_src.write_text((PACKAGE / "reference.py").read_text(encoding="utf-8") + "\nfrom .plan import plan\n")
-    found["plan.lower"], found["reference"] = imports_of(plan_src), imports_of(ref_src)
-    assert violations(found) == ["plan.lower imports moderngl (only gl may)", "reference imports plan"]
+    ref_src = tmp_path / "filters.py"
+    ref_src.write_text((PACKAGE / "reference" / "filters.py").read_text(encoding="utf-8")
+                       + "\nfrom pyramid_cli.plan import plan\n")
+    found["plan.lower"], found["reference.filters"] = imports_of(plan_src), imports_of(ref_src)
+    assert violations(found) == ["plan.lower imports moderngl (only exec.gl may)", "reference.filters imports plan"]
 
 
 def loaded_third_party(statement: str) -> list[str]:
@@ -92,7 +101,7 @@ def loaded_third_party(statement: str) -> list[str]:
 
 @pytest.mark.parametrize("statement", ["import pyramid_cli", "import pyramid_cli as pyr; pyr.__doc__"] +
                          [f"import pyramid_cli.{m}" for m in CORE] +
-                         ["from pyramid_cli.parse import parse; from pyramid_cli.plan import plan; "
+                         ["from pyramid_cli.core.parse import parse; from pyramid_cli.plan import plan; "
                           "plan(parse('quadratic *v g'), (33, 17))"])
 def test_the_core_loads_no_third_party_module(statement):
     assert loaded_third_party(statement) == []

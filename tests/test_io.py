@@ -1,4 +1,4 @@
-"""Tests for pyramid_cli.io: reading/writing, colour and alpha rules, errors.
+"""Tests for pyramid_cli.imageio: reading/writing, colour and alpha rules, errors.
 
 Fixture files are written, and outputs read back, with OpenImageIO directly;
 expected values are computed here from the formulas, never by the code under
@@ -16,9 +16,9 @@ import numpy as np
 import OpenImageIO as oiio
 import pytest
 
-from pyramid_cli import atomic
-from pyramid_cli import io as pio
-from pyramid_cli.errors import DataError, InputError, OutputError, UsageError
+from pyramid_cli import imageio as pio
+from pyramid_cli.core.errors import DataError, InputError, OutputError, UsageError
+from pyramid_cli.imageio import atomic
 
 # ---------------------------------------------------------------------------
 # Independent helpers

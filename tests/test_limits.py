@@ -4,10 +4,10 @@ import math
 
 import pytest
 
-from pyramid_cli import limits
-from pyramid_cli.errors import DataError, ExpressionError, UsageError
-from pyramid_cli.parse import parse
-from pyramid_cli.pyramids import impulse_sigma
+from pyramid_cli.core.errors import DataError, ExpressionError, UsageError
+from pyramid_cli.core.parse import parse
+from pyramid_cli.workflows import limits
+from pyramid_cli.workflows.pyramids import impulse_sigma
 
 
 @pytest.mark.parametrize("text", ["(box)^16 *v g", "(box)^12 *v g", "(cubic)^6 *^ g", "(doosabin)^8 *^ g",
@@ -24,7 +24,7 @@ def test_ordinary_kernels_pass(text):
 
 
 def test_the_bound_holds_for_small_kernels():
-    from pyramid_cli import algebra
+    from pyramid_cli.core import algebra
 
     for text in ["quadratic *v g", "(box)^3 *v g", "doosabin *^ bartlett", "(cubic)^2 *^ g", "box4 *v quasi"]:
         k = algebra.kernel(parse(text))
@@ -41,7 +41,7 @@ def test_levels_sigma_equals_the_kernel_evaluation(analysis, synthesis):
 
 
 def test_sigma_blend_matches_pyramids():
-    from pyramid_cli.pyramids import sigma_blend
+    from pyramid_cli.workflows.pyramids import sigma_blend
 
     for sigma in (0.5, 1.4, 3.5, 10.0, 40.0):
         m, t = limits.sigma_blend(sigma)

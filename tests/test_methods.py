@@ -14,10 +14,12 @@ import pytest
 
 import pyramid_cli as pyr
 from cases import GRID_SIZES
-from pyramid_cli import emulate, methods, methods_reference
-from pyramid_cli.errors import DataError
+from pyramid_cli.core.errors import DataError
+from pyramid_cli.exec import emulate
+from pyramid_cli.jobs.work import Blend, Fill
 from pyramid_cli.plan import PointwisePass, check
-from pyramid_cli.work import Blend, Fill
+from pyramid_cli.reference import methods as methods_reference
+from pyramid_cli.workflows import methods
 
 BORDERS = ["clamp", "mirror", "wrap", "zero"]
 FILTERS = [("box4", "doosabin"), ("box", "doosabin"), ("quadratic", "cubic"), ("cubic", "fourpoint"),
@@ -29,7 +31,7 @@ ATOL = 1e-5  # float32 against float64, as every executor test
 @pytest.fixture(scope="module")
 def cpu_ex():
     pytest.importorskip("numba")
-    from pyramid_cli import cpu
+    from pyramid_cli.exec import cpu
 
     saved = os.environ.get(cpu.CACHE_ENV)
     os.environ[cpu.CACHE_ENV] = str(Path(tempfile.gettempdir()) / f"pyramid-cpu-test-cache-{os.getuid()}")
@@ -481,7 +483,7 @@ def _seam(levels, analysis, synthesis):
 def test_api_blend_fill_and_blur_warn_on_a_mixed_pair_and_the_warning_says_what_it_costs():
     """quadratic ⊗↓ / cubic ⊗↑ moves a blend's seam by 7.5 px at 4 levels (a matched pair: 0) and fills a hole
     with 2–3× the error; each call says so, the matched pairs say nothing."""
-    from pyramid_cli.errors import MixedLatticeWarning
+    from pyramid_cli.core.errors import MixedLatticeWarning
 
     assert abs(_seam(4, "box4", "doosabin") - 127.5) < 0.01 and abs(_seam(4, "cubic", "cubic") - 127.5) < 0.1
     with pytest.warns(MixedLatticeWarning, match=r"moves the seam, about 7\.5 px after 4 level") as caught:
@@ -504,7 +506,7 @@ def test_api_blend_fill_and_blur_warn_on_a_mixed_pair_and_the_warning_says_what_
 
 
 def test_process_files_warns_on_a_mixed_pair_once(tmp_path):
-    from pyramid_cli.errors import MixedLatticeWarning
+    from pyramid_cli.core.errors import MixedLatticeWarning
 
     for k in range(3):
         pyr.write_image(str(tmp_path / f"in{k}.exr"), np.full((8, 8, 3), k / 3, np.float32))
@@ -537,7 +539,7 @@ def test_cli_fill_blend_and_blur_warn_on_a_mixed_pair_unless_allowed(files, tmp_
 def test_blend_help_and_readme_show_pairs_on_one_lattice():
     import re
 
-    from pyramid_cli.pyramids import lattice_mismatch
+    from pyramid_cli.workflows.pyramids import lattice_mismatch
 
     readme = (Path(__file__).parents[1] / "README.md").read_text()
     text = _invoke("blend", "--help").output + _invoke("fill", "--help").output + readme

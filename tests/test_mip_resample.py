@@ -1,7 +1,7 @@
 """Domain-true MIP levels: the ResamplePass, its exact weights and every executor against the float64 reference.
 
 The weights come from the analysis filter's continuous kernel (:mod:`pyramid_cli.plan.resample`); the
-reference (:func:`pyramid_cli.mip.mip_reference`) integrates the same kernel in float64 from the paper's
+reference (:func:`pyramid_cli.workflows.mip.mip_reference`) integrates the same kernel in float64 from the paper's
 masks, without the planner. Every executor runs the plan and is held to the reference at every pixel.
 """
 
@@ -16,12 +16,13 @@ import pytest
 from click.testing import CliRunner
 
 import pyramid_cli as pyr
-from pyramid_cli import catalogue, emulate
 from pyramid_cli.cli import main
-from pyramid_cli.mip import TextureLevels, mip_reference, mip_sizes, resample_matrix
+from pyramid_cli.core import catalogue
+from pyramid_cli.exec import emulate
 from pyramid_cli.plan import Pass, ResamplePass, check
 from pyramid_cli.plan.resample import axis_table, column_sums, dense
-from pyramid_cli.pyramids import mip_axis_weights, mip_plan
+from pyramid_cli.workflows.mip import TextureLevels, mip_reference, mip_sizes, resample_matrix
+from pyramid_cli.workflows.pyramids import mip_axis_weights, mip_plan
 
 BORDERS = ["clamp", "mirror", "wrap", "zero"]
 SYMMETRIC = ["box", "box4", "quadratic"]  # the dual-lattice filters: symmetric about the coarse pixel's centre
@@ -122,7 +123,7 @@ def test_a_one_pixel_axis_is_left_alone():
 
 
 def test_round_down_refuses_what_it_cannot_resample():
-    from pyramid_cli.errors import UsageError
+    from pyramid_cli.core.errors import UsageError
 
     with pytest.raises(UsageError, match="one separable ⊗↓ step"):
         TextureLevels(analysis="box *v^2 g")
@@ -169,7 +170,7 @@ def test_emulator_equals_reference(size, border, key):
 @pytest.fixture(scope="module")
 def cpu_executor():
     pytest.importorskip("numba")
-    from pyramid_cli.cpu import CPUExecutor
+    from pyramid_cli.exec.cpu import CPUExecutor
 
     with CPUExecutor(threads=2) as ex:
         yield ex

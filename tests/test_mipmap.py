@@ -17,9 +17,9 @@ import OpenImageIO as oiio
 import pytest
 from click.testing import CliRunner
 
-from pyramid_cli import io as pio
+from pyramid_cli import imageio as pio
 from pyramid_cli.cli import main
-from pyramid_cli.mip import hash_extra, mip_sizes, parse_wrap, pixel_sha1
+from pyramid_cli.workflows.mip import hash_extra, mip_sizes, parse_wrap, pixel_sha1
 
 BIN = Path(sys.executable).parent
 MAKETX, OIIOTOOL = str(BIN / "maketx"), str(BIN / "oiiotool")
@@ -396,7 +396,7 @@ def test_round_down_refuses_an_analysis_it_cannot_resample(tmp_path):
 
 
 def test_exr_levels_that_halve_neither_way_are_refused(tmp_path):
-    from pyramid_cli.errors import OutputError
+    from pyramid_cli.core.errors import OutputError
 
     info = pio.read_image(_flat(tmp_path)).spec
     images = [pio.Image(np.zeros((h, w, 3), np.float32), info) for h, w in [(6, 5), (3, 3), (1, 1)]]
@@ -425,7 +425,7 @@ def test_box_on_even_sizes_is_bit_identical_to_maketx_box(tmp_path, shape, backe
     matter and both tools must store the same half values at every level (float32 sources differ by
     one float32 ulp at most: each tool adds in its own order)."""
     if backend == "gl":
-        from pyramid_cli import gl
+        from pyramid_cli.exec import gl
 
         ok, why = gl.available()
         if not ok and not os.environ.get("CI"):

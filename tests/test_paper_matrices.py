@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 
 from oracles import extended_chain, printed, printed_outer
-from pyramid_cli import algebra, catalogue, reference
-from pyramid_cli.parse import parse
+from pyramid_cli.core import algebra, catalogue
+from pyramid_cli.core.parse import parse
+from pyramid_cli.reference import filters as reference
 
 
 def kernel_weights(text):

@@ -4,9 +4,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from pyramid_cli.errors import ExpressionError
-from pyramid_cli.expr import Apply, Input, Named, Op, to_text
-from pyramid_cli.parse import parse
+from pyramid_cli.core.errors import ExpressionError
+from pyramid_cli.core.expr import Apply, Input, Named, Op, to_text
+from pyramid_cli.core.parse import parse
 
 G = Input()
 

@@ -8,11 +8,13 @@ import pytest
 from click.testing import CliRunner
 
 from cases import CHAINS, NAMED, SHAPES
-from pyramid_cli import catalogue, cost, emulate, reference
 from pyramid_cli.cli import main
-from pyramid_cli.expr import Named, Op
-from pyramid_cli.parse import parse
-from pyramid_cli.plan import check, estimate_seconds, plan, recipe, recipe_kernel_matches, taps_for
+from pyramid_cli.core import catalogue
+from pyramid_cli.core.expr import Named, Op
+from pyramid_cli.core.parse import parse
+from pyramid_cli.exec import emulate
+from pyramid_cli.plan import check, cost, estimate_seconds, plan, recipe, recipe_kernel_matches, taps_for
+from pyramid_cli.reference import filters as reference
 
 
 @pytest.mark.parametrize("strategy", ["cost", "paper"])
@@ -86,7 +88,7 @@ def test_synthesis_recipes_reproduce_their_masks(key):
 
 def test_wrong_arrow_recipe_is_rejected():
     """The check really compares: the paper's printed box4 recipe (box↘ twice) fails it."""
-    from pyramid_cli.algebra import mask_weights
+    from pyramid_cli.core.algebra import mask_weights
     from pyramid_cli.plan import _chain, conv, down
 
     box = mask_weights(catalogue.mask("box").mask)
@@ -158,8 +160,8 @@ def test_readme_fetch_table_is_generated_and_current():
 
 def test_the_report_names_each_input_and_the_pass_that_writes_each_image():
     """Several inputs (a fill: colours and weights): sources are named ``input k`` or their writing pass."""
+    from pyramid_cli.jobs.work import Fill
     from pyramid_cli.plan.report import render
-    from pyramid_cli.work import Fill
 
     p = Fill(levels=2).plan(((5, 7), (5, 7)))
     lines = render(p).splitlines()

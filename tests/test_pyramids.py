@@ -4,18 +4,13 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from pyramid_cli import emulate, reference
-from pyramid_cli.catalogue import ANALYSIS_FILTERS as ANALYSIS
-from pyramid_cli.catalogue import SYNTHESIS_FILTERS as SYNTHESIS
 from pyramid_cli.cli import main
-from pyramid_cli.parse import parse
-from pyramid_cli.pyramids import (
-    blur_plan,
-    blur_reference,
-    impulse_sigma,
-    lattice_mismatch,
-    level_sizes,
-)
+from pyramid_cli.core.catalogue import ANALYSIS_FILTERS as ANALYSIS
+from pyramid_cli.core.catalogue import SYNTHESIS_FILTERS as SYNTHESIS
+from pyramid_cli.core.parse import parse
+from pyramid_cli.exec import emulate
+from pyramid_cli.reference import filters as reference
+from pyramid_cli.workflows.pyramids import blur_plan, blur_reference, impulse_sigma, lattice_mismatch, level_sizes
 
 
 def reference_blur(g, levels, analysis, synthesis, quasi=False):
@@ -55,7 +50,7 @@ def test_blur_with_quasi_prefilter():
 
 
 def test_blur_is_one_plan_without_readback_between_levels():
-    from pyramid_cli.expr import Named, Op
+    from pyramid_cli.core.expr import Named, Op
     from pyramid_cli.plan import choose_recipe
 
     p = blur_plan((64, 64), 3, "box4", "doosabin")
@@ -94,9 +89,9 @@ def test_blur_command_cpu(tmp_path):
 
 
 # ---------------------------------------------------------------- levels, Laplacian, collapse, mipmap, sigma
-from pyramid_cli import io as pio  # noqa: E402
-from pyramid_cli.geometry import mip_levels  # noqa: E402
-from pyramid_cli.pyramids import blur_plan_sigma, collapse_plan, levels_plan  # noqa: E402
+from pyramid_cli import imageio as pio  # noqa: E402
+from pyramid_cli.core.geometry import mip_levels  # noqa: E402
+from pyramid_cli.workflows.pyramids import blur_plan_sigma, collapse_plan, levels_plan  # noqa: E402
 
 
 def write_exr(path, px, pixel_type="float"):

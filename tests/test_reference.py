@@ -6,9 +6,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from oracles import apply_kernel
-from pyramid_cli import algebra, reference
-from pyramid_cli.border import Border
-from pyramid_cli.parse import parse
+from pyramid_cli.core import algebra
+from pyramid_cli.core.border import Border
+from pyramid_cli.core.parse import parse
+from pyramid_cli.reference import filters as reference
 
 ANALYSIS = ["box", "box^nw", "bartlett", "gauss5", "box4", "quadratic", "cubic"]
 SYNTHESIS = ["nearest", "midpoint", "doosabin", "cubic", "fourpoint"]

@@ -9,9 +9,9 @@ import pytest
 from click.testing import CliRunner
 
 import pyramid_cli as pyr
-from pyramid_cli import sequence
 from pyramid_cli.cli import main
-from pyramid_cli.errors import InputError, UsageError
+from pyramid_cli.core.errors import InputError, UsageError
+from pyramid_cli.run import sequence
 
 
 def touch(folder, *names):

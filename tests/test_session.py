@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pyramid_cli import reference
-from pyramid_cli.errors import BackendError, DataError
-from pyramid_cli.parse import parse
-from pyramid_cli.session import Session, is_software_renderer
-from pyramid_cli.work import Blur, Filter
+from pyramid_cli.core.errors import BackendError, DataError
+from pyramid_cli.core.parse import parse
+from pyramid_cli.exec.session import Session, is_software_renderer
+from pyramid_cli.jobs.work import Blur, Filter
+from pyramid_cli.reference import filters as reference
 
 
 def test_reference_backend_runs_the_oracle_and_no_plan():
@@ -20,7 +20,7 @@ def test_reference_backend_runs_the_oracle_and_no_plan():
         with pytest.raises(BackendError, match="runs jobs, not plans"):
             s.run_plan(Filter(expr=parse("gauss5")).plan([(9, 7)]), [x])
     assert out.dtype == np.float32
-    from pyramid_cli.border import Border
+    from pyramid_cli.core.border import Border
 
     np.testing.assert_allclose(out, reference.run(parse("gauss5"), x, Border.WRAP), rtol=0, atol=1e-6)
 
@@ -34,7 +34,7 @@ def test_cpu_backend_runs_plans_on_the_cpu():
 
 @pytest.mark.gl
 def test_auto_moves_an_image_gl_cannot_hold_to_the_cpu_with_one_warning(gl_executor, monkeypatch):
-    from pyramid_cli import session
+    from pyramid_cli.exec import session
 
     monkeypatch.setattr(session, "is_software_renderer", lambda renderer: False)  # auto keeps GL, as on a GPU
     warnings = []

@@ -8,9 +8,9 @@ import pytest
 from click.testing import CliRunner
 from test_sequence import write_sequence
 
-from pyramid_cli import sequence, shard
 from pyramid_cli.cli import main
-from pyramid_cli.errors import UsageError
+from pyramid_cli.core.errors import UsageError
+from pyramid_cli.run import sequence, shard
 
 
 @pytest.mark.parametrize("n", [1, 2, 3, 7])

@@ -11,11 +11,12 @@ import numpy as np
 import OpenImageIO as oiio
 import pytest
 
-from pyramid_cli import io, stream
-from pyramid_cli.errors import DataError, UsageError
-from pyramid_cli.parse import parse
-from pyramid_cli.session import Session
-from pyramid_cli.work import Blur, Filter
+from pyramid_cli import imageio as io
+from pyramid_cli.core.errors import DataError, UsageError
+from pyramid_cli.core.parse import parse
+from pyramid_cli.exec.session import Session
+from pyramid_cli.jobs.work import Blur, Filter
+from pyramid_cli.run import stream
 
 CLI = [sys.executable, "-m", "pyramid_cli.cli"]
 TIMEOUT = 300
@@ -142,7 +143,7 @@ def test_parse_size():
 def test_a_job_that_writes_its_input_counts_that_writer():
     """``levels`` writes the input as level 0 beside the plan's outputs: its writer's band counts (it did not,
     and a 4K ``levels --memory 64M`` peaked about 20 MB over the budget above the interpreter's own)."""
-    from pyramid_cli.work import Levels
+    from pyramid_cli.jobs.work import Levels
 
     p = Levels(levels=3).plan([(300, 200)])
     anchor = max(p.images[k].size[0] for k in p.outputs)
@@ -158,8 +159,8 @@ def test_gl_textures_count_in_the_budget():
     """The GL executor holds each image in a power-of-two RGBA32F texture (host memory on llvmpipe): they count
     in the estimate, and a picture they pad runs in bands (520×520 pads to 1024×1024), one they do not pad
     (a 512×512 blur: no guard at any level) runs whole when it fits."""
-    from pyramid_cli.gl import GLExecutor
-    from pyramid_cli.tiles import Emulator
+    from pyramid_cli.exec.gl import GLExecutor
+    from pyramid_cli.exec.tiles import Emulator
 
     p = Blur(levels=3).plan([(520, 520)])
     cpu = stream.choose(p, 4, 24 << 20)
@@ -177,7 +178,7 @@ def test_gl_textures_count_in_the_budget():
 
 def test_only_host_memory_textures_count(gl):
     """llvmpipe's textures are host memory and count; a GPU's (any other renderer) are not the budget's."""
-    from pyramid_cli.gl import GLExecutor
+    from pyramid_cli.exec.gl import GLExecutor
 
     assert gl.host_textures and "llvmpipe" in gl.renderer.lower()
     assert stream.costs(gl)["texture"] == GLExecutor.texture_bytes
@@ -262,8 +263,8 @@ def test_resource_module_measures_children():
 @pytest.mark.parametrize("laplacian, budget", [(False, 200 << 10), (True, 260 << 10)])
 def test_levels_stream_every_level(tmp_path, session, laplacian, budget):
     """Every level (the input itself as level 0, or the Laplacian bands) streamed equals the whole run's files."""
-    from pyramid_cli.pipeline import Reporter, write_levels_files
-    from pyramid_cli.work import Laplacian, Levels
+    from pyramid_cli.jobs.work import Laplacian, Levels
+    from pyramid_cli.run.pipeline import Reporter, write_levels_files
 
     src = tmp_path / "in.exr"
     write(src, noise(150, 97, seed=4))

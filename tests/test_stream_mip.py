@@ -10,10 +10,12 @@ import numpy as np
 import OpenImageIO as oiio
 import pytest
 
-from pyramid_cli import batch, io, mip, stream
-from pyramid_cli.errors import UsageError
-from pyramid_cli.pipeline import Reporter, process
-from pyramid_cli.session import Session
+from pyramid_cli import imageio as io
+from pyramid_cli.core.errors import UsageError
+from pyramid_cli.exec.session import Session
+from pyramid_cli.run import batch, stream
+from pyramid_cli.run.pipeline import Reporter, process
+from pyramid_cli.workflows import mip
 
 CLI = [sys.executable, "-m", "pyramid_cli.cli"]
 TIMEOUT = 300
@@ -145,7 +147,7 @@ def test_streamed_mipmap_with_a_mirror_border_and_a_dithered_8_bit_texture(tmp_p
 
 
 def _dither():
-    from pyramid_cli.pipeline import WriteOptions
+    from pyramid_cli.run.pipeline import WriteOptions
 
     return WriteOptions(dither=True)
 

@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 
 from cases import CHAINS, NAMED, several_inputs_and_outputs
-from pyramid_cli import tiles
-from pyramid_cli.geometry import level_sizes
-from pyramid_cli.parse import parse
+from pyramid_cli.core.geometry import level_sizes
+from pyramid_cli.core.parse import parse
+from pyramid_cli.exec import tiles
+from pyramid_cli.jobs.work import Blur, Collapse, Filter, Laplacian, Levels
 from pyramid_cli.plan import plan
-from pyramid_cli.work import Blur, Collapse, Filter, Laplacian, Levels
 
 SIZE = (19, 13)                      # not a multiple of any tile below
 TILES = [(1, 1), (4, 3), (7, 100), (100, 100)]  # 1×1 output pixels … larger than the image
@@ -95,7 +95,7 @@ def test_the_band_is_bounded():
 def test_a_chain_down_to_one_pixel_is_bounded_too(kind):
     """Levels down to 1×1 (and MIP chains) in bands: the coarse levels follow the finest instead of
     pulling the whole picture in for the one row of the 1×1 level at the first band."""
-    from pyramid_cli.pyramids import mip_plan
+    from pyramid_cli.workflows.pyramids import mip_plan
 
     size = (512, 16)
     p = Levels().plan((size,)) if kind == "levels" else mip_plan(size)
@@ -122,7 +122,7 @@ def cpu_ex(tmp_path_factory):
     pytest.importorskip("numba")
     import os
 
-    from pyramid_cli import cpu
+    from pyramid_cli.exec import cpu
 
     os.environ.setdefault("PYRAMID_CACHE_DIR", str(tmp_path_factory.getbasetemp() / "kernels"))
     with cpu.CPUExecutor(threads=2) as ex:
@@ -208,7 +208,7 @@ def test_gl_tiled_pyramids(gl, name):
 @gl_mark
 def test_gl_strip_beyond_the_texture_limit(gl):
     """A 20000×64 strip is wider than llvmpipe's 16384: GL runs it in tiles and matches the reference."""
-    from pyramid_cli import pyramids
+    from pyramid_cli.workflows import pyramids
 
     size = (64, 20000)
     work = Blur(levels=3)
@@ -286,7 +286,7 @@ def test_api_memmap_in_memmap_outs_for_every_level(tmp_path, fn):
 @pytest.mark.parametrize("kind", ["fill", "blend"])
 def test_pointwise_plans_tile(kind, cpu_ex):
     """Plans with PointwisePass (issue 17's fill and blend, several levels) tile to the untiled pixels."""
-    from pyramid_cli.work import Blend, Fill
+    from pyramid_cli.jobs.work import Blend, Fill
 
     rng = np.random.default_rng(5)
     if kind == "fill":
@@ -305,7 +305,7 @@ def test_pointwise_plans_tile(kind, cpu_ex):
 
 def mip_plans():
     """MIP chains (issue 14) whose odd levels run ResamplePass tables: maketx's sizes, --resize, 1×N."""
-    from pyramid_cli.pyramids import mip_plan
+    from pyramid_cli.workflows.pyramids import mip_plan
 
     for size, resize in [(SIZE, False), ((7, 1), False), ((1, 9), False), ((11, 6), True)]:
         for border in BORDERS:
@@ -336,8 +336,8 @@ def test_gl_mip_strip_beyond_the_texture_limit_is_refused(gl):
     """A MIP chain wider than GL's limit cannot run in column strips (its coarse levels read the whole
     width of the level above): GL refuses it with a DataError (exit 5; auto runs it on the CPU) instead
     of tiling the tiles, while a plain filter of the same width runs tiled (the test above)."""
-    from pyramid_cli.errors import DataError
-    from pyramid_cli.pyramids import mip_plan
+    from pyramid_cli.core.errors import DataError
+    from pyramid_cli.workflows.pyramids import mip_plan
 
     size = (5, 20001)
     p = mip_plan(size)

@@ -19,9 +19,9 @@ def test_the_demo_runs_from_the_built_wheel(tmp_path):
                     "-w", str(tmp_path)], check=True, capture_output=True)
     (wheel,) = tmp_path.glob("bilinear_pyramid-*.whl")
     names = set(zipfile.ZipFile(wheel).namelist())
-    for needed in ("pyramid_cli/shaders/pass.frag.glsl", "pyramid_cli/shaders/pointwise.frag.glsl",
-                   "pyramid_cli/shaders/generate.py",
-                   "pyramid_cli/cost_model.json", "pyramid_cli/plan/lower.py", "pyramid_cli/samples/zoneplate.png",
+    for needed in ("pyramid_cli/exec/gl/pass.frag.glsl", "pyramid_cli/exec/gl/pointwise.frag.glsl",
+                   "pyramid_cli/exec/gl/shaders.py",
+                   "pyramid_cli/plan/cost_model.json", "pyramid_cli/plan/lower.py", "pyramid_cli/samples/zoneplate.png",
                    "pyramid_cli/samples/highlights.exr"):
         assert needed in names
     site = tmp_path / "site"

@@ -6,9 +6,9 @@ import sys
 import time
 
 t0 = time.perf_counter()
-from pyramid_cli import io  # noqa: E402
-from pyramid_cli.session import Session  # noqa: E402
-from pyramid_cli.work import Blur  # noqa: E402
+from pyramid_cli import imageio as io  # noqa: E402
+from pyramid_cli.exec.session import Session  # noqa: E402
+from pyramid_cli.jobs.work import Blur  # noqa: E402
 
 session = Session("gl")
 work = Blur(levels=5)

@@ -9,12 +9,22 @@ Read in processing order: :mod:`.model` (the Plan every executor runs),
 
 from __future__ import annotations
 
-from .estimate import estimate_seconds, pass_measures, pass_seconds
-from .lower import Builder, choose_recipe, plan, plan_steps, recipe_seconds
-from .model import POINTWISE_OPS, Half, Image, Pass, Plan, PointwisePass, ResamplePass, Tap, check
-from .recipes import Stage, _chain, checked_recipe, conv, direct_recipe, down, recipe, recipe_kernel_matches, up
-from .report import render, to_json
-from .taps import taps_for
+from pyramid_cli.plan.estimate import estimate_seconds, pass_measures, pass_seconds
+from pyramid_cli.plan.lower import Builder, choose_recipe, plan, plan_steps, recipe_seconds
+from pyramid_cli.plan.model import POINTWISE_OPS, Half, Image, Pass, Plan, PointwisePass, ResamplePass, Tap, check
+from pyramid_cli.plan.recipes import (
+    Stage,
+    _chain,
+    checked_recipe,
+    conv,
+    direct_recipe,
+    down,
+    recipe,
+    recipe_kernel_matches,
+    up,
+)
+from pyramid_cli.plan.report import render, to_json
+from pyramid_cli.plan.taps import taps_for
 
 __all__ = ["PointwisePass", "POINTWISE_OPS",
            "Plan", "Pass", "Tap", "Image", "Half", "Builder", "plan", "plan_steps", "check", "estimate_seconds",

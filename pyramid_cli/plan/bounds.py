@@ -9,8 +9,8 @@ from __future__ import annotations
 
 from fractions import Fraction
 
-from ..geometry import base_index
-from .model import Image, Pass
+from pyramid_cli.core.geometry import base_index
+from pyramid_cli.plan.model import Image, Pass
 
 
 def needed(stage_pass: Pass, rows: tuple[int, int], cols: tuple[int, int], src: int):

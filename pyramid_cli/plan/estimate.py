@@ -1,9 +1,9 @@
-"""What a plan costs by the calibrated cost model (:mod:`pyramid_cli.cost`)."""
+"""What a plan costs by the calibrated cost model (:mod:`pyramid_cli.plan.cost`)."""
 
 from __future__ import annotations
 
-from .. import cost
-from .model import Image, Pass, Plan, PointwisePass, ResamplePass
+from pyramid_cli.plan import cost
+from pyramid_cli.plan.model import Image, Pass, Plan, PointwisePass, ResamplePass
 
 
 def pass_measures(images: list[Image], ps: Pass | ResamplePass) -> tuple[int, tuple[int, int], float, float, int]:

@@ -10,13 +10,14 @@ from __future__ import annotations
 from fractions import Fraction
 from functools import lru_cache
 
-from .. import algebra, cost
-from ..expr import Expr, Op, steps
-from .bounds import _infer_guards
-from .estimate import pass_seconds
-from .model import Image, Pass, Plan, PointwisePass, ResamplePass, Tap
-from .recipes import Stage, _stage_sizes, checked_recipe, direct_recipe
-from .taps import taps_for
+from pyramid_cli.core import algebra
+from pyramid_cli.core.expr import Expr, Op, steps
+from pyramid_cli.plan import cost
+from pyramid_cli.plan.bounds import _infer_guards
+from pyramid_cli.plan.estimate import pass_seconds
+from pyramid_cli.plan.model import Image, Pass, Plan, PointwisePass, ResamplePass, Tap
+from pyramid_cli.plan.recipes import Stage, _stage_sizes, checked_recipe, direct_recipe
+from pyramid_cli.plan.taps import taps_for
 
 
 def recipe_seconds(stages: list[Stage], size: tuple[int, int], model: cost.CostModel | None = None) -> float:
@@ -32,7 +33,7 @@ FUSED_WHY = "one fused pass per filter (the executor's choice: fewer passes over
 @lru_cache(maxsize=1024)
 def choose_recipe(op: Op, f, stride: int, size: tuple[int, int], strategy: str = "cost") -> tuple[list[Stage], str]:
     """The paper's decomposition (§3–§5), or one fused pass when the calibrated cost model
-    (:mod:`pyramid_cli.cost`) estimates it faster for an input of ``size``; and why, in one line.
+    (:mod:`pyramid_cli.plan.cost`) estimates it faster for an input of ``size``; and why, in one line.
 
     The choice depends on the size: a tiny pyramid level is all per-pass overhead, so fewer
     passes win there, while at full resolution fewer fetches do. Both candidates compute the
@@ -70,7 +71,7 @@ class Builder:
     """Assembles one job from written steps and combinations; any image can be read back."""
 
     def __init__(self, size: tuple[int, int], strategy: str = "cost", border: str = "clamp"):
-        from ..border import Border
+        from pyramid_cli.core.border import Border
 
         self.border = Border.parse(border).value
         self.images = [Image(tuple(size), border=self.border)]
@@ -164,12 +165,12 @@ def plan_steps(step_list, size: tuple[int, int], crops: dict[int, tuple[int, int
 
 
 def _label(op: Op, f) -> str:
-    from ..expr import filter_text
+    from pyramid_cli.core.expr import filter_text
 
     return f"{filter_text(f, op)} {op.unicode}"
 
 
 def _text(expr: Expr) -> str:
-    from ..expr import to_text
+    from pyramid_cli.core.expr import to_text
 
     return to_text(expr)

@@ -1,7 +1,7 @@
 """The Plan: images and passes of bilinear taps, the contract every executor runs (DESIGN.md §5).
 
 A :class:`Plan` is the contract between the planner and the executors (the
-numpy emulator in :mod:`pyramid_cli.emulate` and the GL executor): a list of
+numpy emulator in :mod:`pyramid_cli.exec.emulate` and the GL executor): a list of
 images (``images[0]`` is the input; image k > 0 is written by pass k − 1), and
 for every pass the taps each output fragment sums.
 
@@ -20,13 +20,13 @@ Border modes (DESIGN.md §1: clamp, mirror, wrap, zero) belong to the plan:
 each :class:`Image` says how reads outside its stored extent resolve. A read
 at the fractional index ``x = i + α`` (``i = ⌊x⌋``) is
 ``(1 − α)·read(i) + α·read(i + 1)`` per axis, where ``read`` folds an integer
-index through the image's border mode (:func:`pyramid_cli.border.fold`) over
+index through the image's border mode (:func:`pyramid_cli.core.border.fold`) over
 its stored extent. For ``clamp`` this is the hardware's clamped bilinear read;
 the other modes only ever apply to images without guard bands: the plan's
 inputs and the results of written operators (the boundaries), since the
 intermediates of a named filter store every pixel later passes read.
 
-Tiling (:mod:`pyramid_cli.tiles`) runs any plan over rectangles of its images in bounded
+Tiling (:mod:`pyramid_cli.exec.tiles`) runs any plan over rectangles of its images in bounded
 memory, identical to the untiled run at every pixel. It needs two things of every pass
 kind, both in 0-based half-open *logical* coordinates (row 0 is logical row 1; guard-band
 rows are negative or ≥ the size):
@@ -110,7 +110,7 @@ class Pass:
 
     def reads(self, rows: tuple[int, int], cols: tuple[int, int]) -> dict[int, tuple[tuple[int, int], tuple[int, int]]]:
         """Source rectangles (0-based half-open logical) read by the output rectangle ``rows × cols``."""
-        from .bounds import needed
+        from pyramid_cli.plan.bounds import needed
 
         if rows[0] >= rows[1] or cols[0] >= cols[1]:
             return {}
@@ -188,11 +188,11 @@ class ResamplePass:
 
     Output index ``j`` (0-based, along ``axis``: 0 rows, 1 columns) of the target is
     ``Σₖ weights[j][k] · src[starts[j] + k]`` along that axis, every other index unchanged;
-    source indices outside ``0..n−1`` fold by the source's border mode (:func:`pyramid_cli.border.fold`:
+    source indices outside ``0..n−1`` fold by the source's border mode (:func:`pyramid_cli.core.border.fold`:
     clamp, mirror, wrap, or zero). Every row of the table has the same width (zeros pad the short ones),
     so an executor runs one table-driven loop for every output, whatever the ratio of the sizes.
     Source and target have no guard bands in a whole plan: the source is a boundary (the plan's
-    input or a level), read through its border mode. In a tile (:meth:`tile`, :mod:`pyramid_cli.tiles`)
+    input or a level), read through its border mode. In a tile (:meth:`tile`, :mod:`pyramid_cli.exec.tiles`)
     the source is a window placed by a guard band along ``axis``, and reads fold over its stored extent.
     :mod:`pyramid_cli.plan.resample` derives the tables.
     """

@@ -12,10 +12,10 @@ from dataclasses import dataclass
 from fractions import Fraction
 from functools import cache
 
-from .. import algebra, catalogue
-from ..algebra import Weights, mask_weights
-from ..expr import Named, Op
-from ..geometry import base_index, step_size
+from pyramid_cli.core import algebra, catalogue
+from pyramid_cli.core.algebra import Weights, mask_weights
+from pyramid_cli.core.expr import Named, Op
+from pyramid_cli.core.geometry import base_index, step_size
 
 
 @dataclass(frozen=True)

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from .. import cost
-from .estimate import estimate_seconds, pass_seconds
-from .model import Plan, PointwisePass, ResamplePass, Tap
+from pyramid_cli.plan import cost
+from pyramid_cli.plan.estimate import estimate_seconds, pass_seconds
+from pyramid_cli.plan.model import Plan, PointwisePass, ResamplePass, Tap
 
 
 def _tap_json(t: Tap) -> dict:

@@ -38,7 +38,7 @@ from __future__ import annotations
 from fractions import Fraction
 from functools import lru_cache
 
-from ..border import Border, fold_index
+from pyramid_cli.core.border import Border, fold_index
 
 Weights1D = tuple[tuple[int, Fraction], ...]  # ((d, w_d), ...) of one axis, f[r] = Σ w_d g[2r − d]
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from fractions import Fraction
 
-from ..algebra import Weights
-from .model import Tap
+from pyramid_cli.core.algebra import Weights
+from pyramid_cli.plan.model import Tap
 
 _QUARTERS = {Fraction(0), Fraction(1, 4), Fraction(1, 2), Fraction(3, 4)}
 

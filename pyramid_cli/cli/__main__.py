@@ -1,0 +1,7 @@
+"""``python -m pyramid_cli.cli``: the ``pyramid`` command."""
+
+import sys
+
+from pyramid_cli.cli import run
+
+sys.exit(run())

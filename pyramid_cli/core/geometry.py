@@ -1,0 +1,62 @@
+"""The index geometry every stage shares (DESIGN.md §1), in one place.
+
+Output pixel ``r`` (1-based) of a step with period ``P`` and stride ``S`` reads
+around the source base index ``R = S·⌈r/P⌉`` (``r`` for ⊗, ``2ᵐr`` for ⊗↓ᵐ,
+``⌊(r+1)/2⌋`` for ⊗↑, whose period is 2). A step maps ``n`` pixels to
+``⌈n·P/S⌉``: ``n`` for ⊗, ``⌈n/2ᵐ⌉`` for ⊗↓ᵐ, ``2n`` for ⊗↑. The functions work on
+Python ints and on numpy integer arrays alike (they use only ``//`` and ``-``).
+
+The reference (:mod:`pyramid_cli.reference.filters`) keeps its own literal copies of these
+formulas on purpose: it is the oracle that catches mistakes here.
+"""
+
+from __future__ import annotations
+
+from pyramid_cli.core.errors import DataError
+
+
+def ceil_div(a, b):
+    """⌈a/b⌉ for integers (b > 0), negative ``a`` included."""
+    return -(-a // b)
+
+
+def base_index(r, period: int, stride: int):
+    """``R = S·⌈r/P⌉``: the source index output pixel ``r`` maps to (any integer ``r``)."""
+    return stride * ceil_div(r, period)
+
+
+def step_size(n: int, period: int, stride: int) -> int:
+    """Pixels out of a step with ``period`` and ``stride`` from ``n`` in: ⌈n·P/S⌉."""
+    return ceil_div(n * period, stride)
+
+
+def reduced(n: int, m: int = 1) -> int:
+    """⌈n/2ᵐ⌉: the size after one ⊗↓ᵐ step (odd sizes round up; the clamped border pads them)."""
+    return ceil_div(n, 2 ** m)
+
+
+def level_sizes(size: tuple[int, int], levels: int) -> list[tuple[int, int]]:
+    """Sizes of pyramid levels 0..m: each ⌈n/2⌉ of the one before."""
+    out = [tuple(size)]
+    for _ in range(levels):
+        out.append((reduced(out[-1][0]), reduced(out[-1][1])))
+    return out
+
+
+def mip_levels(size: tuple[int, int]) -> int:
+    """Reductions by ⌈n/2⌉ until 1×1."""
+    n = 0
+    while max(size) > 1:
+        size = (reduced(size[0]), reduced(size[1]))
+        n += 1
+    return n
+
+
+def check_size(width: int, height: int, limit: int, *, where: str = "") -> None:
+    """Refuse an image larger than ``limit`` pixels on a side (:class:`DataError`, exit 5)."""
+    if width > limit or height > limit:
+        prefix = f"{where}: " if where else ""
+        raise DataError(f"{prefix}image size {width}x{height} exceeds the limit of {limit}x{limit} pixels")
+
+
+__all__ = ["ceil_div", "base_index", "step_size", "reduced", "level_sizes", "mip_levels", "check_size"]

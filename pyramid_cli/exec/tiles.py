@@ -1,0 +1,364 @@
+"""Tiled execution of any :class:`~pyramid_cli.plan.Plan`: bounded memory, the untiled run's pixels.
+
+Every output pixel of a plan depends on a bounded window of its inputs: the rectangles
+that :meth:`Pass.reads <pyramid_cli.plan.model.Pass.reads>` gives, which include the guard
+bands bounds inference found (DESIGN.md §1). The scheduler here is demand-driven in the
+manner of libvips: the outputs are cut into column strips, and within a strip every image
+of the plan (inputs, intermediates, every level of a pyramid) keeps only the band of rows
+that later passes still need. Asking an output for its next rows asks the pass that
+writes it for those rows, which asks its sources for the rows it reads, and so on up to
+the inputs, which are read through a callback (a file's scanlines, a memory map's rows).
+Rows no later pass will read are dropped at once. Nothing is computed twice along the
+rows; across strips the columns of the guard bands are.
+
+Each step runs *one pass* over a rectangle of its target, as a one-pass plan handed to
+the executor unchanged: the images of that plan are the windows, each placed by its
+guard band (which may be negative) so that the pass's phases and base indices
+``R = S·⌈r/P⌉`` are those of the whole image (:meth:`Pass.tile`). Reads that leave a
+source resolve as in the untiled run:
+
+- a ``clamp`` source's window is cut to its stored extent, so the executor's own clamp
+  acts at the same edges (window edges inside the image are never read past: the
+  window holds everything the rectangle reads);
+- a ``mirror``, ``wrap`` or ``zero`` source's window is gathered through the border fold
+  (:func:`pyramid_cli.core.border.fold`); it is never read past, so its own fold is the identity
+  and the executors use the arithmetic of the untiled run.
+
+Hence every executor (:mod:`pyramid_cli.exec.emulate`, :mod:`pyramid_cli.exec.cpu`,
+:mod:`pyramid_cli.exec.gl`) gives the same pixels tiled and untiled; the GL executor thereby
+runs images larger than GL_MAX_TEXTURE_SIZE with textures of the tile's size, not the
+picture's. ``wrap`` images are kept whole (their first rows read their last ones).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from pyramid_cli.core.border import Border, fold
+from pyramid_cli.plan import Image, Plan
+
+Rect = tuple[tuple[int, int], tuple[int, int]]
+Source = Callable[[int, tuple[int, int], tuple[int, int]], np.ndarray]   # (input, rows, cols) → (h, w, C)
+Sink = Callable[[int, int, int, np.ndarray], None]                       # (output, row, col, pixels)
+
+
+class Emulator:
+    """:mod:`pyramid_cli.exec.emulate` with the executors' ``run_outputs`` (float64 throughout)."""
+
+    name = "emulate"
+
+    def run_outputs(self, plan: Plan, images, dtype=np.float64) -> list[np.ndarray]:
+        from pyramid_cli.exec import emulate
+
+        return emulate.run_outputs(plan, images)
+
+
+def _restrict(span: tuple[int, int], extent: tuple[int, int], border: str) -> tuple[int, int]:
+    """Stored indices (within ``extent``) a read of ``span`` touches: clamped, or the hull of the fold."""
+    a, b = span
+    e0, e1 = extent
+    if border == "clamp" or (e0 <= a and b <= e1):
+        lo = min(max(a, e0), e1 - 1)
+        return lo, max(min(b, e1), lo + 1)
+    idx = _fold(np.arange(a, b), extent, border)
+    idx = idx[idx >= e0]
+    if not len(idx):
+        return e0, e0 + 1
+    return int(idx.min()), int(idx.max()) + 1
+
+
+def _fold(index: np.ndarray, extent: tuple[int, int], border: str) -> np.ndarray:
+    """0-based logical indices folded into ``extent`` (an image without guard: ``(0, n)``); ``e0 − 1``: zero."""
+    e0, e1 = extent
+    return fold(index - e0 + 1, e1 - e0, Border.parse(border)) - 1 + e0
+
+
+def _union(a, b):
+    if a is None:
+        return b
+    return min(a[0], b[0]), max(a[1], b[1])
+
+
+@dataclass
+class _State:
+    """One image in one strip: the band of rows ``[start, done)`` × ``cols`` it keeps."""
+
+    rows: tuple[int, int]            # stored extent (0-based logical: guard rows are negative or ≥ size)
+    colext: tuple[int, int]
+    border: str
+    cols: tuple[int, int] | None = None  # kept columns (within the extent)
+    comp: tuple[int, int] | None = None  # columns its pass computes (aligned; targets only)
+    start: int | None = None
+    done: int | None = None
+    buf: np.ndarray | None = None
+    emitted: int = 0
+    consumers: list = field(default_factory=list)
+
+
+class Scheduler:
+    """Runs ``plan`` strip by strip, band by band: see the module docstring.
+
+    Parameters
+    ----------
+    executor
+        Anything with ``run_outputs(plan, images, dtype)``: :class:`~pyramid_cli.exec.cpu.CPUExecutor`,
+        :class:`~pyramid_cli.exec.gl.GLExecutor`, :class:`Emulator`.
+    plan : Plan
+        Any plan of tileable passes (every kind with ``reads`` and ``tile``).
+    source : callable
+        ``source(k, rows, cols)``: pixels of input image ``k`` over 0-based half-open ``rows × cols``
+        (inside the image), (h, w, C).
+    sink : callable
+        ``sink(k, row, col, pixels)``: output image ``k``'s pixels at ``(row, col)``; called in row order
+        within a strip. ``pixels`` is a view of the scheduler's buffers, valid during the call only: copy
+        what must outlive it.
+    band, width : int
+        Rows and columns of a tile, in pixels of the largest output (smaller outputs get their share).
+    dtype
+        What the executor stores intermediates as (float32; the emulator keeps float64).
+    """
+
+    def __init__(self, executor, plan: Plan, source: Source, sink: Sink, *, band: int, width: int | None = None,
+                 dtype=np.float32):
+        self.executor, self.plan, self.source, self.sink = executor, plan, source, sink
+        self.band = max(1, int(band))
+        rows = max(plan.images[k].size[0] for k in plan.outputs)
+        cols = max(plan.images[k].size[1] for k in plan.outputs)
+        self.anchor = (rows, cols)
+        self.width = max(1, int(width)) if width else cols
+        self.dtype = dtype
+        self.writer = {ps.target: ps for ps in plan.passes}
+        self.steps = 0          # executor calls, for reports
+        self.peak_pixels = 0      # most pixels held at once (all images), for reports
+
+    # ------------------------------------------------------------ driving
+    def run(self) -> None:
+        """Strip by strip, band by band. Only the tallest output follows the band; every other output
+        advances as far as the rows its pass reads are already held, and all finish at the last band.
+        (Asking every output for its share ``⌈y·n/N⌉`` of each band would ask a 1×1 level for its one
+        row at the first band, and with it the whole picture.) The pixels are the same either way."""
+        n_rows, n_cols = self.anchor
+        lead = max(self.plan.outputs, key=lambda k: self.plan.images[k].size[0])
+        for c0 in range(0, n_cols, self.width):
+            c1 = min(n_cols, c0 + self.width)
+            self._strip(c0, c1)
+            for y0 in range(0, n_rows, self.band):
+                y1 = min(n_rows, y0 + self.band)
+                for k in self.plan.outputs:
+                    if k == lead or y1 == n_rows:
+                        self._emit(k, self._share(k, 0, y1))
+                    elif k in self.out_cols:
+                        self._emit(k, self._ready(k))
+
+    def _ready(self, k: int) -> int:
+        """The most rows of output ``k`` its pass can make from rows its sources already hold."""
+        st, ps = self.state[k], self.writer.get(k)
+        lo, hi = st.emitted, self.plan.images[k].size[0]
+        if ps is None:
+            return lo
+        while lo < hi:  # bisect: readiness is monotone in the rows asked for
+            mid = (lo + hi + 1) // 2
+            if self._available(st, ps, mid):
+                lo = mid
+            else:
+                hi = mid - 1
+        return lo
+
+    def _available(self, st: _State, ps, rows: int) -> bool:
+        start = st.done if st.done is not None else st.emitted
+        if rows <= start:
+            return True
+        step = ps.tile((start, rows), st.comp)
+        for s, (rr, _) in ps.reads(step.rows, step.cols).items():
+            src = self.state[s]
+            if src.done is None or _restrict(rr, src.rows, src.border)[1] > src.done:
+                return False
+        return True
+
+    def _share(self, k: int, axis: int, y: int) -> int:
+        n = self.plan.images[k].size[axis]
+        return -(-y * n // self.anchor[axis])
+
+    def _strip(self, c0: int, c1: int) -> None:
+        """Fresh states for the column strip ``[c0, c1)`` of the anchor: each image's columns, found backwards."""
+        plan = self.plan
+        self.state: dict[int, _State] = {}
+        for k, im in enumerate(plan.images):
+            t, le, b, r = im.guard
+            self.state[k] = _State((-t, im.size[0] + b), (-le, im.size[1] + r), im.border)
+        demand: dict[int, tuple[int, int] | None] = {k: None for k in self.state}
+        self.out_cols = {}
+        for k in plan.outputs:
+            span = (self._share(k, 1, c0), self._share(k, 1, c1))
+            if span[0] < span[1]:
+                self.out_cols[k] = span
+                demand[k] = _union(demand[k], span)
+        self.active = []
+        for ps in reversed(plan.passes):
+            st = self.state[ps.target]
+            if demand[ps.target] is None:
+                continue
+            self.active.append(ps)
+            st.cols = _restrict(demand[ps.target], st.colext, st.border)
+            st.comp = ps.tile((0, 1), st.cols).cols
+            for s, (_, cc) in ps.reads((0, ps_period(ps)), st.comp).items():
+                demand[s] = _union(demand[s], cc)
+                self.state[s].consumers.append(ps)
+        self.active.reverse()
+        for k in plan.inputs:
+            st = self.state[k]
+            if demand[k] is not None:
+                st.cols = _restrict(demand[k], st.colext, st.border)
+
+    def _emit(self, k: int, hi: int) -> None:
+        st = self.state[k]
+        span = self.out_cols.get(k)
+        if span is None or hi <= st.emitted:
+            return
+        self._advance(k, st.emitted, hi)
+        rows = slice(st.emitted - st.start, hi - st.start)
+        cols = slice(span[0] - st.cols[0], span[1] - st.cols[0])
+        self.sink(k, st.emitted, span[0], st.buf[rows, cols])
+        st.emitted = hi
+        self._trim(k)
+
+    # ------------------------------------------------------------ producing rows
+    def _advance(self, k: int, lo: int, hi: int) -> None:
+        """Make image ``k`` hold stored rows up to ``hi`` (from ``lo`` on, if it holds none yet)."""
+        st = self.state[k]
+        if st.done is None:
+            st.start = st.done = st.rows[0] if st.border == "wrap" else lo  # wrap: the last rows read the first
+        assert lo >= st.start, f"image {k}: row {lo} was dropped (kept from {st.start})"
+        if hi <= st.done:
+            return
+        ps = self.writer.get(k)
+        if ps is None:  # an input
+            px = self.source(k, (st.done, hi), st.cols)
+            self._append(st, px)
+            return
+        step = ps.tile((st.done, hi), st.comp)
+        reads = sorted(ps.reads(step.rows, step.cols).items())
+        for s, (rr, _) in reads:  # every source first: advancing one may append to another (a shared ancestor)
+            self._advance(s, *_restrict(rr, self.state[s].rows, self.state[s].border))
+        windows = [self._window(self.state[s], rr, cc) for s, (rr, cc) in reads]  # views, valid until the next append
+        origins = [(s, step.origins[s], rr, cc) for s, (rr, cc) in reads]
+        out = self._run(ps.target, step, windows, origins)
+        r0, (k0, k1) = st.done, st.cols
+        self._append(st, out[r0 - step.rows[0]:, k0 - step.cols[0]:k1 - step.cols[0]])
+        for s, *_ in origins:
+            self._trim(s)
+
+    def _append(self, st: _State, px: np.ndarray) -> None:
+        st.buf = px.copy() if st.buf is None else np.concatenate([st.buf, px])  # (a ring buffer measured no
+        st.done += px.shape[0]                                                   # faster, and held more)
+        self.peak_pixels = max(self.peak_pixels, sum(s.buf.shape[0] * s.buf.shape[1] for s in self.state.values()
+                                                 if s.buf is not None))
+
+    def _window(self, src: _State, rr: tuple[int, int], cc: tuple[int, int]):
+        """(pixels, origin): what a pass reads of ``src`` over ``rr × cc``."""
+        if src.border == "clamp":
+            (a, b), (c, d) = _restrict(rr, src.rows, "clamp"), _restrict(cc, src.colext, "clamp")
+            assert src.start <= a and b <= src.done and src.cols[0] <= c and d <= src.cols[1]
+            px = src.buf[a - src.start:b - src.start, c - src.cols[0]:d - src.cols[0]]
+            return px, (a, c)
+        ri = _fold(np.arange(*rr), src.rows, src.border)
+        ci = _fold(np.arange(*cc), src.colext, src.border)
+        px = src.buf[np.ix_(np.maximum(ri - src.start, 0), np.maximum(ci - src.cols[0], 0))]
+        if src.border == "zero":
+            px[ri < src.rows[0]] = 0
+            px[:, ci < src.colext[0]] = 0
+        return px, (rr[0], cc[0])
+
+    def _run(self, target: int, step, windows, origins) -> np.ndarray:
+        """One pass over ``step``'s rectangle, as a one-pass plan of windows."""
+        plan = self.plan
+        images = [Image((1, 1)) for _ in plan.images]
+        arrays = []
+        for (px, (wr, wc)), (s, (orow, ocol), _, _) in zip(windows, origins, strict=True):
+            h, w = px.shape[:2]
+            top, left = orow - wr, ocol - wc
+            rows, cols = max(1, h - top), max(1, w - left)
+            # a gathered (folded) window keeps its border mode: never read past, it folds to itself, and
+            # the executors then use the same arithmetic as untiled (GL's four folded fetches, say)
+            images[s] = Image((rows, cols), [top, left, h - top - rows, w - left - cols], self.state[s].border)
+            arrays.append(px)
+        (r0, r1), (c0, c1) = step.rows, step.cols
+        images[target] = Image((r1 - r0, c1 - c0))
+        sub = Plan(images, [step.run], plan.expression, outputs=[target], inputs=[s for s, *_ in origins],
+                   border=plan.border)
+        self.steps += 1
+        return self.executor.run_outputs(sub, arrays, self.dtype)[0]
+
+    def _trim(self, s: int) -> None:
+        """Drop the rows of ``s`` that no later step reads (and that are emitted, for an output)."""
+        st = self.state[s]
+        if st.buf is None or st.border == "wrap":
+            return
+        keep = st.done
+        if s in self.out_cols:
+            keep = min(keep, st.emitted)
+        for ps in st.consumers:
+            t = self.state[ps.target]
+            if t.done is None:
+                return  # a consumer that has not started yet reads from the top
+            if t.done >= t.rows[1] and (ps.target not in self.out_cols or t.emitted >= t.rows[1]):
+                continue
+            step = ps.tile((t.done, max(t.rows[1], t.done + 1)), t.comp)  # every row still to come
+            rr = ps.reads(step.rows, step.cols).get(s)
+            if rr is not None:
+                keep = min(keep, _restrict(rr[0], st.rows, st.border)[0])
+        if keep > st.start:
+            st.buf = st.buf[keep - st.start:]
+            st.start = keep
+
+
+def ps_period(ps) -> int:
+    """Rows of one phase period of a pass (1 for kinds without phases)."""
+    period = getattr(ps, "period", (1, 1))
+    return int(period[0])
+
+
+def run_arrays(executor, plan: Plan, images, *, band: int, width: int | None = None, dtype=np.float32,
+               out: list[np.ndarray] | None = None, convert=None) -> list[np.ndarray]:
+    """Run ``plan`` tiled on in-memory (or memory-mapped) arrays; every ``plan.outputs`` image.
+
+    ``images``: one (H, W) or (H, W, C) array per ``plan.inputs`` (a ``numpy.memmap`` is read band
+    by band). ``out``: arrays to write into (a memmap keeps the result on disk); default new arrays.
+    Outputs have ``dtype`` (the executor's intermediates stay float32; the emulator's float64).
+    ``convert``: applied to every band read (integer codes to floats, say).
+    """
+    arrays = list(images) if isinstance(images, (list, tuple)) else [images]
+    flat = arrays[0].ndim == 2
+    by_index = dict(zip(plan.inputs, arrays, strict=True))
+    channels = () if flat else arrays[0].shape[2:]
+    if out is None:
+        out = [np.empty(plan.images[k].size + channels, dtype=dtype) for k in plan.outputs]
+    slots = {k: i for i, k in enumerate(plan.outputs)}
+    native = np.float64 if isinstance(executor, Emulator) else np.float32
+
+    def source(k, rows, cols):
+        a = by_index[k][rows[0]:rows[1], cols[0]:cols[1]]
+        a = np.asarray(convert(a) if convert is not None else a)
+        a = a[:, :, None] if flat else a
+        if native == np.float64:
+            return a.astype(np.float64)
+        return np.ascontiguousarray(a) if a.dtype in (np.float16, np.float32) else a.astype(np.float32)
+
+    def sink(k, r, c, px):
+        o = out[slots[k]]
+        view = o[r:r + px.shape[0], c:c + px.shape[1]]
+        view[...] = px[:, :, 0] if flat else px
+
+    Scheduler(executor, plan, source, sink, band=band, width=width, dtype=native).run()
+    return out
+
+
+def tileable(plan: Plan) -> bool:
+    """Whether every pass of ``plan`` has the tiling hook (``tile``; :mod:`pyramid_cli.plan.model`)."""
+    return all(hasattr(ps, "tile") for ps in plan.passes)
+
+
+__all__ = ["Scheduler", "Emulator", "run_arrays", "tileable"]

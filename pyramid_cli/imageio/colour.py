@@ -1,0 +1,217 @@
+"""Colour maths on pixel arrays: the sRGB transfer functions, premultiplication, and 8/16-bit coding.
+
+Pure numpy (no file formats): :mod:`pyramid_cli.imageio` reads and writes files with OpenImageIO and calls
+these to turn stored codes into linear premultiplied float32 and back. Decoding and 8-bit encoding go
+through per-code tables that are bit-identical to the float64 formulas they replace (tested at every
+code boundary).
+"""
+
+from __future__ import annotations
+
+import math
+from functools import cache
+
+import numpy as np
+
+# 8x8 Bayer matrix for ordered dither.
+_BAYER8 = np.array(
+    [[0, 32, 8, 40, 2, 34, 10, 42],
+     [48, 16, 56, 24, 50, 18, 58, 26],
+     [12, 44, 4, 36, 14, 46, 6, 38],
+     [60, 28, 52, 20, 62, 30, 54, 22],
+     [3, 35, 11, 43, 1, 33, 9, 41],
+     [51, 19, 59, 27, 49, 17, 57, 25],
+     [15, 47, 7, 39, 13, 45, 5, 37],
+     [63, 31, 55, 23, 61, 29, 53, 21]],
+    dtype=np.float64,
+)
+
+
+def srgb_to_linear(encoded: np.ndarray) -> np.ndarray:
+    """Decode sRGB values with the exact piecewise sRGB EOTF.
+
+    Parameters
+    ----------
+    encoded : numpy.ndarray
+        sRGB-encoded values; negative values are mirrored.
+
+    Returns
+    -------
+    numpy.ndarray
+        Linear values, float64.
+    """
+    v = np.asarray(encoded, dtype=np.float64)
+    a = np.abs(v)
+    out = np.where(a <= 0.04045, a / 12.92, ((a + 0.055) / 1.055) ** 2.4)
+    return np.copysign(out, v)
+
+
+def linear_to_srgb(linear: np.ndarray) -> np.ndarray:
+    """Encode linear values with the inverse of the sRGB EOTF.
+
+    Parameters
+    ----------
+    linear : numpy.ndarray
+        Linear values; negative values are mirrored.
+
+    Returns
+    -------
+    numpy.ndarray
+        sRGB-encoded values, float64.
+    """
+    v = np.asarray(linear, dtype=np.float64)
+    a = np.abs(v)
+    with np.errstate(invalid="ignore"):
+        out = np.where(a <= 0.0031308, a * 12.92, 1.055 * a ** (1.0 / 2.4) - 0.055)
+    return np.copysign(out, v)
+
+
+def count_nonfinite(pixels: np.ndarray) -> int:
+    """Count NaN and infinite values.
+
+    Parameters
+    ----------
+    pixels : numpy.ndarray
+        Any array.
+
+    Returns
+    -------
+    int
+        Number of elements that are NaN, +Inf or -Inf.
+    """
+    return int(np.size(pixels) - np.count_nonzero(np.isfinite(pixels)))
+
+
+def _colour_mask(nchannels: int, alpha_channel: int, names: list[str]) -> np.ndarray:
+    """Channels that carry colour: everything but alpha and depth."""
+    mask = np.ones(nchannels, dtype=bool)
+    if 0 <= alpha_channel < nchannels:
+        mask[alpha_channel] = False
+    for i, name in enumerate(names[:nchannels]):
+        if name.split(".")[-1].lower() in ("z", "zback", "depth"):
+            mask[i] = False
+    return mask
+
+
+def _premultiply(px: np.ndarray, alpha_channel: int, colour: np.ndarray) -> None:
+    alpha = px[..., alpha_channel:alpha_channel + 1]
+    px[..., colour] *= alpha
+
+
+def _unpremultiply(px: np.ndarray, alpha_channel: int, colour: np.ndarray) -> None:
+    alpha = px[..., alpha_channel:alpha_channel + 1]
+    # Where alpha is 0 (or negative after filtering) there is no colour to
+    # recover: store 0 rather than dividing by zero.
+    safe = np.where(alpha > 0, alpha, 1.0)
+    px[..., colour] = np.where(alpha > 0, px[..., colour] / safe, 0.0)
+
+
+@cache
+def _integer_levels(dtype: str, srgb: bool) -> np.ndarray:
+    """float64 value of every code of an 8/16-bit type: ``code / max``, sRGB-decoded if asked."""
+    levels = np.arange(256 if dtype == "uint8" else 65536) / (255.0 if dtype == "uint8" else 65535.0)
+    return srgb_to_linear(levels) if srgb else levels
+
+
+def _decode_integer(data: np.ndarray, srgb: bool, colour: np.ndarray, alpha: int, straight: bool) -> np.ndarray:
+    """Linear premultiplied float32 pixels of 8/16-bit codes, a channel at a time through per-code tables.
+
+    Every value is what decoding ``code / max`` in float64 with the exact sRGB EOTF, then
+    premultiplying in float64, gives (rounded once to float32), without float64 copies of
+    the whole image. ``alpha`` is the channel to premultiply by (-1: none).
+    """
+    linear = _integer_levels(data.dtype.name, False)
+    decoded = _integer_levels(data.dtype.name, True) if srgb else linear
+    if alpha >= 0 and srgb and not straight:
+        # Associated sRGB (rare): divide the encoded values out, decode, multiply back.
+        px = linear[data]
+        _unpremultiply(px, alpha, colour)
+        px[..., colour] = srgb_to_linear(px[..., colour])
+        _premultiply(px, alpha, colour)
+        return px.astype(np.float32)
+    a = linear[data[..., alpha]] if alpha >= 0 and straight else None
+    if a is None and all(colour):  # gathers through a float32 table (the same single rounding), no strides,
+        table = decoded.astype(np.float32)  # in bands of rows so the index conversion stays in cache
+        out = np.empty(data.shape, dtype=np.float32)
+        for y in range(0, data.shape[0], 64):
+            np.take(table, data[y:y + 64], out=out[y:y + 64])
+        return out
+    out = np.empty(data.shape, dtype=np.float32)
+    for c in range(data.shape[2]):
+        codes = data[..., c]
+        if colour[c]:
+            out[..., c] = decoded[codes] if a is None else decoded[codes] * a
+        else:
+            out[..., c] = linear[codes]
+    return out
+
+
+@cache
+def _srgb8_tables() -> tuple[np.ndarray, np.ndarray]:
+    """Exact 8-bit sRGB encoding of float32 values by table: (thresholds, codes by the top 20 bits).
+
+    ``thresholds[k - 1]`` is the smallest float32 that :func:`_encode_integer` turns into
+    code k (sRGB in float64, ×255, round half up). A float32's top 20 bits (sign, exponent,
+    11 mantissa bits) pick a bucket narrower than the gap between thresholds, so the code
+    is the bucket's code plus one comparison.
+    """
+    def code(bits: np.ndarray) -> np.ndarray:
+        x = bits.astype(np.uint32).view(np.float32).astype(np.float64)
+        return np.clip(np.floor(linear_to_srgb(x) * 255.0 + 0.5), 0, 255)
+
+    lo = np.zeros(255, dtype=np.int64)                 # bisection on the bit patterns of x ≥ 0
+    hi = np.full(255, 0x7F800000, dtype=np.int64)      # +inf encodes to 255
+    want = np.arange(1, 256)
+    while np.any(hi - lo > 1):
+        mid = (lo + hi) // 2
+        up = code(mid) >= want
+        hi, lo = np.where(up, mid, hi), np.where(up, lo, mid)
+    thresholds = hi.astype(np.uint32).view(np.float32)
+    firsts = (np.arange(1 << 19, dtype=np.uint32) << 12).view(np.float32)  # non-negative buckets
+    lasts = ((np.arange(1 << 19, dtype=np.uint32) << 12) | 0xFFF).view(np.float32)
+    with np.errstate(invalid="ignore"):
+        start = np.searchsorted(thresholds, firsts, side="right")
+        finite = np.isfinite(lasts)
+        assert np.all(np.searchsorted(thresholds, lasts[finite], side="right") - start[finite] <= 1)
+    codes = np.concatenate([start, np.zeros(1 << 19, dtype=start.dtype)]).astype(np.uint8)  # negatives: 0
+    return thresholds, codes
+
+
+SRGB8_BAND = 1 << 16  # values encoded per step: the temporaries stay in cache instead of faulting in fresh pages
+
+
+def _srgb8(x: np.ndarray) -> np.ndarray:
+    """:func:`_encode_integer` of ``linear_to_srgb(x)`` for 8 bits without dither, from float32 ``x``.
+
+    Done in bands of :data:`SRGB8_BAND` values: whole-image temporaries (a uint32 index, a float32 gather,
+    masks: several bytes per value) cost more in page faults than the table lookups themselves.
+    """
+    thresholds, codes = _srgb8_tables()
+    x = np.ascontiguousarray(x, dtype=np.float32)
+    out = np.empty(x.shape, dtype=np.uint8)
+    flat, res = x.reshape(-1), out.reshape(-1)
+    for i in range(0, flat.size, SRGB8_BAND):
+        v = flat[i:i + SRGB8_BAND]
+        k = codes[v.view(np.uint32) >> 12]
+        with np.errstate(invalid="ignore"):
+            k += (v >= thresholds[np.minimum(k, 254)]) & (k < 255)
+        k[np.isnan(v)] = 0
+        res[i:i + SRGB8_BAND] = k
+    return out
+
+
+def _encode_integer(values: np.ndarray, out_type: str, dither: bool,
+                    colour: np.ndarray) -> np.ndarray:
+    scale = 255.0 if out_type == "uint8" else 65535.0
+    v = np.nan_to_num(values, nan=0.0, posinf=1.0, neginf=0.0) * scale
+    if dither and out_type == "uint8":
+        h, w = v.shape[:2]
+        # Ordered dither in (-0.5, 0.5) LSB: deterministic, mean preserving,
+        # and alpha stays undithered so opaque stays opaque.
+        offsets = (_BAYER8 + 0.5) / 64.0 - 0.5
+        tile = np.tile(offsets, (math.ceil(h / 8), math.ceil(w / 8)))[:h, :w]
+        v[..., colour] += tile[..., None]
+    # Round half up rather than numpy's round-half-even.
+    v = np.floor(v + 0.5)
+    np.clip(v, 0.0, scale, out=v)
+    return v.astype(np.uint8 if out_type == "uint8" else np.uint16)

@@ -1,0 +1,405 @@
+"""Files in, files out: read → plan → run → write, for one image or a batch.
+
+The CLI and the Python API's file helpers call these functions; they hold the
+policies that used to live in command bodies: which inputs become which outputs,
+whether a half file travels as half, NaN warnings, refusals before work
+(:mod:`pyramid_cli.workflows.limits`, options a format would ignore), and what is said on
+the way (a :class:`Reporter`). Writes are atomic (:mod:`pyramid_cli.imageio`); a batch goes
+through :mod:`pyramid_cli.run.batch`.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from pyramid_cli import imageio as io
+from pyramid_cli.core import catalogue
+from pyramid_cli.core.errors import UsageError
+from pyramid_cli.exec.session import Session
+from pyramid_cli.jobs.work import Collapse, Laplacian, Levels, Work, same_setting
+from pyramid_cli.run import batch
+
+#: What a warning about NaN/Inf kept in an input (an image or a mask) advises.
+NAN_HINT = "--nan zero or --nan fail to change that"
+
+
+@dataclass
+class ReadOptions:
+    """How inputs are decoded (see :func:`pyramid_cli.imageio.read_image`)."""
+
+    colorspace: str = "auto"
+    alpha: str = "auto"
+    nan: str = "keep"
+
+
+@dataclass
+class WriteOptions:
+    """How outputs are encoded (see :func:`pyramid_cli.imageio.write_image`)."""
+
+    pixel_type: str | None = None
+    dither: bool = False
+    compression: str | None = None
+    force: bool = False
+
+    def for_inputs(self, inputs) -> dict:
+        return {"pixel_type": self.pixel_type, "dither": self.dither, "compression": self.compression,
+                "force": self.force, "inputs": tuple(inputs)}
+
+
+@dataclass
+class Reporter:
+    """What a run says: results on standard output, warnings and -v lines on standard error.
+
+    ``progress(total)`` (optional) returns a context manager with ``update(n)``, shown
+    instead of per-file lines for batches (the CLI passes a progress bar at a terminal).
+    """
+
+    quiet: bool = False
+    verbose: bool = False
+    interactive: bool = False  # standard error is a terminal: one-time notices (kernel compiles) are shown
+    out: Callable[[str], None] = field(default=lambda msg: print(msg))
+    err: Callable[[str], None] = field(default=lambda msg: print(msg, file=sys.stderr))
+    progress: Callable | None = None
+
+    def result(self, msg: str) -> None:
+        if not self.quiet:
+            self.out(msg)
+
+    def warn(self, msg: str) -> None:
+        if not self.quiet:
+            self.err(f"pyramid: warning: {msg}")
+
+    def detail(self, msg: str) -> None:
+        if self.verbose:
+            self.err(f"pyramid: {msg}")
+
+    def error(self, msg: str) -> None:
+        self.err(f"pyramid: error: {msg}")
+
+    def notice(self, msg: str) -> None:
+        """A one-time notice, at a terminal only and never under -q."""
+        if self.interactive and not self.quiet:
+            self.err(f"pyramid: {msg}")
+
+
+def _announce_compiles(session: Session, work: Work, images, reporter: Reporter) -> None:
+    """On a machine's first run the CPU executor compiles its kernels: say so, and for how long."""
+    if not (reporter.interactive and not reporter.quiet):
+        return
+    n = session.uncached(work, images)
+    if n:
+        reporter.notice(f"compiling {n} CPU kernel(s) for this machine, once (about {max(1, round(0.8 * n))} s; "
+                        "later runs load them from the cache in a fraction of a second)")
+
+
+def _read(path: str, ro: ReadOptions, reporter: Reporter, keep_half: bool = False,
+          hash_source: bool = False) -> io.Image:
+    image = io.read_image(path, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan, keep_half=keep_half,
+                          hash_source=hash_source)
+    integer = image.spec.pixel_type in ("uint8", "uint16") and not image.spec.channel_pixel_types
+    bad = io.count_nonfinite(image.pixels) if ro.nan == "keep" and not integer else 0  # decoded codes are finite
+    if bad:
+        reporter.warn(f"{path}: {bad} NaN/Inf value(s) kept; they spread through the filter ({NAN_HINT})")
+    return image
+
+
+def process(paths: list[str], template: str | None, work: Work, session: Session | None, *,
+            read: ReadOptions | None = None, write: WriteOptions | None = None, reporter: Reporter | None = None,
+            keep_going: bool = False, skip_existing: bool = False, jobs: int = 2,
+            mip_tile: int | None = None, frames: str | None = None, shard=None, cluster=None,
+            chunk: int | None = None, memory: int | None = None, cluster_timeout: float | None = None) -> batch.Report:
+    """Run ``work`` on every input of ``paths`` (``IN OUT``, or inputs with ``template``).
+
+    One session for the whole batch; decoding and encoding overlap the work in ``jobs``
+    threads. Half inputs whose output stores half unchanged travel as half. With
+    ``mip_tile`` every output of ``work`` goes into one tiled MIP-mapped file. A single
+    job's failure is raised; a batch's failures are reported and collected in the
+    returned report (its ``exit_code`` is the first failure's).
+
+    Inputs may be frame sequences (``frames`` selects frames; :mod:`pyramid_cli.run.sequence`);
+    ``shard`` (``"K/N"``, ``"auto"`` or a :class:`pyramid_cli.run.shard.Shard`) keeps one
+    contiguous chunk of the job list; ``cluster`` (an address, ``"local:N"`` or a
+    ``distributed.Client``) runs the jobs on a Dask cluster in chunks of ``chunk`` jobs,
+    each worker with its own session like ``session`` (``session`` may then be None:
+    ``Session()``'s defaults), connecting and waiting for workers up to ``cluster_timeout``
+    seconds (:mod:`pyramid_cli.run.cluster`).
+
+    One input of ``apply``, ``blur`` or ``mipmap`` whose whole-picture run would not fit ``memory`` bytes
+    (default: a quarter of the available memory) streams from file to file in bands
+    (:mod:`pyramid_cli.run.stream`); images that fit run whole.
+    """
+    ro, wo, reporter = read or ReadOptions(), write or WriteOptions(), reporter or Reporter()
+    for message in work.warnings():  # said once, before the first input is read (the CLI and process_files)
+        reporter.warn(message)
+    if cluster is None and (chunk is not None or cluster_timeout is not None):
+        raise UsageError("--chunk and --cluster-timeout are for --cluster runs")
+    job_list = batch.plan_jobs(list(paths), template, frames=frames)
+    many = len(job_list) > 1
+    if shard is not None:
+        from pyramid_cli.run import shard as shards
+
+        shard = shards.parse(shard) if isinstance(shard, str) else shard
+        job_list = shards.select(job_list, shard)
+        reporter.detail(f"shard {shard} ({shard.source}): {len(job_list)} job(s)")
+        shards.remove_stale_temps([j.output for j in job_list])
+    if frames is not None or any(getattr(j, "frame", None) is not None for j in job_list):
+        from pyramid_cli.run.sequence import drop_missing
+
+        job_list = drop_missing(job_list, keep_going, reporter.warn)
+    if (not many and len(job_list) == 1 and cluster is None and frames is None
+            and not (skip_existing and batch.is_fresh(job_list[0]))):
+        from pyramid_cli.run.stream import run_job, run_mip
+
+        if mip_tile:
+            if run_mip(job_list[0], work, session, memory=memory, tile=mip_tile, read=ro, write=wo,
+                       reporter=reporter):
+                return batch.Report(done=list(job_list))
+        elif run_job(job_list[0], work, session, memory=memory, read=ro, write=wo, reporter=reporter):
+            return batch.Report(done=list(job_list))
+    elif memory is not None:
+        raise UsageError("--memory streams one input at a time (not batches, frame sequences or clusters)")
+    if cluster is not None:
+        from pyramid_cli.run.cluster import run_cluster
+
+        report = run_cluster(job_list, work, cluster, session=session, read=ro, write=wo, reporter=reporter,
+                             keep_going=keep_going, skip_existing=skip_existing, jobs=jobs, mip_tile=mip_tile,
+                             chunk=chunk, many=many, timeout=cluster_timeout)
+    else:
+        report = run_jobs(job_list, work, session, read=ro, write=wo, reporter=reporter, keep_going=keep_going,
+                          skip_existing=skip_existing, jobs=jobs, mip_tile=mip_tile, many=many)
+    if not many and report.failed:
+        raise report.failed[0][1]
+    if many:
+        if not reporter.quiet:
+            reporter.err(f"pyramid: {len(report.done)} written, {len(report.skipped)} up to date, "
+                         f"{len(report.failed)} failed")
+        said = set()
+        for _job, err in report.failed:  # a lost cluster's one error names all the frames it failed
+            if id(err) not in said:
+                said.add(id(err))
+                reporter.error(str(err))
+    return report
+
+
+def _texture_channels(image: io.Image, work, path: str, reporter: Reporter) -> io.Image:
+    """maketx's ``--monochrome-detect`` and ``--nchannels`` on a texture's source (:func:`mip.channel_plan`)."""
+    import dataclasses
+
+    from pyramid_cli.workflows.mip import apply_channels, channel_plan, is_monochrome
+
+    spec, px = image.spec, image.pixels
+    n = px.shape[2]
+    mono = work.monochrome_detect and n == 3 and spec.alpha_channel < 0 and is_monochrome(px)
+    change = channel_plan(n, list(spec.channel_names), spec.alpha_channel, work.nchannels, work.monochrome_detect,
+                          mono)
+    if change is None:
+        return image
+    kept, names, alpha = change
+    reporter.detail(f"{path}: {n} channel(s) → {len(names)} ({', '.join(names)})"
+                    + (": monochrome" if mono and work.nchannels is None else ""))
+    new = dataclasses.replace(spec, channel_names=names, alpha_channel=alpha,
+                              alpha_mode=spec.alpha_mode if alpha >= 0 else "none", channel_pixel_types=[])
+    return io.Image(apply_channels(px, kept, len(names)), new)
+
+
+def wrote_line(path: str, width: int, height: int, levels: int | None, executor: str) -> str:
+    """A batch's line for one output: ``wrote PATH (W×H[, N MIP levels], EXECUTOR)``."""
+    return f"wrote {path} ({width}×{height}{f', {levels} MIP levels' if levels else ''}, {executor})"
+
+
+def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: ReadOptions, write: WriteOptions,
+             reporter: Reporter, keep_going: bool = False, skip_existing: bool = False, jobs: int = 2,
+             mip_tile: int | None = None, many: bool = True) -> batch.Report:
+    """Read → run → write every job of ``job_list`` on ``session`` (the body of :func:`process`)."""
+    ro, wo = read, write
+
+    def prepare(job):
+        shape = io.read_shape(job.input)
+        if shape is not None:
+            session.prepare(work, [shape[:2]])
+
+    def read_job(job):
+        io.check_write_options(job.output, wo.pixel_type, wo.compression)  # refused before any work
+        image = _read(job.input, ro, reporter, keep_half=not mip_tile, hash_source=bool(mip_tile))
+        if mip_tile and getattr(work, "constant_detect", False):
+            from pyramid_cli.workflows.mip import shrink_constant
+
+            small = shrink_constant(image.pixels, mip_tile)
+            if small is not None and small.shape != image.pixels.shape:
+                reporter.detail(f"{job.input}: constant colour, made from one {small.shape[1]}×{small.shape[0]} tile")
+                image = io.Image(small, image.spec)
+        if mip_tile and (getattr(work, "nchannels", None) or getattr(work, "monochrome_detect", False)):
+            image = _texture_channels(image, work, job.input, reporter)
+        work.check((image.pixels.shape[:2],), where=job.input)
+        return job, image
+
+    announced = []
+
+    def compute(job_image):
+        job, image = job_image
+        if mip_tile and getattr(work, "fill", False):  # mipmap --fill: pull-push before the MIP chain (issue 17)
+            from pyramid_cli.run.methods_files import fill_texture
+
+            image = fill_texture(image, session, work.border, where=job.input)
+        if not announced:
+            announced.append(True)
+            _announce_compiles(session, work, [image.pixels], reporter)
+        half = (not mip_tile and image.pixels.dtype == np.float16
+                and io.stores_half_unchanged(job.output, image.spec, pixel_type=wo.pixel_type))
+        outs = session.run(work, [image.pixels], np.float16 if half else np.float32)
+        reporter.detail(f"{io.describe_rules(image.spec)}; executor {session.ran}")
+        return [io.Image(px, image.spec) for px in (outs if mip_tile else outs[-1:])]
+
+    def write_job(job, images):
+        options = wo.for_inputs([job.input])
+        if mip_tile:
+            from pyramid_cli.run.stream import mip_metadata
+
+            # the source's SHA-1 hashed as it was read: the file is not read again
+            meta = mip_metadata(work, job.input, images[0].spec.pixel_hash)
+            io.write_levels(job.output, images, mode="mipmap", tile=mip_tile, meta=meta, **options)
+        else:
+            io.write_image(job.output, images[0], **options)
+        h, w = images[0].pixels.shape[:2]
+        return wrote_line(job.output, w, h, len(images) if mip_tile else None, session.ran)
+
+    def written(job, line):  # in job order, whichever write ended first
+        if not show_bar:
+            reporter.result(line)
+
+    show_bar = many and not reporter.quiet and reporter.progress is not None
+    run_options = {"keep_going": keep_going, "skip_existing": skip_existing, "workers": jobs, "written": written,
+                   # GL compiles and allocates while the first image decodes; so does the CPU executor for MIP maps
+                   # (loading its kernels, about 0.3 s of a cold process, beside the read and the source's hash)
+                   "prepare": prepare if session.on_gl or mip_tile else None}
+    if show_bar:
+        with reporter.progress(len(job_list)) as bar:
+            return batch.run(job_list, read_job, compute, write_job, progress=lambda job: bar.update(1),
+                             **run_options)
+    return batch.run(job_list, read_job, compute, write_job, **run_options)
+
+
+def level_path(pattern: str, level: int) -> str:
+    """``pattern`` with ``{level}`` filled in (levels and bands written one file each)."""
+    if "{level}" not in pattern:
+        raise UsageError(f"output pattern {pattern!r} needs {{level}}, e.g. out_{{level}}.exr (or use --multipart)")
+    return pattern.replace("{level}", str(level))
+
+
+def write_levels_files(input_path: str, pattern: str, work: Levels | Laplacian, session: Session, *,
+                       read: ReadOptions | None = None, write: WriteOptions | None = None,
+                       reporter: Reporter | None = None, multipart: bool = False,
+                       sheet: str | None = None, memory: int | None = None) -> list[str]:
+    """Every level of a pyramid (or the Laplacian bands) of one image, one file each or one multipart EXR.
+
+    Returns the paths written. Laplacian bands are stored as float and record the
+    synthesis filter and border (``pyramid:synthesis``, ``pyramid:border``) so that :func:`collapse_files`
+    can undo them. One file per level streams, every level band by band, when the whole pyramid would not
+    fit ``memory`` bytes (default: a quarter of the available memory; :mod:`pyramid_cli.run.stream`).
+    """
+    ro, wo, reporter = read or ReadOptions(), write or WriteOptions(), reporter or Reporter()
+    laplacian = isinstance(work, Laplacian)
+    if memory is not None and (multipart or sheet):
+        raise UsageError("--memory streams one file per level (not --multipart or --sheet, which hold every level)")
+    if not multipart and not sheet:
+        shape = io.read_shape(input_path)
+        p = session.plan(work, [shape[:2]]) if shape is not None and session.executor is not None else None
+        if p is not None or memory is not None:
+            from pyramid_cli.run.stream import run_levels
+
+            n = (1 if work.keeps_input else 0) + (len(p.outputs) if p is not None else 0)
+            written = [level_path(pattern, k) for k in range(n)]
+            options = wo.for_inputs([input_path])
+            attributes = None
+            if laplacian:
+                options["pixel_type"] = wo.pixel_type or "float"
+                attributes = {"pyramid:synthesis": work.synthesis, "pyramid:border": work.border}
+            if run_levels(input_path, written, work, session, memory=memory, read=ro, options=options,
+                          attributes=attributes, reporter=reporter):
+                for path in written:
+                    reporter.result(f"wrote {path}")
+                return written
+    image = _read(input_path, ro, reporter)
+    work.check((image.pixels.shape[:2],), where=input_path)
+    _announce_compiles(session, work, [image.pixels], reporter)
+    stack = session.run(work, [image.pixels])
+    reporter.detail(f"{io.describe_rules(image.spec)}; executor {session.ran}")
+    images = [io.Image(px, image.spec) for px in stack]
+    options = wo.for_inputs([input_path])
+    if laplacian:
+        options["pixel_type"] = wo.pixel_type or "float"
+        for im in images:
+            im.spec.attributes["pyramid:synthesis"] = work.synthesis
+            im.spec.attributes["pyramid:border"] = work.border
+    if multipart:
+        io.write_levels(pattern, images, mode="multipart", **options)
+        written = [pattern]
+    else:
+        written = [level_path(pattern, k) for k in range(len(images))]
+        io.write_images(written, images, **options)  # all or nothing
+    if sheet:
+        from pyramid_cli.run.sheet import contact_sheet
+
+        panel = contact_sheet([im.pixels if not laplacian or k == len(images) - 1 else im.pixels + 0.5
+                               for k, im in enumerate(images)])
+        info = io.ImageInfo(path=sheet, format="png", pixel_type="uint8", channel_names=["R", "G", "B"],
+                            alpha_channel=-1, colorspace="srgb", alpha_mode="none")
+        io.write_image(sheet, io.Image(panel, info), pixel_type="uint8")
+        written.append(sheet)
+    for path in written:
+        reporter.result(f"wrote {path}")
+    return written
+
+
+def _level_key(path: str):
+    digits = re.findall(r"\d+", os.path.basename(path))
+    return (int(digits[-1]) if digits else 0, path)
+
+
+def _as_recorded(band: io.Image, path: str, what: str, asked: str | None, default: str) -> str:
+    """``asked`` when it agrees with what the bands record (``pyramid:<what>``), the record when not asked."""
+    recorded = band.spec.attributes.get(f"pyramid:{what}")
+    if asked is None:
+        return recorded or default
+    if recorded is not None and not same_setting(what, asked, recorded):
+        raise UsageError(f"{path}: the bands were made with --{what} {recorded} (recorded in the file); "
+                         f"collapsing with --{what} {asked} would not give the image back")
+    return asked
+
+
+def collapse_files(inputs: list[str], output_path: str, session: Session, *, synthesis: str | None = None,
+                   border: str | None = None, read: ReadOptions | None = None, write: WriteOptions | None = None,
+                   reporter: Reporter | None = None) -> str:
+    """Sum Laplacian bands back to the image: a multipart EXR, or band files L_0 … L_m−1, G_m in order.
+
+    ``synthesis`` and ``border`` default to what the bands record (``pyramid levels --laplacian`` writes
+    both); one that contradicts the record is refused, since it would not give the image back.
+    """
+    ro, wo, reporter = read or ReadOptions(), write or WriteOptions(), reporter or Reporter()
+    paths = batch.expand(list(inputs))
+    if len(paths) == 1:
+        bands = io.read_parts(paths[0], colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan)
+    else:
+        bands = [_read(p, ro, reporter) for p in sorted(paths, key=_level_key)]
+    if len(bands) < 2:
+        raise UsageError(f"collapse needs at least two levels, {paths[0]} holds {len(bands)}")
+    io.check_pyramid(bands)
+    synthesis = _as_recorded(bands[0], paths[0], "synthesis", synthesis, catalogue.SYNTHESIS_DEFAULT)
+    border = _as_recorded(bands[0], paths[0], "border", border, "clamp")
+    work = Collapse(bands=len(bands), synthesis=synthesis, border=border)
+    _announce_compiles(session, work, [b.pixels for b in bands], reporter)
+    (out,) = session.run(work, [b.pixels for b in bands])
+    io.write_image(output_path, io.Image(out, bands[0].spec), **wo.for_inputs(paths))
+    h, w = out.shape[:2]
+    reporter.result(f"wrote {output_path} ({w}×{h}, {session.ran})")
+    return output_path
+
+
+__all__ = ["ReadOptions", "WriteOptions", "Reporter", "process", "run_jobs", "wrote_line", "write_levels_files",
+           "collapse_files", "level_path"]
