@@ -663,7 +663,8 @@ def scenario_startup(args, libs: dict, report: dict) -> None:
 CPU_COMPILE_SCRIPT = r"""
 import json, sys, time
 t0 = time.perf_counter()
-from pyramid_cli import cpu, pyramids
+from pyramid_cli.exec import cpu
+from pyramid_cli.workflows import pyramids
 t1 = time.perf_counter()
 rows, cols = int(sys.argv[1]), int(sys.argv[2])
 plan = pyramids.blur_plan((rows, cols), 5, strategy="fused")

@@ -50,7 +50,7 @@ SUBSTITUTE = {
 PRELUDE = textwrap.dedent("""\
     import numpy as np
     import pyramid_cli as pyr
-    from pyramid_cli import pyramids
+    from pyramid_cli.workflows import pyramids
     rng = np.random.default_rng(3)
     img = rng.random((48, 64, 4)).astype(np.float32)
     apple, orange = rng.random((48, 64, 3)).astype(np.float32), rng.random((48, 64, 3)).astype(np.float32)

@@ -19,8 +19,8 @@ import sys
 import pytest
 
 PACKAGE = pathlib.Path(__file__).resolve().parents[1] / "pyramid_cli"
-CORE = ["core.expr", "core.parse", "core.catalogue", "core.algebra", "plan", "plan.lower", "plan.report", "core.geometry",
-        "core.border", "core.options", "core.errors", "plan.cost", "jobs.work"]
+CORE = ["core.expr", "core.parse", "core.catalogue", "core.algebra", "plan", "plan.lower", "plan.report",
+        "core.geometry", "core.border", "core.options", "core.errors", "plan.cost", "jobs.work"]
 
 # third-party package -> the modules allowed to import it
 ONLY_IN = {
