@@ -152,9 +152,7 @@ def _banded(work: Work, array, out: Sequence[np.ndarray] | None, memory, session
             raise ValueError(f"{name}: expected a float array of shape {shape}, got {o.dtype} {tuple(o.shape)}")
     budget = stream.parse_size(memory) if isinstance(memory, str) else memory or stream.default_memory()
     channels = a.shape[2] if a.ndim == 3 else 1
-    from pyramid_cli.exec.session import EmulatorExecutor
-
-    executor = tiles.Emulator() if isinstance(s.executor, EmulatorExecutor) else s.executor
+    executor = s.executor
     choice = stream.choose(plan, channels, budget, in_bytes=max(4, a.dtype.itemsize), force=True,
                            **stream.costs(executor))
     tiles.run_arrays(executor, plan, [a], band=choice.band, out=outs, convert=as_pixels)

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import pyramid_cli.exec.gl.shaders as generate
+import pyramid_cli.plan.shapes as generate
 from cases import CHAINS as WRITTEN
 from cases import GRID_CHANNELS, GRID_SIZES, NAMED, several_inputs_and_outputs, step
 from pyramid_cli.core.border import Border
@@ -321,7 +321,8 @@ def test_importing_the_planner_does_not_import_numba():
 CHILD = r"""
 import json, sys
 import numpy as np
-from pyramid_cli import cpu, pyramids
+from pyramid_cli.exec import cpu
+from pyramid_cli.workflows import pyramids
 p = pyramids.blur_plan((40, 50), 3)
 with cpu.CPUExecutor(threads=2) as ex:
     out = ex.run(p, np.ones((40, 50, 4), np.float32))
@@ -377,7 +378,7 @@ def test_an_unwritable_cache_folder_falls_back(tmp_path):
     image = random_image((4, 6), None, 1)
     with cpu.CPUExecutor(threads=1, cache=blocker / "cache") as odd:
         np.testing.assert_allclose(odd.run(p, image), emulate.run(p, image), rtol=0, atol=1e-5)
-    assert list(cpu._fallback_cache().glob("k_*.py"))
+    assert list(cpu.fallback_cache().glob("k_*.py"))
 
 
 def test_a_cache_that_cannot_be_written_costs_the_cache_not_the_run(tmp_path):

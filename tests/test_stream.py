@@ -159,8 +159,8 @@ def test_gl_textures_count_in_the_budget():
     """The GL executor holds each image in a power-of-two RGBA32F texture (host memory on llvmpipe): they count
     in the estimate, and a picture they pad runs in bands (520×520 pads to 1024×1024), one they do not pad
     (a 512×512 blur: no guard at any level) runs whole when it fits."""
+    from pyramid_cli.exec.emulate import Emulator
     from pyramid_cli.exec.gl import GLExecutor
-    from pyramid_cli.exec.tiles import Emulator
 
     p = Blur(levels=3).plan([(520, 520)])
     cpu = stream.choose(p, 4, 24 << 20)

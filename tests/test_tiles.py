@@ -9,6 +9,7 @@ from cases import CHAINS, NAMED, several_inputs_and_outputs
 from pyramid_cli.core.geometry import level_sizes
 from pyramid_cli.core.parse import parse
 from pyramid_cli.exec import tiles
+from pyramid_cli.exec.emulate import Emulator
 from pyramid_cli.jobs.work import Blur, Collapse, Filter, Laplacian, Levels
 from pyramid_cli.plan import plan
 
@@ -49,7 +50,7 @@ def run_grid(executor, dtype, texts, tiles_, borders):
 
 
 # ------------------------------------------------------------------ the emulator
-EMU = tiles.Emulator()
+EMU = Emulator()
 
 
 @pytest.mark.parametrize("text", NAMED + CHAINS)

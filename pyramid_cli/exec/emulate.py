@@ -1,8 +1,10 @@
-"""The living definition of a :class:`~pyramid_cli.plan.Plan`: numpy, software bilinear.
+"""The living definition of a :class:`~pyramid_cli.plan.model.Plan`: numpy, software bilinear.
 
 It runs a plan exactly as the GL executor must (same coordinates, same clamping
 to each texture's stored extent, same bilinear mixing), so tests can check the
-planner without GL, and the GL executor against it.
+planner without GL, and the GL executor against it. :class:`Emulator` is the same
+behind the :class:`~pyramid_cli.exec.base.Executor` protocol (the session's executor
+where neither GL nor numba is usable, and the tile scheduler's float64 reference).
 """
 
 from __future__ import annotations
@@ -11,7 +13,7 @@ import numpy as np
 
 from pyramid_cli.core.border import Border, fold
 from pyramid_cli.core.geometry import base_index
-from pyramid_cli.plan import Image, Plan, PointwisePass, ResamplePass, Tap
+from pyramid_cli.plan.model import Image, Plan, PointwisePass, ResamplePass, Tap
 
 
 def pointwise(op: str, srcs: list[np.ndarray], param: float = 1.0) -> np.ndarray:
@@ -186,3 +188,46 @@ def _read(plan: Plan, stored, t: Tap, base_r: np.ndarray, base_c: np.ndarray) ->
     rows = base_r - float(t.offset[0])
     cols = base_c - float(t.offset[1])
     return sample(stored[t.source], (src.guard[0], src.guard[1]), rows, cols, src.border)
+
+
+class Emulator:
+    """The plan emulator behind the :class:`~pyramid_cli.exec.base.Executor` protocol: numpy, float64.
+
+    Its intermediates are float64 (``work_dtype``): :meth:`run_outputs` returns them as they are
+    for ``dtype=float64`` (its default, what the tile scheduler asks), and otherwise rounds them
+    as every executor rounds, float64 → float32 → ``dtype``.
+    """
+
+    name = "cpu (numpy plan emulator)"
+    backend = "cpu"       # stands in for the compiled CPU executor where numba is missing
+    strategy = "cost"
+    work_dtype = np.dtype(np.float64)
+    max_texture_size = None
+    host_textures = False
+
+    @staticmethod
+    def texture_bytes(extent: tuple[int, int]) -> int:
+        """No textures beside the pictures: 0."""
+        return 0
+
+    def run_outputs(self, plan: Plan, images, dtype=np.float64) -> list[np.ndarray]:
+        """Every image of ``plan.outputs`` (:func:`run_outputs`), float64, or rounded to ``dtype``."""
+        outs = run_outputs(plan, list(images) if isinstance(images, (list, tuple)) else images)
+        if np.dtype(dtype) == np.float64:
+            return outs
+        return [rounded(o, dtype) for o in outs]
+
+    def uncached(self, plan: Plan, dtype=np.float32) -> int:
+        """Nothing to compile: 0."""
+        return 0
+
+    def prepare(self, plan: Plan) -> None:
+        """Nothing to get ready."""
+
+    def close(self) -> None:
+        """Nothing held."""
+
+
+def rounded(values: np.ndarray, dtype) -> np.ndarray:
+    """A float64 result as ``dtype``, through float32 as the executors round: float64 → float32 → half."""
+    return np.asarray(values).astype(np.float32).astype(dtype, copy=False)

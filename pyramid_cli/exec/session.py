@@ -21,38 +21,21 @@ import numpy as np
 
 from pyramid_cli.core import options
 from pyramid_cli.core.errors import BackendError, DataError
+from pyramid_cli.exec.base import Executor
+from pyramid_cli.exec.emulate import Emulator, rounded
+from pyramid_cli.exec.gl.context import is_software_renderer
 from pyramid_cli.jobs.work import Work
-from pyramid_cli.plan import Plan
-
-SOFTWARE_RENDERERS = ("llvmpipe", "softpipe", "swrast", "software rasterizer", "lavapipe")
+from pyramid_cli.plan.model import Plan
 
 
-class EmulatorExecutor:
-    """The plan emulator (:mod:`pyramid_cli.exec.emulate`) behind the executor interface: numpy, float64."""
-
-    name = "cpu (numpy plan emulator)"
-
-    def run_outputs(self, plan: Plan, images, dtype=np.float32) -> list[np.ndarray]:
-        from pyramid_cli.exec import emulate
-
-        return [_rounded(o, dtype) for o in emulate.run_outputs(plan, list(images))]
-
-    def prepare(self, plan: Plan) -> None:
-        pass
-
-    def close(self) -> None:
-        pass
-
-
-def _compiled_cpu(threads: int | None):
+def _compiled_cpu(threads: int | None) -> Executor | None:
     """The compiled CPU executor when numba is usable here, else None."""
     from pyramid_cli.exec import cpu
 
-    ok, _why = cpu.available()
-    return cpu.CPUExecutor(threads=threads) if ok else None
+    return cpu.CPUExecutor(threads=threads) if cpu.available()[0] else None
 
 
-def _cpu_executor(threads: int | None, warn=None, required: bool = False):
+def _cpu_executor(threads: int | None, warn=None, required: bool = False) -> Executor:
     """The compiled CPU executor; without numba, BackendError when ``required`` (``--backend cpu``), else the
     numpy plan emulator with a warning (``auto`` on a machine with neither GL nor numba)."""
     compiled = _compiled_cpu(threads)
@@ -65,12 +48,7 @@ def _cpu_executor(threads: int | None, warn=None, required: bool = False):
         raise BackendError(why)
     if warn is not None:
         warn(f"{why}; running the numpy plan emulator (slow, exact)")
-    return EmulatorExecutor()
-
-
-def is_software_renderer(renderer: str) -> bool:
-    low = renderer.lower()
-    return any(name in low for name in SOFTWARE_RENDERERS)
+    return Emulator()
 
 
 class Session:
@@ -104,8 +82,8 @@ class Session:
         self.precision = precision
         self.threads = threads
         self._warn = warn or (lambda msg: print(f"pyramid: warning: {msg}", file=sys.stderr))
-        self._executor = None
-        self._cpu = None
+        self._executor: Executor | None = None
+        self._cpu: Executor | None = None
         self.why = ""          # why this executor, in one line (for -v)
         self.ran = ""          # the executor that ran the last job
         self._choose()
@@ -149,18 +127,19 @@ class Session:
 
     @property
     def on_gl(self) -> bool:
-        return _is_gl(self._executor)
+        """Whether this session runs on the GL executor."""
+        return self._executor is not None and self._executor.backend == "gl"
 
     @property
-    def executor(self):
-        """The executor object (GLExecutor, the CPU executor, or None for the reference)."""
+    def executor(self) -> Executor | None:
+        """The executor (GLExecutor, the CPU executor, the emulator, or None for the reference)."""
         return self._executor
 
     # ------------------------------------------------------------ running
     def plan(self, work: Work, sizes, executor=None) -> Plan | None:
         """``work``'s plan for inputs of ``sizes``, as the executor wants it planned (its ``strategy``:
         the GL executor's calibrated cost model by default, one fused pass per filter on the CPU)."""
-        strategy = getattr(executor or self._executor, "strategy", "cost")
+        strategy = (executor or self._executor).strategy
         return work.plan(tuple(tuple(s[:2]) for s in sizes), strategy)
 
     def run(self, work: Work, images, dtype=np.float32) -> list[np.ndarray]:
@@ -176,7 +155,7 @@ class Session:
         kept = [images[0]] if work.keeps_input else []
         if self._executor is None:
             self.ran = "reference"
-            return kept + [_rounded(o, dtype) for o in work.reference(images)]
+            return kept + [rounded(o, dtype) for o in work.reference(images)]
         p = self.plan(work, [im.shape for im in images])
         if p is None:
             self.ran = self.name
@@ -198,7 +177,7 @@ class Session:
             self._warn(f"{e.message}; running this image on the CPU")
         if self._cpu is None:
             self._cpu = _cpu_executor(self.threads, self._warn)
-        if getattr(self._cpu, "strategy", "cost") != getattr(self._executor, "strategy", "cost") and work is not None:
+        if self._cpu.strategy != self._executor.strategy and work is not None:
             p = self.plan(work, [im.shape for im in images], self._cpu)
         outs = self._cpu.run_outputs(p, images, dtype)
         self.ran = _name(self._cpu)
@@ -207,12 +186,11 @@ class Session:
     def uncached(self, work: Work, images, dtype=np.float32) -> int:
         """Kernels the CPU executor must compile before it can run ``work`` on ``images`` (0 elsewhere):
         a first run on a machine compiles them once, about a second each."""
-        count = getattr(self._executor, "uncached", None)
-        if count is None:
+        if self._executor is None:
             return 0
         p = self.plan(work, [im.shape for im in images])
         half = any(np.asarray(im).dtype == np.float16 for im in images)
-        return count(p, np.float16 if half else np.float32) if p is not None else 0
+        return self._executor.uncached(p, np.float16 if half else np.float32) if p is not None else 0
 
     def prepare(self, work: Work, sizes) -> None:
         """Get ready to run ``work`` on inputs of ``sizes`` (GL: compile, allocate); never fails."""
@@ -236,21 +214,8 @@ class Session:
         self.close()
 
 
-def _is_gl(executor) -> bool:
-    return executor is not None and hasattr(executor, "max_texture_size")
+def _name(executor: Executor | None) -> str:
+    return "reference" if executor is None else executor.name
 
 
-def _name(executor) -> str:
-    if executor is None:
-        return "reference"
-    if _is_gl(executor):
-        return f"gl ({executor.renderer})"
-    return executor.name
-
-
-def _rounded(values: np.ndarray, dtype) -> np.ndarray:
-    """A float64 result as ``dtype``, through float32 as the executors round: float64 → float32 → half."""
-    return np.asarray(values).astype(np.float32).astype(dtype, copy=False)
-
-
-__all__ = ["Session", "EmulatorExecutor", "is_software_renderer", "SOFTWARE_RENDERERS"]
+__all__ = ["Session", "is_software_renderer"]

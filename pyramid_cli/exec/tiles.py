@@ -1,4 +1,4 @@
-"""Tiled execution of any :class:`~pyramid_cli.plan.Plan`: bounded memory, the untiled run's pixels.
+"""Tiled execution of any :class:`~pyramid_cli.plan.model.Plan`: bounded memory, the untiled run's pixels.
 
 Every output pixel of a plan depends on a bounded window of its inputs: the rectangles
 that :meth:`Pass.reads <pyramid_cli.plan.model.Pass.reads>` gives, which include the guard
@@ -38,22 +38,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pyramid_cli.core.border import Border, fold
-from pyramid_cli.plan import Image, Plan
+from pyramid_cli.exec.base import Executor
+from pyramid_cli.plan.model import Image, Plan
 
 Rect = tuple[tuple[int, int], tuple[int, int]]
 Source = Callable[[int, tuple[int, int], tuple[int, int]], np.ndarray]   # (input, rows, cols) → (h, w, C)
 Sink = Callable[[int, int, int, np.ndarray], None]                       # (output, row, col, pixels)
-
-
-class Emulator:
-    """:mod:`pyramid_cli.exec.emulate` with the executors' ``run_outputs`` (float64 throughout)."""
-
-    name = "emulate"
-
-    def run_outputs(self, plan: Plan, images, dtype=np.float64) -> list[np.ndarray]:
-        from pyramid_cli.exec import emulate
-
-        return emulate.run_outputs(plan, images)
 
 
 def _restrict(span: tuple[int, int], extent: tuple[int, int], border: str) -> tuple[int, int]:
@@ -103,9 +93,10 @@ class Scheduler:
 
     Parameters
     ----------
-    executor
-        Anything with ``run_outputs(plan, images, dtype)``: :class:`~pyramid_cli.exec.cpu.CPUExecutor`,
-        :class:`~pyramid_cli.exec.gl.GLExecutor`, :class:`Emulator`.
+    executor : Executor
+        Runs the one-pass plans (:class:`~pyramid_cli.exec.base.Executor`: its ``run_outputs``):
+        :class:`~pyramid_cli.exec.cpu.CPUExecutor`, :class:`~pyramid_cli.exec.gl.GLExecutor`,
+        :class:`~pyramid_cli.exec.emulate.Emulator`.
     plan : Plan
         Any plan of tileable passes (every kind with ``reads`` and ``tile``).
     source : callable
@@ -121,8 +112,8 @@ class Scheduler:
         What the executor stores intermediates as (float32; the emulator keeps float64).
     """
 
-    def __init__(self, executor, plan: Plan, source: Source, sink: Sink, *, band: int, width: int | None = None,
-                 dtype=np.float32):
+    def __init__(self, executor: Executor, plan: Plan, source: Source, sink: Sink, *, band: int,
+                 width: int | None = None, dtype=np.float32):
         self.executor, self.plan, self.source, self.sink = executor, plan, source, sink
         self.band = max(1, int(band))
         rows = max(plan.images[k].size[0] for k in plan.outputs)
@@ -321,7 +312,7 @@ def ps_period(ps) -> int:
     return int(period[0])
 
 
-def run_arrays(executor, plan: Plan, images, *, band: int, width: int | None = None, dtype=np.float32,
+def run_arrays(executor: Executor, plan: Plan, images, *, band: int, width: int | None = None, dtype=np.float32,
                out: list[np.ndarray] | None = None, convert=None) -> list[np.ndarray]:
     """Run ``plan`` tiled on in-memory (or memory-mapped) arrays; every ``plan.outputs`` image.
 
@@ -337,7 +328,7 @@ def run_arrays(executor, plan: Plan, images, *, band: int, width: int | None = N
     if out is None:
         out = [np.empty(plan.images[k].size + channels, dtype=dtype) for k in plan.outputs]
     slots = {k: i for i, k in enumerate(plan.outputs)}
-    native = np.float64 if isinstance(executor, Emulator) else np.float32
+    native = np.float64 if executor.work_dtype == np.float64 else np.float32
 
     def source(k, rows, cols):
         a = by_index[k][rows[0]:rows[1], cols[0]:cols[1]]
@@ -361,4 +352,4 @@ def tileable(plan: Plan) -> bool:
     return all(hasattr(ps, "tile") for ps in plan.passes)
 
 
-__all__ = ["Scheduler", "Emulator", "run_arrays", "tileable"]
+__all__ = ["Scheduler", "run_arrays", "tileable", "ps_period"]

@@ -274,25 +274,19 @@ def choose_mip(plan: Plan, channels: int, budget: int, *, in_bytes: int = 4, wor
 
 
 def _executor(session):
-    from pyramid_cli.exec import tiles
-    from pyramid_cli.exec.session import EmulatorExecutor
-
     ex = session.executor
     if ex is None:
         raise UsageError("--memory needs a plan executor (--backend gl or cpu): the reference backend "
                          "holds whole pictures")
-    return tiles.Emulator() if isinstance(ex, EmulatorExecutor) else ex
+    return ex
 
 
 def costs(executor) -> dict:
     """What ``executor`` holds per pixel beyond the pictures, as :func:`choose` takes it: float64 working
     images (the emulator), and textures in host memory (GL on a software renderer: ``host_textures``; a GPU's
     are in its own memory, which ``--memory`` does not budget)."""
-    from pyramid_cli.exec import tiles
-
-    host = getattr(executor, "host_textures", False)
-    return {"work_bytes": 8 if isinstance(executor, tiles.Emulator) else 4,
-            "texture": executor.texture_bytes if host else None}
+    return {"work_bytes": np.dtype(executor.work_dtype).itemsize,
+            "texture": executor.texture_bytes if executor.host_textures else None}
 
 
 def stream_file(in_path: str, out_path: str | list[str], work, session, choice: Choice | None = None, *,
@@ -328,7 +322,7 @@ def stream_file(in_path: str, out_path: str | list[str], work, session, choice: 
         half = stream.dtype == np.float16
         dtypes = [np.float16 if half and io.stores_half_unchanged(p, info, pixel_type=options.get("pixel_type"))
                   else np.float32 for p in paths]
-        emu = isinstance(executor, tiles.Emulator)
+        emu = executor.work_dtype == np.float64
         if choice is None:
             choice = choose(plan, c, budget, in_bytes=stream.dtype.itemsize, out_bytes=4, force=True, where=in_path,
                             keeps_input=bool(kept), **costs(executor))
@@ -585,7 +579,7 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
     budget = memory if memory is not None else default_memory()
     in_path, out_path = job.input, job.output
     executor = _executor(session)
-    emu = isinstance(executor, tiles.Emulator)
+    emu = executor.work_dtype == np.float64
 
     def open_input():
         return io.open_stream(in_path, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan, keep_half=True)

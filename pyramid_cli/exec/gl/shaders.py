@@ -3,9 +3,10 @@
 This module is ``pyramid_cli.exec.gl.shaders``, next to its templates in the package
 ``pyramid_cli.exec.gl`` (installed with them as package data, see ``pyproject.toml``).
 
-A pass of a :class:`~pyramid_cli.plan.Plan` becomes a :class:`PassShape`: everything a
-fragment shader needs except sizes and guard bands (those are uniforms), so one compiled program serves every image
-size and every plan that has a pass of the same shape. The shape's taps are
+A pass of a :class:`~pyramid_cli.plan.model.Plan` becomes a :class:`~pyramid_cli.plan.shapes.PassShape`
+(:mod:`pyramid_cli.plan.shapes`): everything a fragment shader needs except sizes and guard bands (those are
+uniforms), so one compiled program serves every image size and every plan that has a pass of the same shape.
+The shape's taps are
 written into the fragment shader as constants (``#define`` for the period and
 stride, one generated line per tap), which keeps the program free of loops and
 dynamic indexing.
@@ -16,7 +17,6 @@ without a context.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from fractions import Fraction
 from functools import cache
 from importlib.resources import files
@@ -24,7 +24,7 @@ from importlib.resources import files
 import numpy as np
 
 from pyramid_cli.core.errors import BackendError
-from pyramid_cli.plan import Image, Pass, PointwisePass
+from pyramid_cli.plan.shapes import PassShape, PointwiseShape, ShapeTap, pointwise_shape, shape, sources
 
 VERTEX = "fullscreen.vert.glsl"
 FRAGMENT = "pass.frag.glsl"
@@ -39,59 +39,6 @@ class ShaderCompileError(BackendError):
 def load(name: str) -> str:
     """Text of the template ``name`` from the package ``pyramid_cli.exec.gl`` (this folder)."""
     return files(__package__).joinpath(name).read_text(encoding="utf-8")
-
-
-@dataclass(frozen=True)
-class ShapeTap:
-    slot: int                          # index into the pass's sorted sources
-    offset: tuple[Fraction, Fraction]  # (rows, columns), reads source index R − t
-    weight: Fraction
-
-    @property
-    def exact_texel(self) -> bool:
-        """Integral offset: one texel, read with texelFetch (equals bilinear there)."""
-        return all(o.denominator == 1 for o in self.offset)
-
-
-@dataclass(frozen=True)
-class PassShape:
-    """The canonical description of a pass, the key of the program cache."""
-
-    period: tuple[int, int]
-    stride: tuple[int, int]
-    n_sources: int
-    phases: tuple[tuple[tuple[int, int], tuple[ShapeTap, ...]], ...]  # sorted by phase
-    borders: tuple[str, ...] = ()  # per slot: how reads past the source's extent fold (empty: all clamp)
-
-    def border(self, slot: int) -> str:
-        return self.borders[slot] if self.borders else "clamp"
-
-
-def sources(ps: Pass) -> list[int]:
-    """The pass's source images in slot order (slot k is texture unit k); a pointwise pass's
-    operands in their order."""
-    if isinstance(ps, PointwisePass):
-        return list(ps.srcs)
-    return sorted(ps.sources())
-
-
-def shape(ps: Pass, images: list[Image] | None = None) -> PassShape:
-    """Canonical shape of ``ps``: its taps with image indices replaced by slots.
-
-    With the plan's ``images``, the shape also records each source's border mode
-    (a non-clamp border folds reads in the shader); without, every source clamps.
-    """
-    if isinstance(ps, PointwisePass):
-        return pointwise_shape(ps)  # type: ignore[return-value]
-    slot = {src: k for k, src in enumerate(sources(ps))}
-    phases = tuple(sorted(
-        (tuple(ph), tuple(ShapeTap(slot[t.source], (Fraction(t.offset[0]), Fraction(t.offset[1])),
-                                   Fraction(t.weight)) for t in taps))
-        for ph, taps in ps.phases.items()))
-    borders = tuple(images[src].border for src in sources(ps)) if images is not None else ()
-    if all(b == "clamp" for b in borders):
-        borders = ()
-    return PassShape(tuple(ps.period), tuple(ps.stride), len(slot), phases, borders)
 
 
 # ------------------------------------------------------------------ GLSL text
@@ -295,19 +242,6 @@ POINTWISE_GLSL = {
     "over": ["frag_color = a + (1.0 - b) * c;"],
     "blend": ["frag_color = c * a + (1.0 - c) * b;"],
 }
-
-
-@dataclass(frozen=True)
-class PointwiseShape:
-    """The program-cache key of a pointwise pass: its op, operand count and parameter."""
-
-    op: str
-    n_sources: int
-    param: Fraction
-
-
-def pointwise_shape(ps: PointwisePass) -> PointwiseShape:
-    return PointwiseShape(ps.op, len(ps.srcs), Fraction(ps.param))
 
 
 def pointwise_fragment_source(s: PointwiseShape) -> str:

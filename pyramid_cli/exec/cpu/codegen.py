@@ -1,0 +1,380 @@
+"""Code generation for the CPU executor: a pass shape as the Python source of one numba kernel.
+
+Meaning (the contract of :mod:`pyramid_cli.exec.emulate`): a tap with offset ``t`` of a pass
+of period ``P`` and stride ``S`` reads the source at logical index ``S·⌈r/P⌉ − t``; a
+fraction ``α`` of that index mixes the two neighbouring texels ``(1 − α)·read(i) +
+α·read(i + 1)`` per axis, and ``read`` folds an integer index through the source's
+border mode over its stored extent (clamp, mirror, wrap, zero; :mod:`pyramid_cli.core.border`).
+For clamp this equals the emulator's clamped bilinear read: outside the extent both
+neighbours are the edge texel. A tap is therefore expanded into at most four texel reads
+with exact rational weights (summed over taps reading the same texel), written into the
+kernel as float32 literals (:func:`kernel_source`); the loops are plain strided loops over
+rows and columns that LLVM vectorises. Resampling passes share one table-driven kernel per
+axis (:func:`resample_source`), pointwise passes one kernel per op (:func:`pointwise_source`).
+
+This module only writes text: numba is imported by the generated sources, compiled in
+:mod:`pyramid_cli.exec.cpu.compile`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from fractions import Fraction
+from math import floor
+
+import numpy as np
+
+from pyramid_cli.plan.model import POINTWISE_OPS
+from pyramid_cli.plan.shapes import PassShape
+
+KERNEL_VERSION = 3           # bump when the generated text changes meaning: new files, new cache entries
+VARIANTS = (4, 1, None)   # channel counts with an unrolled copy of the strided loops (None: any C)
+
+
+# ------------------------------------------------------------------ kernel text
+@dataclass(frozen=True)
+class Term:
+    """One texel read of a phase: source ``slot`` at row ``S·m + dr``, column ``S·n + dc`` (base-relative)."""
+
+    slot: int
+    dr: int
+    dc: int
+    weight: Fraction
+
+
+def _axis_points(position: Fraction) -> list[tuple[int, Fraction]]:
+    """Texels (integer offset, weight) a bilinear read at ``position`` mixes along one axis."""
+    i = floor(position)
+    a = position - i
+    return [(i, 1 - a), (i + 1, a)] if a else [(i, Fraction(1))]
+
+
+def phase_terms(taps) -> list[Term]:
+    """The taps of one phase (``ShapeTap``: reads index ``R − t``) as texel reads with exact weights."""
+    acc: dict[tuple[int, int, int], Fraction] = {}
+    for t in taps:
+        for dr, wr in _axis_points(-Fraction(t.offset[0])):
+            for dc, wc in _axis_points(-Fraction(t.offset[1])):
+                key = (t.slot, dr, dc)
+                acc[key] = acc.get(key, Fraction(0)) + Fraction(t.weight) * wr * wc
+    return [Term(s, dr, dc, w) for (s, dr, dc), w in sorted(acc.items()) if w]
+
+
+def _f32(x: Fraction) -> str:
+    return repr(float(np.float32(float(x))))
+
+
+def _name(slot: int, d: int) -> str:
+    return f"r{slot}_{'m' if d < 0 else 'p'}{abs(d)}"
+
+
+def factor(mats: list[dict[tuple[int, int], Fraction]]):
+    """``u, [v_j]`` with ``mats[j][dr, dc] = u[dr]·v_j[dc]`` for every j (one vertical sum serves every
+    column phase), or None when the texel weights of these phases do not factor so."""
+    drs = sorted({dr for m in mats for dr, _ in m})
+    u: list[Fraction] | None = None
+    pivot = 0
+    vs: list[dict[int, Fraction]] = []
+    for m in mats:
+        v: dict[int, Fraction] = {}
+        for dc in sorted({dc for _, dc in m}):
+            col = [m.get((dr, dc), Fraction(0)) for dr in drs]
+            if u is None:
+                pivot = next(i for i, x in enumerate(col) if x)
+                u = [x / col[pivot] for x in col]
+            scale = col[pivot]
+            if any(x != scale * y for x, y in zip(col, u, strict=True)):
+                return None
+            if scale:
+                v[dc] = scale
+        vs.append(v)
+    if u is None:
+        return None
+    total = sum(u)  # vertical weights summing to 1 where they can (tidier literals)
+    if total:
+        u = [x / total for x in u]
+        vs = [{dc: w * total for dc, w in v.items()} for v in vs]
+    return {dr: x for dr, x in zip(drs, u, strict=True) if x}, vs
+
+
+def kernel_source(s: PassShape, half: tuple[bool, ...]) -> str:
+    """Python source of the numba kernel of one pass shape; ``half[k]``: source slot k is float16 (as uint16).
+
+    Arrays are flat per row: ``out`` is (rows, columns·C), every source likewise, ``C`` the
+    channel count. The kernel computes the output groups ``m ∈ [m0, m1)`` of rows (the ``P``
+    rows sharing one base row ``S·m``) and, per column phase ``j``, the column groups
+    ``[lo_j, hi_j)``: output row ``P·m + i + yoff`` (``i = 1..P``), column ``P·n + j + xoff``;
+    source slot k row ``S·m + dr + ro_k``, column ``S·n + dc + co_k``. Every index it touches
+    must lie inside the arrays: the caller guarantees it (interior or window).
+
+    Per row phase and source, texel weights that factor as ``u[dr]·v[dc]`` (every separable
+    filter of the catalogue) are read as one vertical sum over the row span (a contiguous,
+    vectorised loop) and then a horizontal one; others are summed texel by texel. Loops
+    over columns of stride or period 1 run over the flat row (vectorised for any C); the
+    others have copies for C = 4 and 1 (:data:`VARIANTS`) with the channel loop unrolled.
+    """
+    (pr, pc), (sr, sc) = s.period, s.stride
+    table = {ph: phase_terms(taps) for ph, taps in s.phases}
+    slots = range(s.n_sources)
+    params = ["out"] + [f"s{k}" for k in slots] + (["lut"] if any(half) else []) + ["C"]
+    params += ["m0", "m1", "yoff", "xoff"] + [f"{e}{j}" for j in range(1, pc + 1) for e in ("lo", "hi")]
+    params += [f"{e}{k}" for k in slots for e in ("ro", "co")]
+    weights: dict[str, str] = {}
+    consts: set[int] = set()
+    scaled: set[int] = set()
+    tmps: set[int] = set()
+    unit = pc == 1 and sc == 1
+
+    def unsigned(v: int) -> str:  # unsigned index arithmetic: no negative-index wraparound, loops vectorise
+        consts.add(v)
+        return f"U{v}"
+
+    def times_c(v: int, cc: int | None) -> str:
+        if cc is not None:
+            return unsigned(v * cc)
+        scaled.add(v)
+        return f"D{v}"
+
+    def wsum(pairs: list[tuple[Fraction, str]]) -> str:
+        """Σ w·read with the reads of one weight added first: one multiply per distinct weight."""
+        groups: dict[Fraction, list[str]] = {}
+        for w, read in pairs:
+            groups.setdefault(w, []).append(read)
+        parts = [weighted(w, reads[0] if len(reads) == 1 else f"({' + '.join(reads)})") for w, reads in groups.items()]
+        return " + ".join(parts) or "ZERO"
+
+    def weighted(w: Fraction, read: str) -> str:
+        if w == 1:
+            return read
+        name = weights.setdefault(_f32(w), f"W{len(weights)}")
+        return f"{name} * {read}"
+
+    def loop(hterms: dict, phases: list[int], lo: str, hi: str, variants: tuple) -> list[str]:
+        """Column groups [lo, hi) writing column phases ``phases``; hterms[j]: (array, slot, dc, w, half)."""
+        used = [t for j in phases for t in hterms[j]]
+        low = {k: min(t[2] for t in used if t[1] == k) for k in {t[1] for t in used}}
+        out = [f"            n0 = {lo}", f"            n1 = {hi}", "            if n1 > n0:"]
+        ind = "                "
+        if unit:
+            out.append(f"{ind}fo = np.uint64((n0 + 1 + xoff) * C)")
+            out += [f"{ind}f{k} = np.uint64((n0 + co{k} + {d}) * C)" for k, d in sorted(low.items())]
+            out.append(f"{ind}for g in range(np.uint64((n1 - n0) * C)):")
+            parts = [(w, _read(arr, f"f{k} + g + {times_c(dc - low[k], None)}", h)) for arr, k, dc, w, h in hterms[1]]
+            out.append(f"{ind}    o[fo + g] = {wsum(parts)}")
+            return out
+        out.append(f"{ind}x0 = np.uint64({pc} * n0 + {phases[0]} + xoff)")
+        out += [f"{ind}b{k} = np.uint64({sc} * n0 + co{k} + {d})" for k, d in sorted(low.items())]
+        for v, cc in enumerate(variants):
+            head = "else:" if cc is None and v else f"if C == {cc}:" if cc is not None else None
+            pad = ind + ("    " if head else "")
+            if head:
+                out.append(ind + (head if v == 0 or cc is None else "el" + head))
+            width = unsigned(cc) if cc is not None else "CU"
+            out.append(f"{pad}for n in range(np.uint64(n1 - n0)):")
+            out.append(f"{pad}    x = (x0 + {unsigned(pc)} * n) * {width}")
+            out += [f"{pad}    c{k} = (b{k} + {unsigned(sc)} * n) * {width}" for k in sorted(low)]
+            if cc is None:
+                out.append(f"{pad}    for c in range({width}):")
+                for j in phases:
+                    target = "x + c" if j == phases[0] else f"x + {times_c(j - phases[0], cc)} + c"
+                    parts = [(w, _read(arr, f"c{k} + {times_c(dc - low[k], cc)} + c", h))
+                             for arr, k, dc, w, h in hterms[j]]
+                    out.append(f"{pad}        o[{target}] = {wsum(parts)}")
+                continue
+            # channels unrolled, every load before any store: the arrays may alias as far as LLVM
+            # knows, so a store between loads would keep the SLP vectoriser from packing them
+            names: dict[tuple[str, int, int], int] = {}
+            for j in phases:
+                for arr, k, dc, _, h in hterms[j]:
+                    if (arr, k, dc) not in names:
+                        names[(arr, k, dc)] = n = len(names)
+                        for c in range(cc):
+                            read = _read(arr, f"c{k} + {unsigned((dc - low[k]) * cc + c)}", h)
+                            out.append(f"{pad}    v{n}_{c} = {read}")
+            for j in phases:
+                for c in range(cc):
+                    target = f"x + {unsigned((j - phases[0]) * cc + c)}"
+                    parts = [(w, f"v{names[(arr, k, dc)]}_{c}") for arr, k, dc, w, _ in hterms[j]]
+                    out.append(f"{pad}    o[{target}] = {wsum(parts)}")
+        return out
+
+    body = []
+    for i in range(1, pr + 1):
+        mats = {j: table.get((i % pr, j % pc)) or [] for j in range(1, pc + 1)}
+        hterms: dict[int, list] = {j: [] for j in mats}
+        rows: set[tuple[int, int]] = set()
+        vertical: list[str] = []
+        for k in slots:
+            per = [{(t.dr, t.dc): t.weight for t in mats[j] if t.slot == k} for j in mats]
+            if not any(per):
+                continue
+            f = factor(per)
+            if f is None:  # texel by texel
+                for j, m in zip(mats, per, strict=True):
+                    for (dr, dc), w in sorted(m.items()):
+                        rows.add((k, dr))
+                        hterms[j].append((_name(k, dr), k, dc, w, half[k]))
+                continue
+            u, vs = f
+            rows |= {(k, dr) for dr in u}
+            if len(u) == 1 and next(iter(u.values())) == 1:  # one row: read it directly
+                arr, h = _name(k, next(iter(u))), half[k]
+            else:
+                arr, h = f"t{k}", False
+                tmps.add(k)
+                dcs = [dc for v in vs for dc in v]
+                vertical += ["            if nB > nA:",
+                             f"                fa = np.uint64((nA * {sc} + co{k} + {min(dcs)}) * C)",
+                             f"                fb = np.uint64(((nB - 1) * {sc} + co{k} + {max(dcs)} + 1) * C)",
+                             "                for g in range(fa, fb):",
+                             f"                    t{k}[g] = " + wsum([
+                                 (w, _read(_name(k, dr), "g", half[k])) for dr, w in sorted(u.items())])]
+            for j, v in zip(mats, vs, strict=True):
+                hterms[j] += [(arr, k, dc, w, h) for dc, w in sorted(v.items())]
+        body += [f"        y = {pr} * m + {i} + yoff", "        if y >= 0 and y < H:", "            o = out[y]"]
+        body += [f"            {_name(k, dr)} = s{k}[{sr} * m + {dr} + ro{k}]" for k, dr in sorted(rows)]
+        if vertical:
+            body += ["            nA = 1 << 62", "            nB = -(1 << 62)"]
+            for j in range(1, pc + 1):
+                body += [f"            if hi{j} > lo{j}:", f"                nA = min(nA, lo{j})",
+                         f"                nB = max(nB, hi{j})"]
+            body += vertical
+        if pc > 1:  # every column phase in one loop where they cover the same groups (the interior)
+            same = " and ".join(f"lo{j} == lo1 and hi{j} == hi1" for j in range(2, pc + 1))
+            body.append(f"            if {same}:")
+            body += _indent(loop(hterms, list(range(1, pc + 1)), "lo1", "hi1", VARIANTS))
+            body.append("            else:")  # the border windows: each phase on its own
+            for j in range(1, pc + 1):
+                body += _indent(loop(hterms, [j], f"lo{j}", f"hi{j}", (None,)))
+        else:
+            body += loop(hterms, [1], "lo1", "hi1", VARIANTS)
+    decl = ["H = out.shape[0]", "CU = np.uint64(C)", "ZERO = np.float32(0.0)"]
+    decl += [f"{w} = np.float32({v})" for v, w in weights.items()]
+    decl += [f"U{v} = np.uint64({v})" for v in sorted(consts)]
+    decl += [f"D{v} = np.uint64({v}) * CU" for v in sorted(scaled)]
+    decl += [f"t{k} = np.empty(s{k}.shape[1], np.float32)" for k in sorted(tmps)]
+    lines = [
+        f"# generated by pyramid_cli.exec.cpu (kernel version {KERNEL_VERSION}); do not edit",
+        f"# shape: period {s.period}, stride {s.stride}, {s.n_sources} source(s), half {half}",
+        "import numpy as np",
+        "from numba import njit",
+        "",
+        "",
+        '@njit(nogil=True, cache=True, boundscheck=False, error_model="numpy")',
+        f"def kernel({', '.join(params)}):",
+    ] + [f"    {d}" for d in decl] + ["    for m in range(m0, m1):"] + body
+    return "\n".join(lines) + "\n"
+
+
+def _indent(lines: list[str]) -> list[str]:
+    return ["    " + ln for ln in lines]
+
+
+def _read(array: str, index: str, half: bool) -> str:
+    read = f"{array}[{index}]"
+    return f"lut[{read}]" if half else read
+
+
+# ------------------------------------------------------------------ resampling kernels (ResamplePass)
+RESAMPLE_SOURCE = {
+    # axis 0: output row j = Σ_k w[j, k] · source row idx[j, k]; a contiguous, vectorised loop over the row
+    0: """
+@njit(nogil=True, cache=True, boundscheck=False, error_model="numpy")
+def kernel(out, src, idx, w, C, j0, j1):
+    L = idx.shape[1]
+    for j in range(j0, j1):
+        o = out[j]
+        o[:] = 0.0
+        for k in range(L):
+            wk = w[j, k]
+            if wk != 0.0:
+                s = src[idx[j, k]]
+                for g in range(o.shape[0]):
+                    o[g] += wk * s[g]
+""",
+    # axis 1: output column j of every row r in [j0, j1) = Σ_k w[j, k] · source column idx[j, k]
+    1: """
+@njit(nogil=True, cache=True, boundscheck=False, error_model="numpy")
+def kernel(out, src, idx, w, C, j0, j1):
+    L = idx.shape[1]
+    n = idx.shape[0]
+    acc = np.empty(C, np.float32)
+    for r in range(j0, j1):
+        o = out[r]
+        s = src[r]
+        for j in range(n):
+            acc[:] = 0.0
+            for k in range(L):
+                wk = w[j, k]
+                base = idx[j, k] * C
+                for c in range(C):
+                    acc[c] += wk * s[base + c]
+            for c in range(C):
+                o[j * C + c] = acc[c]
+""",
+}
+RESAMPLE_SIGNATURE = "void(float32[:, ::1], float32[:, ::1], int64[:, ::1], float32[:, ::1], int64, int64, int64)"
+
+
+def resample_source(axis: int) -> str:
+    """Python source of the table-driven numba kernel of a :class:`ResamplePass` along ``axis``.
+
+    One kernel per axis serves every table (a 1001→500 axis has 500 different rows of weights:
+    they are data, not code). Indices arrive folded by the border mode; a "zero" read has weight 0.
+    """
+    return (f"# generated by pyramid_cli.exec.cpu (kernel version {KERNEL_VERSION}); do not edit\n"
+            f"# ResamplePass along axis {axis}\nimport numpy as np\nfrom numba import njit\n\n"
+            + RESAMPLE_SOURCE[axis])
+
+
+# ------------------------------------------------------------------ pointwise kernels
+# The formulas of plan.model.POINTWISE_OPS over flat float32 arrays (a, b, c the operands, K the param).
+POINTWISE_EXPR = {
+    "mul": "a[i] * b[i]",
+    "pull_colour": "a[i] * (min(ONE, K * b[i]) / b[i]) if b[i] > ZERO else ZERO",
+    "pull_weight": "min(ONE, K * a[i])",
+    "divide": "a[i] / b[i] if b[i] > ZERO else ZERO",
+    "over": "a[i] + (ONE - b[i]) * c[i]",
+    "blend": "c[i] * a[i] + (ONE - c[i]) * b[i]",
+}
+
+
+def pointwise_source(op: str, param: Fraction) -> str:
+    """Python source of the numba kernel of one pointwise op (:class:`~pyramid_cli.plan.model.PointwisePass`):
+    ``kernel(out, a[, b[, c]], i0, i1)`` computes the flat elements ``[i0, i1)``, float32 throughout."""
+    names = "abc"[:POINTWISE_OPS[op][0]]
+    return "\n".join([
+        f"# generated by pyramid_cli.exec.cpu (kernel version {KERNEL_VERSION}); do not edit",
+        f"# pointwise {op}, K = {param}",
+        "import numpy as np",
+        "from numba import njit",
+        "",
+        "",
+        '@njit(nogil=True, cache=True, boundscheck=False, error_model="numpy")',
+        f"def kernel(out, {', '.join(names)}, i0, i1):",
+        "    ONE = np.float32(1.0)",
+        "    ZERO = np.float32(0.0)",
+        f"    K = np.float32({_f32(param)})",
+        "    for i in range(i0, i1):",
+        f"        out[i] = {POINTWISE_EXPR[op]}",
+    ]) + "\n"
+
+
+
+def signature(n_sources: int, half: tuple[bool, ...], pc: int) -> str:
+    """The numba signature of :func:`kernel_source`'s kernel for a shape of ``n_sources`` slots and column period
+    ``pc`` (``half[k]``: slot k is read as uint16 through a float32 table)."""
+    arrays = ["float32[:, ::1]"] + ["uint16[:, ::1]" if h else "float32[:, ::1]" for h in half]
+    if any(half):
+        arrays.append("float32[::1]")
+    ints = 5 + 2 * pc + 2 * n_sources
+    return "void(" + ", ".join(arrays + ["int64"] * ints) + ")"
+
+
+def pointwise_signature(n_sources: int) -> str:
+    """The numba signature of :func:`pointwise_source`'s kernel with ``n_sources`` operands."""
+    return "void(" + ", ".join(["float32[::1]"] * (n_sources + 1) + ["int64"] * 2) + ")"
+
+
+__all__ = ["KERNEL_VERSION", "POINTWISE_EXPR", "RESAMPLE_SIGNATURE", "RESAMPLE_SOURCE", "VARIANTS", "Term", "factor",
+           "kernel_source", "phase_terms", "pointwise_signature", "pointwise_source", "resample_source", "signature"]

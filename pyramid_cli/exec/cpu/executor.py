@@ -1,0 +1,468 @@
+"""The compiled CPU executor: a :class:`~pyramid_cli.plan.model.Plan` as generated numba kernels.
+
+Where there is no GPU, the GL executor runs on Mesa's llvmpipe and pays for upload,
+read-back and power-of-two textures (DESIGN.md §6). This executor runs the same passes
+on the CPU without any of that: every pass of a plan becomes one numba function
+generated from the pass's taps (:mod:`pyramid_cli.exec.cpu.codegen`), so the paper's
+bilinear taps (§3–§5) are unrolled into the texel reads they stand for, compiled once
+per machine (:mod:`pyramid_cli.exec.cpu.compile`).
+
+Borders without copies: a pass's output is split into an *interior*, whose reads all fall
+inside every source's stored extent and which the kernel reads directly (no bounds checks,
+no padded copy of the source), and the border strips around it (a few rows and columns).
+For each strip the executor gathers the small window of source texels it reads, folded
+through the border mode, and runs the same kernel on that window. The interior is split
+into bands of rows run by a thread pool (the kernels release the GIL).
+
+Kernels are keyed by the pass's canonical :class:`~pyramid_cli.plan.shapes.PassShape`
+(taps with image indices replaced by source slots, the key of the GL program cache too)
+and the sources' storage (float32, or float16 inputs read through a 65536-entry table, so
+a half image is never copied to float32 whole).
+"""
+
+from __future__ import annotations
+
+import os
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from pyramid_cli.core.border import Border, fold
+from pyramid_cli.core.errors import BackendError
+from pyramid_cli.exec.cpu.codegen import (
+    RESAMPLE_SIGNATURE,
+    kernel_source,
+    phase_terms,
+    pointwise_signature,
+    pointwise_source,
+    resample_source,
+    signature,
+)
+from pyramid_cli.exec.cpu.compile import (
+    available,
+    cache_dir,
+    compile_plain,
+    compile_vectorised,
+    ensure_compiled,
+    load,
+    loaded,
+    on_disk,
+    source_digest,
+)
+from pyramid_cli.exec.emulate import plan_inputs, resample_table
+from pyramid_cli.plan.model import Plan, PointwisePass, ResamplePass
+from pyramid_cli.plan.shapes import PassShape, shape, sources
+
+SMALL = 1 << 20              # output floats below which a pass runs on the calling thread
+TINY = 1 << 14               # output floats up to which a pass runs as one call on one gathered window
+OUT_DTYPES = (np.dtype(np.float32), np.dtype(np.float16))
+
+
+def default_threads() -> int:
+    """The cores this process may use."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+@dataclass
+class Kernel:
+    """A compiled kernel of one pass shape, with what its caller needs to place its reads."""
+
+
+    fn: object       # the numba dispatcher, compiled for one signature
+    shape: PassShape
+    terms: dict      # phase → list[Term]
+    extents: list    # per slot: (dr_min, dr_max, dc_min, dc_max)
+
+
+# ------------------------------------------------------------------ folding
+def _fold(index: np.ndarray, n: int, border: str) -> np.ndarray:
+    """0-based stored indices folded into ``0..n−1`` by the border mode; −1 reads zero."""
+    return fold(index + 1, n, Border.parse(border)) - 1
+
+
+def _window(src: np.ndarray, rows: tuple[int, int], cols: tuple[int, int], border: str) -> np.ndarray:
+    """Texels ``rows[0]..rows[1]`` × ``cols[0]..cols[1]`` (inclusive, 0-based stored, possibly outside) of ``src``."""
+    ri = _fold(np.arange(rows[0], rows[1] + 1), src.shape[0], border)
+    ci = _fold(np.arange(cols[0], cols[1] + 1), src.shape[1], border)
+    win = src[np.ix_(np.maximum(ri, 0), np.maximum(ci, 0))]
+    if border == "zero":
+        win[ri < 0] = 0
+        win[:, ci < 0] = 0
+    return win
+
+
+def _ceil_div(a: int, b: int) -> int:
+    return -(-a // b)
+
+
+class CPUExecutor:
+    """Runs plans as generated numba kernels on the CPU (paper §3–§5 passes, DESIGN.md §5).
+
+    Parameters
+    ----------
+    threads : int, optional
+        Worker threads for the large passes; default: the cores this process may use.
+        ``1`` runs everything on the calling thread.
+    cache : str or Path, optional
+        Folder of generated kernel sources and numba's compiled code; default
+        :func:`~pyramid_cli.exec.cpu.compile.cache_dir`.
+
+    Attributes
+    ----------
+    compiles : int
+        Kernels compiled by this executor (cache misses: neither in this process nor on disk).
+    cache_loads : int
+        Kernels loaded from the disk cache (compiled by an earlier process).
+
+    It is an :class:`~pyramid_cli.exec.base.Executor`, with the public surface of
+    :class:`~pyramid_cli.exec.gl.GLExecutor` where it makes sense: :meth:`run`, :meth:`run_outputs`,
+    :meth:`prepare`, :meth:`close`, and it is a context manager. It holds no image memory between runs.
+    """
+
+    backend = "cpu"
+    strategy = "fused"  # one pass per written step: each pass streams its whole target through memory
+    work_dtype = np.dtype(np.float32)
+    max_texture_size = None  # no limit on an image's sides
+    host_textures = False    # no textures: it holds the pictures and nothing else
+
+    @staticmethod
+    def texture_bytes(extent: tuple[int, int]) -> int:
+        """No textures beside the pictures: 0."""
+        return 0
+
+    def __init__(self, threads: int | None = None, cache: str | Path | None = None):
+        ok, why = available()
+        if not ok:
+            raise BackendError(why)
+        self.threads = max(1, int(threads)) if threads else default_threads()
+        self.cache = Path(cache) if cache is not None else cache_dir()
+        self.compiles = 0
+        self.cache_loads = 0
+        self._kernels: dict[tuple, Kernel] = {}
+        self._pool: ThreadPoolExecutor | None = None
+        self._lut: np.ndarray | None = None
+
+    # ------------------------------------------------------------ lifetime
+    def close(self) -> None:
+        """Stop the worker threads (the executor can be used again afterwards)."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=True)
+        self._pool = None
+
+    def __enter__(self) -> CPUExecutor:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    @property
+    def name(self) -> str:
+        """What runs the plans, for messages: ``cpu (numba …, N threads)``."""
+        import numba
+
+        return f"cpu (numba {numba.__version__}, {self.threads} thread(s))"
+
+    def uncached(self, plan: Plan, dtype=np.float32) -> int:
+        """How many of ``plan``'s kernels are neither loaded in this process nor compiled on disk yet
+        (what a first run on a machine compiles: about a second each)."""
+        half_inputs = set(plan.inputs) if np.dtype(dtype) == np.float16 else set()
+        missing = set()
+        for ps in plan.passes:
+            if isinstance(ps, ResamplePass):
+                if ("resample", ps.axis) in self._kernels:
+                    continue
+                digest = source_digest(resample_source(ps.axis))
+                if not on_disk(self.cache, digest):
+                    missing.add(digest)
+                continue
+            if isinstance(ps, PointwisePass):
+                digest = source_digest(pointwise_source(ps.op, ps.param))
+                if not loaded(digest) and not on_disk(self.cache, digest):
+                    missing.add(digest)
+                continue
+            s = shape(ps)
+            half = tuple(src in half_inputs for src in sources(ps))
+            if (s, half) in self._kernels:
+                continue
+            digest = source_digest(kernel_source(s, half))
+            if loaded(digest):
+                continue
+            if not on_disk(self.cache, digest):
+                missing.add(digest)
+        return len(missing)
+
+    def info(self) -> dict:
+        """What runs the plans: numba's version, threads and the cache folder."""
+        import numba
+
+        return {"renderer": f"numba {numba.__version__} ({self.threads} thread(s))", "threads": self.threads,
+                "cache": str(self.cache)}
+
+    # ------------------------------------------------------------ kernels
+    def kernel(self, ps, half: tuple[bool, ...] | None = None) -> Kernel:
+        """The compiled kernel of a pass's shape (``half[k]``: source slot k stored as float16)."""
+        s = shape(ps)
+        half = tuple(half) if half is not None else (False,) * s.n_sources
+        key = (s, half)
+        k = self._kernels.get(key)
+        if k is None:
+            k = self._kernels[key] = self._build(s, half)
+        return k
+
+    def _ready(self, fn, sig: str, compile_=compile_plain) -> None:
+        """Compile ``fn`` for ``sig`` once (or load it from the disk cache), counting which it was."""
+        done = ensure_compiled(fn, sig, compile_)
+        if done == "loaded":
+            self.cache_loads += 1
+        elif done == "compiled":
+            self.compiles += 1
+
+    def _build(self, s: PassShape, half: tuple[bool, ...]) -> Kernel:
+        fn = load(kernel_source(s, half), self.cache)
+        sig = signature(s.n_sources, half, s.period[1])
+        self._ready(fn, sig, compile_vectorised)
+        terms = {ph: phase_terms(taps) for ph, taps in s.phases}
+        extents = []
+        for k in range(s.n_sources):
+            mine = [t for ts in terms.values() for t in ts if t.slot == k]
+            extents.append((min(t.dr for t in mine), max(t.dr for t in mine),
+                            min(t.dc for t in mine), max(t.dc for t in mine)) if mine else (0, 0, 0, 0))
+        return Kernel(fn, s, terms, extents)
+
+    def prepare(self, plan: Plan, dtype=np.float32) -> None:
+        """Compile (or load from the disk cache) the kernels of ``plan`` before running it.
+
+        ``dtype`` is the inputs' storage (float32, or float16 for half files).
+        """
+        half_inputs = set(plan.inputs) if np.dtype(dtype) == np.float16 else set()
+        for ps in plan.passes:
+            if isinstance(ps, ResamplePass):
+                self.resample_kernel(ps.axis)
+                continue
+            if isinstance(ps, PointwisePass):
+                self.pointwise_kernel(ps)
+                continue
+            self.kernel(ps, tuple(src in half_inputs for src in sources(ps)))
+
+    # ------------------------------------------------------------ resampling
+    def resample_kernel(self, axis: int):
+        """The compiled table-driven kernel of a :class:`ResamplePass` along ``axis`` (cached like the others)."""
+        key = ("resample", axis)
+        k = self._kernels.get(key)
+        if k is None:
+            fn = load(resample_source(axis), self.cache)
+            self._ready(fn, RESAMPLE_SIGNATURE)
+            k = self._kernels[key] = fn
+        return k
+
+    def _resample(self, plan: Plan, ps: ResamplePass, src: np.ndarray) -> np.ndarray:
+        """One :class:`ResamplePass` on a stored (H, W, C) float32 source; bands of output rows on the pool."""
+        fn = self.resample_kernel(ps.axis)
+        h, w, channels = src.shape
+        idx, weights = resample_table(ps, plan.images[ps.source], np.float32)
+        size = plan.images[ps.target].size
+        out = np.empty(size + (channels,), dtype=np.float32)
+        flat_out, flat_src = out.reshape(size[0], -1), src.reshape(h, -1)
+        args = (flat_out, flat_src, np.ascontiguousarray(idx), np.ascontiguousarray(weights), channels)
+        n = size[0]  # both kernels split their work by output rows
+        if self.threads == 1 or out.size < SMALL or n < 2:
+            fn(*args, 0, n)
+            return out
+        parts = min(n, self.threads * 2)
+        bounds = [n * i // parts for i in range(parts + 1)]
+        pool = self._workers()
+        for f in [pool.submit(fn, *args, a, b) for a, b in zip(bounds, bounds[1:], strict=False) if a < b]:
+            f.result()
+        return out
+
+    # ------------------------------------------------------------ running
+    def run(self, plan: Plan, image) -> np.ndarray:
+        """Execute ``plan`` on ``image`` (H, W) or (H, W, C); the logical pixels of the last output, float32."""
+        return self.run_outputs(plan, image)[-1]
+
+    def run_outputs(self, plan: Plan, images, dtype=np.float32) -> list[np.ndarray]:
+        """Execute ``plan`` with one image per ``plan.inputs``; the logical pixels of every ``plan.outputs``.
+
+        Parameters
+        ----------
+        plan : Plan
+            Any plan (paper §3–§5 filters, written chains, pyramids, every border mode).
+        images : ndarray or list of ndarray
+            (H, W) or (H, W, C) arrays, any C, one per ``plan.inputs``; float32 or float16
+            (read as is), anything else converted to float32.
+        dtype : float32 or float16
+            Output type; float16 is rounded to nearest even from the float32 result.
+
+        Returns
+        -------
+        list of ndarray
+            One per ``plan.outputs``, (H, W) for 2-D inputs, else (H, W, C).
+        """
+        dtype = np.dtype(dtype)
+        if dtype not in OUT_DTYPES:
+            raise ValueError(f"outputs are float32 or float16, not {dtype}")
+        arrays = _inputs(plan, images)
+        flat = arrays[0].ndim == 2
+        arrays = [a[:, :, None] if flat else a for a in arrays]
+        channels = arrays[0].shape[2]
+        stored: dict[int, np.ndarray] = {}
+        for k, a in zip(plan.inputs, arrays, strict=True):
+            stored[k] = np.ascontiguousarray(a.view(np.uint16) if a.dtype == np.float16 else a)
+        half = {k for k, a in zip(plan.inputs, arrays, strict=True) if a.dtype == np.float16}
+        last_read = {}
+        for i, ps in enumerate(plan.passes):
+            for s in ps.sources():
+                last_read[s] = i
+        keep = set(plan.outputs)
+        for i, ps in enumerate(plan.passes):
+            if isinstance(ps, ResamplePass):
+                src = stored[ps.source]
+                if ps.source in half:
+                    src = self._half_lut()[src]
+                stored[ps.target] = self._resample(plan, ps, np.ascontiguousarray(src))
+                if last_read[ps.source] == i and ps.source not in keep:
+                    del stored[ps.source]
+                continue
+            srcs = sources(ps)
+            target = plan.images[ps.target]
+            out = np.empty(target.stored + (channels,), dtype=np.float32)
+            if isinstance(ps, PointwisePass):
+                self._run_pointwise(ps, out, [self._float(stored[s]) if s in half else stored[s] for s in srcs])
+            else:
+                kern = self.kernel(ps, tuple(s in half for s in srcs))
+                self._run_pass(plan, ps, kern, out, [stored[s] for s in srcs], srcs)
+            stored[ps.target] = out
+            for s in srcs:
+                if last_read[s] == i and s not in keep:
+                    del stored[s]
+        results = []
+        for k in plan.outputs:
+            im = plan.images[k]
+            t, le = im.guard[0], im.guard[1]
+            a = stored[k]
+            if k in half:
+                a = a.view(np.float16)
+            a = a[t:t + im.size[0], le:le + im.size[1]]
+            if flat:
+                a = a[:, :, 0]
+            if k in plan.inputs:  # an input read back as given (level 0 of a pyramid): a copy
+                a = np.array(a, dtype=np.float32)
+            results.append(a.astype(dtype) if dtype != a.dtype else np.ascontiguousarray(a))
+        return results
+
+    def pointwise_kernel(self, ps: PointwisePass):
+        """The compiled kernel of a pointwise pass's op and parameter (:func:`pointwise_source`)."""
+        key = ("pointwise", ps.op, ps.param)
+        fn = self._kernels.get(key)
+        if fn is None:
+            fn = load(pointwise_source(ps.op, ps.param), self.cache)
+            self._ready(fn, pointwise_signature(len(ps.srcs)))
+            self._kernels[key] = fn
+        return fn
+
+    def _run_pointwise(self, ps: PointwisePass, out: np.ndarray, srcs: list[np.ndarray]) -> None:
+        """Every element of ``out`` by the op, in bands on the thread pool when large."""
+        fn = self.pointwise_kernel(ps)
+        flat = out.reshape(-1)
+        args = [np.ascontiguousarray(a, dtype=np.float32).reshape(-1) for a in srcs]
+        n = flat.size
+        if self.threads == 1 or n < SMALL:
+            fn(flat, *args, 0, n)
+            return
+        parts = self.threads * 2
+        bounds = [n * i // parts for i in range(parts + 1)]
+        futures = [self._workers().submit(fn, flat, *args, a, b) for a, b in zip(bounds, bounds[1:], strict=False)]
+        for f in futures:
+            f.result()
+
+    def _float(self, a: np.ndarray) -> np.ndarray:
+        """A float16 input (stored as uint16) as float32, through the table."""
+        return self._half_lut()[a]
+
+    def _run_pass(self, plan: Plan, ps, kern: Kernel, out: np.ndarray, srcs: list[np.ndarray],
+                  indices: list[int]) -> None:
+        (pr, pc), (sr, sc) = ps.period, ps.stride
+        H, W = out.shape[:2]
+        target = plan.images[ps.target]
+        yoff, xoff = target.guard[0] - pr - 1, target.guard[1] - pc - 1
+        imgs = [plan.images[s] for s in indices]
+        offs = [(im.guard[0] - 1, im.guard[1] - 1) for im in imgs]
+        # output groups: rows P·m + i + yoff (i = 1..P) inside 0..H−1; columns per phase j
+        m_first, m_last = _ceil_div(-pr - yoff, pr), (H - 2 - yoff) // pr
+        cols = [(_ceil_div(-(j + xoff), pc), (W - 1 - j - xoff) // pc + 1) for j in range(1, pc + 1)]
+        # interior: every read of every source inside its stored extent
+        i_lo, i_hi, c_lo, c_hi = m_first, m_last + 1, -(1 << 60), 1 << 60
+        for (dr0, dr1, dc0, dc1), (ro, co), a in zip(kern.extents, offs, srcs, strict=True):
+            i_lo = max(i_lo, _ceil_div(-(dr0 + ro), sr))
+            i_hi = min(i_hi, (a.shape[0] - 1 - dr1 - ro) // sr + 1)
+            c_lo = max(c_lo, _ceil_div(-(dc0 + co), sc))
+            c_hi = min(c_hi, (a.shape[1] - 1 - dc1 - co) // sc + 1)
+        # the interior covers the same column groups in every phase (the kernel's fused loop)
+        c_lo, c_hi = max([c_lo] + [lo for lo, _ in cols]), min([c_hi] + [hi for _, hi in cols])
+        inner = [(c_lo, c_hi)] * pc
+        if i_lo >= i_hi or c_lo >= c_hi or out.size <= TINY:  # one window: fewer calls beat fewer copies
+            self._window_call(kern, out, srcs, imgs, offs, (m_first, m_last + 1), cols, ps, yoff, xoff)
+            return
+        self._window_call(kern, out, srcs, imgs, offs, (m_first, i_lo), cols, ps, yoff, xoff)
+        self._window_call(kern, out, srcs, imgs, offs, (i_hi, m_last + 1), cols, ps, yoff, xoff)
+        left = [(lo, a) for (lo, _), (a, _) in zip(cols, inner, strict=True)]
+        right = [(b, hi) for (_, hi), (_, b) in zip(cols, inner, strict=True)]
+        self._window_call(kern, out, srcs, imgs, offs, (i_lo, i_hi), left, ps, yoff, xoff)
+        self._window_call(kern, out, srcs, imgs, offs, (i_lo, i_hi), right, ps, yoff, xoff)
+        self._call(kern, out, srcs, (i_lo, i_hi), inner, offs, yoff, xoff, parallel=True)
+
+    def _window_call(self, kern: Kernel, out, srcs, imgs, offs, rows: tuple[int, int], cols, ps, yoff, xoff):
+        """Groups ``rows`` × ``cols`` through windows of each source gathered with its border mode."""
+        if rows[0] >= rows[1] or all(lo >= hi for lo, hi in cols):
+            return
+        sr, sc = ps.stride
+        col_used = [(lo, hi) for lo, hi in cols if lo < hi]
+        n_lo, n_hi = min(lo for lo, _ in col_used), max(hi for _, hi in col_used) - 1
+        wins, woffs = [], []
+        for (dr0, dr1, dc0, dc1), (ro, co), a, im in zip(kern.extents, offs, srcs, imgs, strict=True):
+            r0, r1 = sr * rows[0] + dr0 + ro, sr * (rows[1] - 1) + dr1 + ro
+            c0, c1 = sc * n_lo + dc0 + co, sc * n_hi + dc1 + co
+            wins.append(_window(a, (r0, r1), (c0, c1), im.border))
+            woffs.append((ro - r0, co - c0))
+        self._call(kern, out, wins, rows, cols, woffs, yoff, xoff, parallel=False)
+
+    def _call(self, kern: Kernel, out, srcs, rows, cols, offs, yoff, xoff, parallel: bool) -> None:
+        extra = [self._half_lut()] if any(a.dtype == np.uint16 for a in srcs) else []
+        extra.append(out.shape[2])
+        out = out.reshape(out.shape[0], -1)
+        srcs = [a.reshape(a.shape[0], -1) for a in srcs]
+        tail = [yoff, xoff] + [v for lo_hi in cols for v in lo_hi] + [v for o in offs for v in o]
+        m0, m1 = rows
+        floats = (m1 - m0) * kern.shape.period[0] * out.shape[1]  # out is (rows, columns·C) here
+        if not parallel or self.threads == 1 or floats < SMALL:
+            kern.fn(out, *srcs, *extra, m0, m1, *tail)
+            return
+        n = min(m1 - m0, self.threads * 2)
+        bounds = [m0 + (m1 - m0) * i // n for i in range(n + 1)]
+        pool = self._workers()
+        futures = [pool.submit(kern.fn, out, *srcs, *extra, a, b, *tail)
+                   for a, b in zip(bounds, bounds[1:], strict=False) if a < b]
+        for f in futures:
+            f.result()
+
+    def _workers(self) -> ThreadPoolExecutor:
+        if self._pool is None:
+            self._pool = ThreadPoolExecutor(max_workers=self.threads, thread_name_prefix="pyramid-cpu")
+        return self._pool
+
+    def _half_lut(self) -> np.ndarray:
+        if self._lut is None:
+            self._lut = np.arange(1 << 16, dtype=np.uint16).view(np.float16).astype(np.float32)
+        return self._lut
+
+
+def _inputs(plan: Plan, images) -> list[np.ndarray]:
+    return plan_inputs(plan, images)
+
+
+__all__ = ["CPUExecutor", "Kernel", "OUT_DTYPES", "SMALL", "TINY", "default_threads"]
