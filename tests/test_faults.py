@@ -24,6 +24,7 @@ import pytest
 
 from pyramid_cli import imageio as pio
 from pyramid_cli.core.errors import InputError, OutputError
+from pyramid_cli.imageio import write as pio_write
 from pyramid_cli.imageio.atomic import atomic_path, atomic_paths
 
 pytestmark = [pytest.mark.cli, pytest.mark.slow]  # real processes, signals and full disks: seconds each
@@ -354,18 +355,18 @@ def test_write_images_is_all_or_nothing(src, tmp_path, monkeypatch):
     paths = [tmp_path / f"l{k}.exr" for k in range(3)]
     for p in paths:
         previous(p)
-    real = pio._write_file
+    real = pio_write.write_file
 
     def fail_third(tmp, user, fmt, parts, mode="single"):
         if user.endswith("l2.exr"):
             raise OutputError(f"cannot write {user}: disk full")
         real(tmp, user, fmt, parts, mode)
 
-    monkeypatch.setattr(pio, "_write_file", fail_third)
+    monkeypatch.setattr(pio_write, "write_file", fail_third)  # where write_images looks it up
     with pytest.raises(OutputError, match="l2.exr"):
         pio.write_images(paths, [image] * 3)
     assert all(p.read_bytes() == b"previous output\n" for p in paths) and not leftovers(tmp_path)
-    monkeypatch.setattr(pio, "_write_file", real)
+    monkeypatch.setattr(pio_write, "write_file", real)
     pio.write_images(paths, [image] * 3)
     assert all(pio.read_image(p).pixels.shape == (96, 128, 3) for p in paths)
 

@@ -19,6 +19,8 @@ import pytest
 from pyramid_cli import imageio as pio
 from pyramid_cli.core.errors import DataError, InputError, OutputError, UsageError
 from pyramid_cli.imageio import atomic
+from pyramid_cli.imageio import colour as pio_colour
+from pyramid_cli.imageio import write as pio_write
 
 # ---------------------------------------------------------------------------
 # Independent helpers
@@ -523,7 +525,7 @@ def test_failed_write_leaves_previous_output(tmp_path, monkeypatch, written, exc
             fh.write(b"\x89PNG garbage")
         raise exc
 
-    monkeypatch.setattr(pio, "_oiio_write", broken)
+    monkeypatch.setattr(pio_write, "_oiio_write", broken)  # where write_image looks it up
     brighter = pio.Image(img.pixels * 0.5, img.spec)
     with pytest.raises(type(exc)):
         pio.write_image(out, brighter)
@@ -845,7 +847,7 @@ def _srgb8_by_formula(x: np.ndarray) -> np.ndarray:
 
 
 def test_srgb8_table_equals_the_float64_formula_everywhere_it_matters():
-    thresholds, _ = pio._srgb8_tables()
+    thresholds, _ = pio_colour.srgb8_tables()
     t = thresholds.view(np.uint32)
     edges = np.concatenate([t - 2, t - 1, t, t + 1]).view(np.float32)  # around every code boundary
     rng = np.random.default_rng(8)
@@ -855,10 +857,10 @@ def test_srgb8_table_equals_the_float64_formula_everywhere_it_matters():
         np.array([0.0, -0.0, 1.0, 1.0000001, 1e30, np.inf, -np.inf, np.nan, 1e-45, 0.0031308], np.float32),
     ])
     with np.errstate(over="ignore", invalid="ignore"):
-        np.testing.assert_array_equal(pio._srgb8(x), _srgb8_by_formula(x))
+        np.testing.assert_array_equal(pio_colour.srgb8(x), _srgb8_by_formula(x))
     # every float32 pattern of [0, 1] in steps of 97 ulps, too
     grid = np.arange(0, 0x3F800001, 97, dtype=np.uint32).view(np.float32)
-    np.testing.assert_array_equal(pio._srgb8(grid), _srgb8_by_formula(grid))
+    np.testing.assert_array_equal(pio_colour.srgb8(grid), _srgb8_by_formula(grid))
 
 
 @pytest.mark.parametrize("bits", [8, 16])
@@ -868,12 +870,12 @@ def test_integer_decoding_by_table_equals_float64_decoding(bits, alpha):
     codes = np.random.default_rng(bits).integers(0, np.iinfo(dtype).max + 1, (17, 19, 4), dtype=dtype)
     colour = np.array([True, True, True, alpha == "no alpha"])
     a = -1 if alpha in ("none", "no alpha") else 3
-    got = pio._decode_integer(codes, True, colour, a, alpha == "straight")
+    got = pio_colour.decode_integer(codes, True, colour, a, alpha == "straight")
     v = codes.astype(np.float64) / np.iinfo(dtype).max  # the old route, whole image in float64
     if alpha == "premultiplied":
-        pio._unpremultiply(v, 3, colour)
+        pio_colour.unpremultiply(v, 3, colour)
     v[..., colour] = srgb_eotf(v[..., colour])
     if a >= 0:
-        pio._premultiply(v, 3, colour)
+        pio_colour.premultiply(v, 3, colour)
     assert got.dtype == np.float32
     np.testing.assert_array_equal(got, v.astype(np.float32))

@@ -21,6 +21,7 @@ import click
 
 from pyramid_cli.core.options import ALPHA_MODES, COLORSPACES
 from pyramid_cli.diff.idiff import DEFAULT_FAIL, DEFAULT_WARN, EXIT_CODES
+from pyramid_cli.diff.idiff import format_value as _fmt  # every diff report formats numbers alike
 
 _NONNEG = click.FloatRange(min=0.0)
 
@@ -93,14 +94,6 @@ globs: the largest over all pairs):
 idiff spellings accepted: -fail -failpercent -hardfail -failrelative -warn
 -warnpercent -hardwarn -warnrelative -allowfailures -a -o -od -abs -scale -v -q
 """
-
-
-def _fmt(v: float | None) -> str:
-    if v is None:
-        return "-"
-    if math.isinf(v):
-        return "inf"
-    return f"{v:.6g}"
 
 
 def _report(r: Any, path_a: str, path_b: str, title: str | None = None) -> str:
@@ -382,7 +375,7 @@ def _write_out(ctx: click.Context, pr: Any, opts: Any, out_path: str, absolute: 
     from pyramid_cli.core.errors import PyramidError
     from pyramid_cli.diff.compare import difference_image
     from pyramid_cli.diff.compare import heatmap as make_heatmap
-    from pyramid_cli.diff.goldens import _read
+    from pyramid_cli.diff.goldens import read_pixels as _read
     from pyramid_cli.imageio import raw as io_raw
 
     lv = pr.levels[0]

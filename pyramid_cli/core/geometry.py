@@ -35,6 +35,11 @@ def reduced(n: int, m: int = 1) -> int:
     return ceil_div(n, 2 ** m)
 
 
+def halved(size: tuple[int, ...]) -> tuple[int, ...]:
+    """Each dimension ⌈n/2⌉: the size of the next pyramid or MIP level (one ⊗↓ step)."""
+    return tuple(reduced(n) for n in size)
+
+
 def level_sizes(size: tuple[int, int], levels: int) -> list[tuple[int, int]]:
     """Sizes of pyramid levels 0..m: each ⌈n/2⌉ of the one before."""
     out = [tuple(size)]

@@ -25,7 +25,6 @@ file       4     a file cannot be read (missing single file, corrupt, not an ima
 from __future__ import annotations
 
 import glob
-import math
 import os
 import re
 import shutil
@@ -37,6 +36,7 @@ import numpy as np
 
 from pyramid_cli.core.errors import PyramidError
 from pyramid_cli.diff.compare import DiffResult, ShapeMismatchError, compare
+from pyramid_cli.diff.idiff import format_value
 
 __all__ = ["STATUS_CODES", "CompareOptions", "LevelResult", "PairResult", "compare_files", "compare_pairs",
            "is_pattern", "pair_inputs", "update_goldens", "worst_code"]
@@ -142,7 +142,10 @@ def worst_code(pairs: Sequence[PairResult]) -> int:
     return max((p.exit_code for p in pairs), default=0)
 
 
-def _read(path: str, opts: CompareOptions, subimage: int, miplevel: int) -> tuple[np.ndarray, list[str]]:
+def read_pixels(path: str, opts: CompareOptions, subimage: int, miplevel: int) -> tuple[np.ndarray, list[str]]:
+    """The pixels ``pyramid diff`` compares of one subimage and MIP level, and their channel names: decoded
+    linear light under ``opts.linear`` (:func:`pyramid_cli.imageio.read_image`), else the stored values
+    (:func:`pyramid_cli.imageio.raw.read_level`, as idiff reads them)."""
     if opts.linear:
         from pyramid_cli import imageio as io
 
@@ -226,12 +229,12 @@ def compare_files(path_a: str, path_b: str, opts: CompareOptions, *, name: str |
             return pr
         for mip in range(counts_a[sub]):
             try:
-                pa, names = _read(path_a, opts, sub, mip)
+                pa, names = read_pixels(path_a, opts, sub, mip)
             except PyramidError as e:
                 pr.status, pr.rule, pr.message, pr.a_readable = "file", "file", e.message, False
                 return pr
             try:
-                pb, _ = _read(path_b, opts, sub, mip)
+                pb, _ = read_pixels(path_b, opts, sub, mip)
             except PyramidError as e:
                 pr.status, pr.rule, pr.message = "file", "file", e.message
                 return pr
@@ -270,12 +273,8 @@ def _decide(pr: PairResult, opts: CompareOptions, nsub_a: int, nsub_b: int) -> N
     if not pr.message:
         r = pr.worst
         if r is not None:
-            pr.message = (f"max error {_fmt(r.max_error)}, {r.n_fail} pixels over fail, "
+            pr.message = (f"max error {format_value(r.max_error)}, {r.n_fail} pixels over fail, "
                           f"{r.n_warn} over warn ({pr.rule})")
-
-
-def _fmt(v: float) -> str:
-    return "inf" if math.isinf(v) else f"{v:.6g}"
 
 
 # ---------------------------------------------------------------------------

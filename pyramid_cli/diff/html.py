@@ -13,7 +13,6 @@ they are (they are display-encoded already); float and half values and
 from __future__ import annotations
 
 import html
-import math
 import os
 from collections.abc import Sequence
 
@@ -21,7 +20,9 @@ import numpy as np
 
 from pyramid_cli.core.errors import OutputError, PyramidError
 from pyramid_cli.diff.goldens import REPORT_MARKER, STATUS_CODES, CompareOptions, PairResult
+from pyramid_cli.diff.idiff import format_value
 from pyramid_cli.imageio.atomic import atomic_path
+from pyramid_cli.imageio.colour import linear_to_srgb
 
 __all__ = ["display", "write_html"]
 
@@ -62,8 +63,8 @@ if (location.hash === '#B') document.querySelectorAll('img.flip').forEach(flip);
 
 
 def _srgb(x: np.ndarray) -> np.ndarray:
-    x = np.clip(x, 0.0, 1.0)
-    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+    """Display colours of linear values: clamped to [0, 1], sRGB-encoded (float64)."""
+    return linear_to_srgb(np.clip(x, 0.0, 1.0))
 
 
 def _alpha_index(names: Sequence[str]) -> int:
@@ -114,15 +115,9 @@ def _amplified(err: np.ndarray) -> tuple[np.ndarray, float]:
     return np.clip(out, 0.0, 1.0), gain
 
 
-def _fmt(v: float | None) -> str:
-    if v is None:
-        return "-"
-    return "inf" if math.isinf(v) else f"{v:.6g}"
-
-
 def _pictures(pr: PairResult, opts: CompareOptions, img_dir: str, key: str) -> list[tuple[str, str, str]]:
     """Write the PNGs of one pair; (kind, file name, caption) for each."""
-    from pyramid_cli.diff.goldens import _read
+    from pyramid_cli.diff.goldens import read_pixels
     from pyramid_cli.imageio import raw as io_raw
 
     tiles: list[tuple[str, str, str]] = []
@@ -132,7 +127,7 @@ def _pictures(pr: PairResult, opts: CompareOptions, img_dir: str, key: str) -> l
         if not path or not os.path.isfile(path):
             continue
         try:
-            pixels, names = _read(path, opts, sub, mip)
+            pixels, names = read_pixels(path, opts, sub, mip)
             encoded = (not opts.linear) and io_raw.read_level(path, sub, mip).pixel_type.startswith(("uint", "int"))
         except PyramidError:
             continue
@@ -168,11 +163,11 @@ def _stats_table(pr: PairResult) -> str:
         at = f"{r.max_x}, {r.max_y}, {r.max_channel_name}" if r.max_x is not None else "-"
         rows.append(
             f"<tr><td>{lv.subimage}</td><td>{lv.miplevel}</td><td>{r.width}x{r.height}x{r.channels}</td>"
-            f"<td>{_fmt(r.max_error)}</td><td>{html.escape(at)}</td><td>{_fmt(r.mean_error)}</td>"
-            f"<td>{_fmt(r.rms_error)}</td><td>{_fmt(r.psnr)}</td>"
+            f"<td>{format_value(r.max_error)}</td><td>{html.escape(at)}</td><td>{format_value(r.mean_error)}</td>"
+            f"<td>{format_value(r.rms_error)}</td><td>{format_value(r.psnr)}</td>"
             f"<td>{r.n_warn} ({r.percent(r.n_warn):.3g}%)</td><td>{r.n_fail} ({r.percent(r.n_fail):.3g}%)</td>"
             f"<td>{r.verdict} ({r.rule})</td>"
-            + (f"<td>{_fmt(lv.flip)}</td>" if lv.flip is not None else "") + "</tr>")
+            + (f"<td>{format_value(lv.flip)}</td>" if lv.flip is not None else "") + "</tr>")
     return "<table>" + "".join(rows) + "</table>"
 
 

@@ -10,7 +10,6 @@ thresholds, a warning, a size mismatch, a missing or extra golden) or an
 from __future__ import annotations
 
 import datetime as _dt
-import math
 import os
 import socket
 import xml.etree.ElementTree as ET
@@ -18,13 +17,10 @@ from collections.abc import Sequence
 
 from pyramid_cli.core.errors import OutputError
 from pyramid_cli.diff.goldens import PairResult
+from pyramid_cli.diff.idiff import format_value
 from pyramid_cli.imageio.atomic import atomic_path
 
 __all__ = ["junit_xml", "write_junit"]
-
-
-def _fmt(v: float) -> str:
-    return "inf" if math.isinf(v) else f"{v:.6g}"
 
 
 def _details(pr: PairResult) -> str:
@@ -36,10 +32,10 @@ def _details(pr: PairResult) -> str:
         where = f" @ (x={r.max_x}, y={r.max_y}, {r.max_channel_name})" if r.max_x is not None else ""
         lines.append(
             f"subimage {lv.subimage} MIP level {lv.miplevel} ({r.width}x{r.height}, {r.channels} channels): "
-            f"max error {_fmt(r.max_error)}{where}, mean error {_fmt(r.mean_error)}, "
-            f"RMS error {_fmt(r.rms_error)}, PSNR {_fmt(r.psnr)} dB, "
-            f"{r.n_warn} pixels ({r.percent(r.n_warn):.3g}%) over warn {_fmt(r.thresholds['warn'])}, "
-            f"{r.n_fail} pixels ({r.percent(r.n_fail):.3g}%) over fail {_fmt(r.thresholds['fail'])}"
+            f"max error {format_value(r.max_error)}{where}, mean error {format_value(r.mean_error)}, "
+            f"RMS error {format_value(r.rms_error)}, PSNR {format_value(r.psnr)} dB, "
+            f"{r.n_warn} pixels ({r.percent(r.n_warn):.3g}%) over warn {format_value(r.thresholds['warn'])}, "
+            f"{r.n_fail} pixels ({r.percent(r.n_fail):.3g}%) over fail {format_value(r.thresholds['fail'])}"
             + (f", {r.n_nonfinite} NaN/Inf mismatches" if r.n_nonfinite else "")
             + (f", mean FLIP {lv.flip:.6g}" if lv.flip is not None else ""))
     return "\n".join(lines)

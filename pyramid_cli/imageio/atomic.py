@@ -29,7 +29,8 @@ def _umask() -> int:
     return mask
 
 
-def _reason(exc: OSError) -> str:
+def error_reason(exc: OSError) -> str:
+    """What an OS error says, for a one-line message (``"No space left on device"``)."""
     return exc.strerror or str(exc)
 
 
@@ -47,7 +48,8 @@ def ensure_output_dir(path: str | os.PathLike[str]) -> None:
     try:
         os.makedirs(folder, exist_ok=True)
     except OSError as exc:
-        raise OutputError(f"cannot write {os.fspath(path)}: cannot create folder {folder}: {_reason(exc)}") from None
+        raise OutputError(f"cannot write {os.fspath(path)}: cannot create folder {folder}: "
+                          f"{error_reason(exc)}") from None
 
 
 def is_utf8(name: str) -> bool:
@@ -59,7 +61,7 @@ def is_utf8(name: str) -> bool:
     return True
 
 
-def _make_temp(path: str) -> str:
+def make_temp(path: str) -> str:
     """A new empty hidden file beside ``path`` with the same extension (an ASCII name if need be)."""
     ensure_output_dir(path)
     folder = os.path.dirname(os.path.abspath(path))
@@ -71,7 +73,7 @@ def _make_temp(path: str) -> str:
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{base}.tmp-", suffix=ext, dir=folder)
     except OSError as exc:
-        raise OutputError(f"cannot write {path}: {_reason(exc)}") from None
+        raise OutputError(f"cannot write {path}: {error_reason(exc)}") from None
     os.close(fd)
     return tmp
 
@@ -84,7 +86,8 @@ def _fsync(path: str, flags: int = os.O_RDONLY) -> None:
         os.close(fd)
 
 
-def _remove(tmp: str) -> None:
+def remove_quietly(tmp: str) -> None:
+    """Remove the temporary file ``tmp`` if it is still there (a failure to do so is not an error)."""
     with contextlib.suppress(OSError):
         os.unlink(tmp)
 
@@ -125,7 +128,7 @@ def atomic_paths(paths: Sequence[str]) -> Iterator[list[str]]:
     made: list[str] = []
     try:
         for p in paths:
-            made.append(_make_temp(p))
+            made.append(make_temp(p))
             tmps.append(made[-1])
         yield list(tmps)
         mode = 0o666 & ~_umask()
@@ -134,20 +137,20 @@ def atomic_paths(paths: Sequence[str]) -> Iterator[list[str]]:
                 _fsync(tmp)
                 os.chmod(tmp, mode)
             except OSError as exc:
-                raise OutputError(f"cannot write {p}: {_reason(exc)}") from None
+                raise OutputError(f"cannot write {p}: {error_reason(exc)}") from None
         for k, (p, tmp) in enumerate(zip(paths, tmps, strict=True)):
             try:
                 os.replace(tmp, p)
             except OSError as exc:
-                raise OutputError(f"cannot write {p}: {_reason(exc)}") from None
+                raise OutputError(f"cannot write {p}: {error_reason(exc)}") from None
             tmps[k] = ""
     except BaseException as exc:
         for tmp in tmps:
             if tmp:
-                _remove(tmp)
+                remove_quietly(tmp)
         if isinstance(exc, OSError):
             raise OutputError(f"cannot write {paths[0] if len(paths) == 1 else ', '.join(paths)}: "
-                              f"{_reason(exc)}") from None
+                              f"{error_reason(exc)}") from None
         if isinstance(exc, OutputError) and any(t in exc.message for t in made):
             message = exc.message
             for p, tmp in zip(paths, made, strict=False):

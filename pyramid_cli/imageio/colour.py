@@ -82,7 +82,7 @@ def count_nonfinite(pixels: np.ndarray) -> int:
     return int(np.size(pixels) - np.count_nonzero(np.isfinite(pixels)))
 
 
-def _colour_mask(nchannels: int, alpha_channel: int, names: list[str]) -> np.ndarray:
+def colour_mask(nchannels: int, alpha_channel: int, names: list[str]) -> np.ndarray:
     """Channels that carry colour: everything but alpha and depth."""
     mask = np.ones(nchannels, dtype=bool)
     if 0 <= alpha_channel < nchannels:
@@ -93,12 +93,14 @@ def _colour_mask(nchannels: int, alpha_channel: int, names: list[str]) -> np.nda
     return mask
 
 
-def _premultiply(px: np.ndarray, alpha_channel: int, colour: np.ndarray) -> None:
+def premultiply(px: np.ndarray, alpha_channel: int, colour: np.ndarray) -> None:
+    """Multiply the ``colour`` channels of ``px`` by its alpha channel, in place."""
     alpha = px[..., alpha_channel:alpha_channel + 1]
     px[..., colour] *= alpha
 
 
-def _unpremultiply(px: np.ndarray, alpha_channel: int, colour: np.ndarray) -> None:
+def unpremultiply(px: np.ndarray, alpha_channel: int, colour: np.ndarray) -> None:
+    """Divide the ``colour`` channels of ``px`` by its alpha channel, in place (0 where alpha is not positive)."""
     alpha = px[..., alpha_channel:alpha_channel + 1]
     # Where alpha is 0 (or negative after filtering) there is no colour to
     # recover: store 0 rather than dividing by zero.
@@ -113,7 +115,7 @@ def _integer_levels(dtype: str, srgb: bool) -> np.ndarray:
     return srgb_to_linear(levels) if srgb else levels
 
 
-def _decode_integer(data: np.ndarray, srgb: bool, colour: np.ndarray, alpha: int, straight: bool) -> np.ndarray:
+def decode_integer(data: np.ndarray, srgb: bool, colour: np.ndarray, alpha: int, straight: bool) -> np.ndarray:
     """Linear premultiplied float32 pixels of 8/16-bit codes, a channel at a time through per-code tables.
 
     Every value is what decoding ``code / max`` in float64 with the exact sRGB EOTF, then
@@ -125,9 +127,9 @@ def _decode_integer(data: np.ndarray, srgb: bool, colour: np.ndarray, alpha: int
     if alpha >= 0 and srgb and not straight:
         # Associated sRGB (rare): divide the encoded values out, decode, multiply back.
         px = linear[data]
-        _unpremultiply(px, alpha, colour)
+        unpremultiply(px, alpha, colour)
         px[..., colour] = srgb_to_linear(px[..., colour])
-        _premultiply(px, alpha, colour)
+        premultiply(px, alpha, colour)
         return px.astype(np.float32)
     a = linear[data[..., alpha]] if alpha >= 0 and straight else None
     if a is None and all(colour):  # gathers through a float32 table (the same single rounding), no strides,
@@ -147,10 +149,10 @@ def _decode_integer(data: np.ndarray, srgb: bool, colour: np.ndarray, alpha: int
 
 
 @cache
-def _srgb8_tables() -> tuple[np.ndarray, np.ndarray]:
+def srgb8_tables() -> tuple[np.ndarray, np.ndarray]:
     """Exact 8-bit sRGB encoding of float32 values by table: (thresholds, codes by the top 20 bits).
 
-    ``thresholds[k - 1]`` is the smallest float32 that :func:`_encode_integer` turns into
+    ``thresholds[k - 1]`` is the smallest float32 that :func:`encode_integer` turns into
     code k (sRGB in float64, ×255, round half up). A float32's top 20 bits (sign, exponent,
     11 mantissa bits) pick a bucket narrower than the gap between thresholds, so the code
     is the bucket's code plus one comparison.
@@ -180,13 +182,13 @@ def _srgb8_tables() -> tuple[np.ndarray, np.ndarray]:
 SRGB8_BAND = 1 << 16  # values encoded per step: the temporaries stay in cache instead of faulting in fresh pages
 
 
-def _srgb8(x: np.ndarray) -> np.ndarray:
-    """:func:`_encode_integer` of ``linear_to_srgb(x)`` for 8 bits without dither, from float32 ``x``.
+def srgb8(x: np.ndarray) -> np.ndarray:
+    """:func:`encode_integer` of ``linear_to_srgb(x)`` for 8 bits without dither, from float32 ``x``.
 
     Done in bands of :data:`SRGB8_BAND` values: whole-image temporaries (a uint32 index, a float32 gather,
     masks: several bytes per value) cost more in page faults than the table lookups themselves.
     """
-    thresholds, codes = _srgb8_tables()
+    thresholds, codes = srgb8_tables()
     x = np.ascontiguousarray(x, dtype=np.float32)
     out = np.empty(x.shape, dtype=np.uint8)
     flat, res = x.reshape(-1), out.reshape(-1)
@@ -200,8 +202,10 @@ def _srgb8(x: np.ndarray) -> np.ndarray:
     return out
 
 
-def _encode_integer(values: np.ndarray, out_type: str, dither: bool,
+def encode_integer(values: np.ndarray, out_type: str, dither: bool,
                     colour: np.ndarray) -> np.ndarray:
+    """8/16-bit codes of encoded values in [0, 1] (``out_type`` "uint8" or "uint16"): ×max, round half up,
+    clamped; NaN is 0, +Inf the top code. ``dither``: an ordered 8×8 Bayer dither on ``colour`` channels (8 bits)."""
     scale = 255.0 if out_type == "uint8" else 65535.0
     v = np.nan_to_num(values, nan=0.0, posinf=1.0, neginf=0.0) * scale
     if dither and out_type == "uint8":

@@ -1,7 +1,7 @@
 """Raw reads for ``pyramid diff``: stored values, every subimage and MIP level.
 
-This module is part of the I/O layer (with :mod:`pyramid_cli.imageio`): it is one
-of the two modules that import OpenImageIO. :mod:`pyramid_cli.imageio` reads images
+This module is part of the I/O layer, :mod:`pyramid_cli.imageio`, the only package that
+imports OpenImageIO. :mod:`pyramid_cli.imageio.read` reads images
 into linear, premultiplied light for filtering; ``pyramid diff`` compares files
 the way OpenImageIO's ``idiff`` does, which needs what the file stores:
 
@@ -22,6 +22,7 @@ import numpy as np
 import OpenImageIO as oiio
 
 from pyramid_cli.core.errors import InputError
+from pyramid_cli.imageio.write import write_spec
 
 __all__ = ["RawLevel", "count_levels", "image_extensions", "read_level", "write_display_png", "write_float"]
 
@@ -160,9 +161,7 @@ def read_level(path: str, subimage: int = 0, miplevel: int = 0) -> RawLevel:
 
 
 def _write(path: str, spec: oiio.ImageSpec, pixels: np.ndarray) -> None:
-    from pyramid_cli.imageio import write_spec  # every write is checked in one place (a lying PNG writer, a full disk)
-
-    write_spec(path, spec, pixels)
+    write_spec(path, spec, pixels)  # every write is checked in one place (a lying PNG writer, a full disk)
 
 
 def write_float(path: str, pixels: np.ndarray, channel_names: list[str]) -> None:

@@ -471,9 +471,9 @@ class _Kept:
             raise self._failed(exc) from None
 
     def _failed(self, exc: OSError) -> OutputError:
-        from pyramid_cli.imageio.atomic import _reason
+        from pyramid_cli.imageio.atomic import error_reason
 
-        return OutputError(f"cannot write {self.beside}: {_reason(exc)} (in the temporary file of its coarser "
+        return OutputError(f"cannot write {self.beside}: {error_reason(exc)} (in the temporary file of its coarser "
                            "MIP levels beside it)")
 
     def rows(self, i: int, r0: int, r1: int) -> np.ndarray:
@@ -497,13 +497,13 @@ class _Kept:
 def _scratch(beside: str):
     """A hidden temporary file beside ``beside`` (as :mod:`pyramid_cli.imageio.atomic` names them), removed on success,
     failure and interruption alike."""
-    from pyramid_cli.imageio.atomic import _make_temp, _remove
+    from pyramid_cli.imageio.atomic import make_temp, remove_quietly
 
-    tmp = _make_temp(beside + ".levels")
+    tmp = make_temp(beside + ".levels")
     try:
         yield tmp
     finally:
-        _remove(tmp)
+        remove_quietly(tmp)
 
 
 # mipmap options that need the whole picture before the levels: they run whole

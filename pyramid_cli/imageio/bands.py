@@ -1,0 +1,285 @@
+"""Images read and written a band of rows at a time (:mod:`pyramid_cli.run.stream`), each band decoded
+and encoded exactly as the whole picture would be."""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import os
+from collections.abc import Iterable
+
+import numpy as np
+import OpenImageIO as oiio
+
+from pyramid_cli.core import options
+from pyramid_cli.core.errors import InputError, OutputError
+from pyramid_cli.imageio.atomic import atomic_paths
+from pyramid_cli.imageio.encode import check_output_path, check_write_options, encode, set_windows
+from pyramid_cli.imageio.formats import (
+    ALPHA_MODES,
+    COLORSPACES,
+    ENCODE_IN_MEMORY,
+    check_choice,
+    format_from_path,
+    format_title,
+    one_line,
+    pixel_type_name,
+)
+from pyramid_cli.imageio.image import Image, ImageInfo
+from pyramid_cli.imageio.read import (
+    apply_nan_policy,
+    check_input_file,
+    decode_stored,
+    describe_spec,
+    open_input,
+    readable_name,
+)
+from pyramid_cli.imageio.write import WriteFailed, checked, diagnosis, verify
+
+
+class ImageStream:
+    """An image file read a band of rows at a time, each band decoded exactly as
+    :func:`~pyramid_cli.imageio.read.read_image` decodes the whole picture (the decoding is pixel by pixel).
+    Use :func:`open_stream`; close it (or ``with``).
+
+    Attributes
+    ----------
+    info : ImageInfo
+        What :func:`~pyramid_cli.imageio.read.read_image` would report.
+    shape : tuple
+        (rows, columns, channels).
+    dtype : numpy dtype
+        Of the bands :meth:`read` returns: float32, or float16 for a half file under ``keep_half`` without
+        colour or alpha conversion.
+    nonfinite : int
+        NaN/Inf values seen so far (kept under ``nan="keep"``).
+    """
+
+    def __init__(self, path: str, *, colorspace: str = "auto", alpha: str = "auto", nan: str = "keep",
+                 keep_half: bool = False):
+        check_choice("colorspace", colorspace, ("auto", *COLORSPACES))
+        check_choice("alpha mode", alpha, ("auto", *ALPHA_MODES))
+        check_choice("nan mode", nan, options.NAN_POLICIES)
+        self.path = p = os.fspath(path)
+        check_input_file(p)
+        self._stack = contextlib.ExitStack()
+        name = self._name = self._stack.enter_context(readable_name(p))
+        self._inp, spec, fmt, self._subimage = open_input(name, None, p)
+        self._stack.callback(self._inp.close)
+        self._spec = spec
+        self.info = describe_spec(spec, fmt, p, colorspace, alpha)
+        native = pixel_type_name(spec.format)
+        uniform = len({str(t) for t in spec.channelformats}) <= 1
+        keep = ("uint8", "uint16", "half") if keep_half else ("uint8", "uint16")
+        self._read_type = native if native in keep and uniform else "float"
+        self.nan = nan
+        self.nonfinite = 0
+        self.shape = (spec.height, spec.width, spec.nchannels)
+        probe = {"uint8": np.uint8, "uint16": np.uint16, "half": np.float16}.get(self._read_type, np.float32)
+        self.dtype = decode_stored(np.zeros((1, 1, spec.nchannels), dtype=probe), self.info).dtype
+        self._block: tuple[int, np.ndarray] | None = None  # a row of tiles, for tiled files
+        self.on_stored = None  # called with each band's rows as stored, before decoding (mipmap's SHA-1)
+
+    def __enter__(self) -> ImageStream:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def close(self) -> None:
+        self._stack.close()
+
+    def _stored(self, y0: int, y1: int) -> np.ndarray:
+        spec, inp = self._spec, self._inp
+        if spec.tile_width > 0 and spec.tile_height > 0:  # whole rows of tiles, kept for the next band
+            th = spec.tile_height
+            parts = []
+            y = y0
+            while y < y1:
+                t0 = y // th * th
+                if self._block is None or self._block[0] != t0:
+                    t1 = min(t0 + th, spec.height)
+                    data = inp.read_tiles(self._subimage, 0, spec.x, spec.x + spec.width, spec.y + t0, spec.y + t1,
+                                          spec.z, spec.z + 1, 0, spec.nchannels, self._read_type)
+                    self._check(data)
+                    self._block = (t0, np.asarray(data).reshape(t1 - t0, spec.width, spec.nchannels))
+                t0, block = self._block
+                take = block[y - t0:min(y1, t0 + len(block)) - t0]
+                parts.append(take.copy())  # decoded in place: the kept block stays as stored
+                y += len(take)
+            return parts[0] if len(parts) == 1 else np.concatenate(parts)
+        data = inp.read_scanlines(self._subimage, 0, spec.y + y0, spec.y + y1, spec.z, 0, spec.nchannels,
+                                  self._read_type)
+        self._check(data)
+        return np.asarray(data).reshape(y1 - y0, spec.width, spec.nchannels)
+
+    def _check(self, data) -> None:
+        err = self._inp.geterror() if self._inp.has_error else ""
+        if data is None or err:
+            err = (err or oiio.geterror()).replace(self._name, self.path)
+            raise InputError(f"cannot read {self.path}: {one_line(err, 'read failed')} (truncated or corrupt file?)")
+
+    def read(self, y0: int, y1: int) -> np.ndarray:
+        """Decoded rows ``y0 .. y1 − 1`` (0 is the top row), (rows, columns, channels)."""
+        data = self._stored(y0, y1)
+        if self.on_stored is not None:
+            self.on_stored(data)
+        if self._read_type == "half":
+            data = np.asarray(data, dtype=np.float16)
+        elif self._read_type == "float":
+            data = np.asarray(data, dtype=np.float32)
+        px = decode_stored(data, self.info)
+        self.nonfinite += apply_nan_policy(px, self.nan, self.info, self.path, y0,
+                                            floats=self._read_type not in ("uint8", "uint16"))
+        return px
+
+
+def open_stream(path: str | os.PathLike[str], **options) -> ImageStream:
+    """An :class:`ImageStream` of ``path`` (options as :func:`~pyramid_cli.imageio.read.read_image`: colorspace,
+    alpha, nan, keep_half)."""
+    return ImageStream(os.fspath(path), **options)
+
+
+def streams_to(path: str | os.PathLike[str]) -> bool:
+    """Can :func:`stream_writer` write ``path`` band by band? (Formats encoded in memory cannot.)"""
+    fmt = format_from_path(os.fspath(path))
+    return bool(fmt) and fmt not in ENCODE_IN_MEMORY
+
+
+def band_quantum(tile_rows: int, dither: bool) -> int:
+    """Rows a band is encoded in multiples of: whole rows of tiles, and of the 8-row dither pattern."""
+    return tile_rows * 8 // math.gcd(tile_rows, 8) if dither else tile_rows
+
+
+class BandWriter:
+    """Rows written as they complete into the temporary of :func:`stream_writers` (see there)."""
+
+    def __init__(self, path: str, tmp: str, fmt: str, info: ImageInfo, shape: tuple[int, int, int], options: dict):
+        self.path, self.tmp, self.fmt, self.info, self.options = path, tmp, fmt, info, options
+        self.height, self.width = shape[0], shape[1]
+        self.next = 0      # rows handed over
+        self.written = 0   # rows encoded and written
+        self.spec: oiio.ImageSpec | None = None
+        self._out = None
+        self._pending: list[np.ndarray] = []  # rows waiting for a whole row of tiles, or 8 rows of dither
+
+    def write(self, y0: int, pixels: np.ndarray) -> None:
+        """Linear pixels of rows ``y0 ..`` (in order: ``y0`` is the first row not handed over yet), encoded as
+        :func:`~pyramid_cli.imageio.write.write_image` encodes the whole picture (rows are grouped so that
+        dithering and tiles line up)."""
+        if y0 != self.next:
+            raise ValueError(f"rows are written in order: row {self.next} expected, not {y0}")
+        if not len(pixels):
+            return
+        self.next += len(pixels)
+        self._pending.append(pixels)
+        try:
+            if self._out is None:
+                self._open(encode(self.path, Image(pixels[:1], self.info), **self.options)[0])
+            self._flush(final=self.next >= self.height)
+        except WriteFailed as exc:
+            raise OutputError(f"cannot write {self.path}: {str(exc).replace(self.tmp, self.path)}"
+                              f"{diagnosis(self.tmp)}") from None
+
+    def _open(self, band_spec: oiio.ImageSpec) -> None:
+        spec = band_spec
+        spec.height = spec.full_height = self.height
+        set_windows(spec, self.info, spec.width, self.height)
+        self._header(spec)
+        out = oiio.ImageOutput.create(self.tmp)
+        if out is None:
+            raise WriteFailed(one_line(oiio.geterror(), "no writer for this format"))
+        self._out = out
+        checked(out, out.open(self.tmp, spec, "Create"), "open")
+        self.spec = spec
+
+    def _header(self, spec: oiio.ImageSpec) -> None:
+        """What a subclass adds to the file's header before it opens (nothing here)."""
+
+    def _flush(self, final: bool) -> None:
+        s = self.spec
+        tiled = s.tile_width > 0 and s.tile_height > 0
+        quantum = band_quantum(s.tile_height if tiled else 1, self.options.get("dither", False))
+        rows = self.next - self.written
+        whole = rows if final else rows // quantum * quantum
+        if not whole:
+            return
+        pixels = np.concatenate(self._pending) if len(self._pending) > 1 else self._pending[0]
+        self._pending = [pixels[whole:]] if whole < rows else []
+        data = encode(self.path, Image(pixels[:whole], self.info), **self.options)[1]
+        start = self.written
+        if tiled:
+            for a in range(0, whole, quantum):
+                b = min(a + quantum, whole)
+                ok = self._out.write_tiles(s.x, s.x + s.width, s.y + start + a, s.y + start + b, s.z, s.z + 1,
+                                           np.ascontiguousarray(data[a:b]))
+                checked(self._out, ok, "write")
+        else:
+            checked(self._out, self._out.write_scanlines(s.y + start, s.y + start + whole, s.z, data), "write")
+        self.written += whole
+
+    def finish(self) -> None:
+        """Close the file and check it reads back (OutputError naming the user's path)."""
+        if self.written != self.height:
+            raise ValueError(f"{self.written} of {self.height} rows written")
+        try:
+            out, self._out = self._out, None
+            checked(out, out.close(), "close")
+            verify(self.tmp, self.fmt, [(self.spec, None)], "single")
+        except WriteFailed as exc:
+            raise OutputError(f"cannot write {self.path}: {str(exc).replace(self.tmp, self.path)}"
+                              f"{diagnosis(self.tmp)}") from None
+
+    def abort(self) -> None:
+        if self._out is not None:
+            with contextlib.suppress(Exception):
+                self._out.close()
+            self._out = None
+
+
+@contextlib.contextmanager
+def stream_writers(paths: list[str | os.PathLike[str]], infos: list[ImageInfo], shapes: list[tuple[int, int, int]],
+                   *, pixel_type: str | None = None, colorspace: str | None = None, alpha: str | None = None,
+                   dither: bool = False, compression: str | None = None, force: bool = False,
+                   inputs: Iterable[str | os.PathLike[str]] = ()):
+    """Several images written band by band, all or nothing (:func:`~pyramid_cli.imageio.write.write_images`'
+    guarantee): one :class:`BandWriter` per path on a hidden temporary beside it.
+
+    Each file is encoded as :func:`~pyramid_cli.imageio.write.write_image` encodes it (same options, same
+    pixels); they are renamed onto their paths only when every row of every file is written and each reads
+    back; any failure or interruption removes the temporaries and leaves what was at the paths untouched
+    (:func:`pyramid_cli.imageio.atomic.atomic_paths`).
+    """
+    out_paths = [os.fspath(p) for p in paths]
+    opts = {"pixel_type": pixel_type, "colorspace": colorspace, "alpha": alpha, "dither": dither,
+            "compression": compression, "force": force, "inputs": tuple(inputs)}
+    fmts = [check_band_output(p, opts) for p in out_paths]
+    with atomic_paths(out_paths) as tmps:
+        writers = [BandWriter(p, tmp, fmt, info, shape, opts)
+                   for p, tmp, fmt, info, shape in zip(out_paths, tmps, fmts, infos, shapes, strict=True)]
+        try:
+            yield writers
+            for w in writers:
+                w.finish()
+        except BaseException:
+            for w in writers:
+                w.abort()
+            raise
+
+
+def check_band_output(path: str, opts: dict) -> str:
+    """The format of ``path``, refused before any work as :func:`~pyramid_cli.imageio.write.write_image`
+    refuses it, or when its format is encoded whole (it cannot be written band by band)."""
+    fmt = check_output_path(path, opts["force"], opts["inputs"])
+    check_write_options(path, opts["pixel_type"], opts["compression"])
+    if not streams_to(path):
+        raise OutputError(f"cannot write {path} band by band: {format_title(fmt)} is encoded whole")
+    return fmt
+
+
+@contextlib.contextmanager
+def stream_writer(path: str | os.PathLike[str], info: ImageInfo, shape: tuple[int, int, int], **options):
+    """One image written band by band, atomically (:func:`stream_writers` of one path): yields its
+    :class:`BandWriter`. Options as :func:`~pyramid_cli.imageio.write.write_image`."""
+    with stream_writers([path], [info], [shape], **options) as (writer,):
+        yield writer

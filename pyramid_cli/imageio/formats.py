@@ -1,0 +1,167 @@
+"""The formats OpenImageIO writes and what each can store: pixel types, alpha, compression, tiles.
+
+The tables every reader and writer of :mod:`pyramid_cli.imageio` consults, and the small helpers that name
+things the way OpenImageIO does (format names from extensions, pixel type names, colour space names).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterable
+
+import OpenImageIO as oiio
+
+from pyramid_cli.core import options
+from pyramid_cli.core.errors import UsageError
+
+PIXEL_TYPES = options.PIXEL_TYPES
+COLORSPACES = options.ENCODINGS
+ALPHA_MODES = options.STORED_ALPHA
+
+# The colour space names written into ``oiio:ColorSpace`` (OpenImageIO 3
+# built-in names, understood by older versions as well).
+OIIO_COLORSPACE = {"linear": "lin_rec709_scene", "srgb": "srgb_rec709_scene"}
+
+# Pixel types each format can store, for the formats that cannot store all
+# four. Formats not listed are assumed to store any of them.
+FORMAT_TYPES: dict[str, tuple[str, ...]] = {
+    "openexr": ("half", "float"),
+    "png": ("uint8", "uint16"),
+    "jpeg": ("uint8",),
+    "gif": ("uint8",),
+    "bmp": ("uint8",),
+    "targa": ("uint8",),
+    "webp": ("uint8",),
+    "ico": ("uint8",),
+    "sgi": ("uint8", "uint16"),
+    "dpx": ("uint8", "uint16"),
+    "jpeg2000": ("uint8", "uint16"),
+    "hdr": ("float",),
+    "pnm": ("uint8", "uint16", "float"),
+}
+
+# Formats that can store premultiplied (associated) alpha; all others store
+# straight alpha only.
+ASSOCIATED_CAPABLE = ("openexr", "tiff")
+
+# Formats that hold no alpha channel at all: alpha is dropped on write, which
+# leaves the premultiplied colour, i.e. the image composited over black.
+NO_ALPHA_FORMATS = ("jpeg", "hdr")
+
+# --compression values each format honours (OpenImageIO writes anything else as its default
+# without a word, so anything else is refused). ``name:N`` sets a level or quality.
+COMPRESSIONS: dict[str, tuple[str, ...]] = {
+    "openexr": ("none", "rle", "zips", "zip", "piz", "pxr24", "b44", "b44a", "dwaa", "dwab"),
+    "tiff": ("none", "lzw", "zip", "packbits", "ccittrle"),
+}
+COMPRESSION_LEVELS = frozenset({"zip", "zips", "dwaa", "dwab", "lzw"})
+
+# Formats whose OpenImageIO writer ends the whole process on a write error (libjpeg's default
+# error handler calls exit()): they are encoded into memory first and copied to the file with
+# os.write, which reports a full disk as an error.
+ENCODE_IN_MEMORY = frozenset({"jpeg"})
+
+# Formats that can be tiled: a tiled input is written back tiled.
+TILED_FORMATS = ("openexr", "tiff")
+
+_FORMAT_TITLES = {"openexr": "OpenEXR", "png": "PNG", "jpeg": "JPEG", "tiff": "TIFF", "hdr": "HDR"}
+
+
+def format_title(fmt: str) -> str:
+    """How messages name a format: ``"OpenEXR"`` for ``"openexr"``, the OpenImageIO name where it has no title."""
+    return _FORMAT_TITLES.get(fmt, fmt)
+
+
+_NON_LINEAR_KEYWORDS = ("srgb", "rec709", "g22", "g18", "gamma", "sycc")
+_LINEAR_NAMES = frozenset({"linear", "scene_linear", "acescg", "aces", "aces2065-1",
+                           "raw", "data", "role_scene_linear"})
+
+
+def one_line(message: str, fallback: str) -> str:
+    """The first non-blank line of an OpenImageIO message, ``fallback`` when there is none."""
+    lines = [ln.strip() for ln in str(message).splitlines() if ln.strip()]
+    return lines[0] if lines else fallback
+
+
+def check_choice(name: str, value: str, choices: Iterable[str]) -> None:
+    """Refuse (UsageError) a ``value`` of option ``name`` that is not one of ``choices``."""
+    choices = tuple(choices)
+    if value not in choices:
+        raise UsageError(f"bad {name} {value!r}: expected one of {', '.join(choices)}")
+
+
+def pixel_type_name(t: oiio.TypeDesc) -> str:
+    """``"uint8"``, ``"uint16"``, ``"half"`` or ``"float"`` for an OpenImageIO type (any other type: ``"float"``)."""
+    base = t.basetype
+    if base == oiio.UINT8:
+        return "uint8"
+    if base == oiio.UINT16:
+        return "uint16"
+    if base == oiio.HALF:
+        return "half"
+    return "float"
+
+
+def classify_colorspace(name: str) -> str | None:
+    """``"linear"`` or ``"srgb"`` for an ``oiio:ColorSpace`` name, None when the name says neither."""
+    n = name.strip().lower()
+    if not n:
+        return None
+    if n in _LINEAR_NAMES or n.startswith(("lin", "g10")) or "linear" in n:
+        return "linear"
+    if any(k in n for k in _NON_LINEAR_KEYWORDS):
+        return "srgb"
+    return None
+
+
+def default_colorspace(pixel_type: str) -> str:
+    """The encoding a file of ``pixel_type`` has when it does not say: sRGB for integers, linear for floats."""
+    return "srgb" if pixel_type in ("uint8", "uint16") else "linear"
+
+
+def format_from_path(path: str) -> str:
+    """The OpenImageIO format name of ``path``'s extension (``"openexr"`` for ``.exr``), ``""`` if unknown."""
+    ext = os.path.splitext(path)[1].lower().lstrip(".")
+    if not ext:
+        return ""
+    for entry in oiio.get_string_attribute("extension_list").split(";"):
+        fmt, _, exts = entry.partition(":")
+        if ext in exts.split(","):
+            return fmt
+    return ""
+
+
+def output_pixel_type(fmt: str, pixel_type: str) -> str:
+    """The pixel type a format will store when asked for ``pixel_type``.
+
+    Parameters
+    ----------
+    fmt : str
+        OpenImageIO format name.
+    pixel_type : str
+        Requested type: ``"uint8"``, ``"uint16"``, ``"half"`` or ``"float"``.
+
+    Returns
+    -------
+    str
+        ``pixel_type`` if the format can hold it, else the nearest type it can:
+        the widest integer type for a float request, ``half`` (or the
+        narrowest float) for an integer request.
+    """
+    allowed = FORMAT_TYPES.get(fmt)
+    if allowed is None or pixel_type in allowed:
+        return pixel_type
+    if pixel_type in ("half", "float"):
+        ints = [t for t in allowed if t in ("uint8", "uint16")]
+        if ints:
+            return ints[-1]
+        return "float" if "float" in allowed else allowed[-1]
+    floats = [t for t in allowed if t in ("half", "float")]
+    if floats:
+        return floats[0]
+    return allowed[-1]
+
+
+def oiio_version() -> str:
+    """The OpenImageIO version writing the files, e.g. ``"3.2.2.0"``."""
+    return str(oiio.__version__)
