@@ -18,7 +18,7 @@ tensors of any device and floating dtype (float64, float32, float16):
   step's taps reach outside the image (replicate padding is exactly the reference's clamped
   index, at any width, even for a 1×1 image);
 - channels never mix: an (N, C, H, W) tensor runs as (N·C, 1, H, W);
-- the pyramid blur takes its steps and crops from :func:`pyramid_cli.workflows.pyramids.blur_steps`,
+- the pyramid blur takes its steps and crops from :func:`pyramid_cli.core.sigma.blur_steps`,
   the function :func:`pyramid_cli.workflows.pyramids.blur_plan` plans from, so odd sizes are cropped
   the same way (each synthesis back to its level's size).
 
@@ -45,7 +45,7 @@ if str(ROOT) not in sys.path:  # run from a checkout even without the editable i
 
 from pyramid_cli.core import algebra  # noqa: E402
 from pyramid_cli.core.expr import Expr, Filter, Named, Op, steps  # noqa: E402
-from pyramid_cli.workflows.pyramids import blur_steps  # noqa: E402
+from pyramid_cli.core.sigma import blur_steps  # noqa: E402
 
 Size = tuple[int, int]
 

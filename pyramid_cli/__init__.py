@@ -9,7 +9,7 @@ planner) pulls in no third-party module.
 
 from __future__ import annotations
 
-__version__ = "0.1.0"
+from pyramid_cli.core.version import __version__ as __version__
 
 _API = ("apply", "blur", "pyramid", "laplacian", "collapse", "mipmap", "read_image", "write_image",
         "process_files", "as_pixels", "Session", "Work", "Filter", "Blur", "SigmaBlur", "Levels", "Laplacian",

@@ -212,8 +212,8 @@ def apply(expr: str | Expr, array, *, border: str = "clamp", backend: str = "aut
     return result
 
 
-def blur(array, levels: int = 4, *, sigma: float | None = None, analysis: str = catalogue.ANALYSIS_DEFAULT,
-         synthesis: str = catalogue.SYNTHESIS_DEFAULT, quasi: bool = False, border: str = "clamp",
+def blur(array, levels: int = 4, *, sigma: float | None = None, analysis: str = catalogue.DEFAULT_ANALYSIS,
+         synthesis: str = catalogue.DEFAULT_SYNTHESIS, quasi: bool = False, border: str = "clamp",
          backend: str = "auto", session: Session | None = None, out: np.ndarray | None = None,
          memory: int | str | None = None) -> np.ndarray:
     """Pyramidal blur: ``levels`` analysis steps down, then synthesis back to the input size (§2, Figure 3).
@@ -265,7 +265,7 @@ def blur(array, levels: int = 4, *, sigma: float | None = None, analysis: str = 
     return result
 
 
-def pyramid(array, *, analysis: str = catalogue.ANALYSIS_DEFAULT, levels: int | None = None, border: str = "clamp",
+def pyramid(array, *, analysis: str = catalogue.DEFAULT_ANALYSIS, levels: int | None = None, border: str = "clamp",
             backend: str = "auto", session: Session | None = None, out: Sequence[np.ndarray] | None = None,
             memory: int | str | None = None) -> Iterator[np.ndarray]:
     """The analysis pyramid (§4), level 0 (the input itself) first.
@@ -309,8 +309,8 @@ def pyramid(array, *, analysis: str = catalogue.ANALYSIS_DEFAULT, levels: int | 
     yield from outs[1:]
 
 
-def laplacian(array, levels: int = 4, *, analysis: str = catalogue.ANALYSIS_DEFAULT,
-              synthesis: str = catalogue.SYNTHESIS_DEFAULT, border: str = "clamp", backend: str = "auto",
+def laplacian(array, levels: int = 4, *, analysis: str = catalogue.DEFAULT_ANALYSIS,
+              synthesis: str = catalogue.DEFAULT_SYNTHESIS, border: str = "clamp", backend: str = "auto",
               session: Session | None = None, out: Sequence[np.ndarray] | None = None,
               memory: int | str | None = None) -> list[np.ndarray]:
     """Laplacian bands L_k = G_k − expand(G_k+1) for k < ``levels``, then the coarsest G_m.
@@ -362,7 +362,7 @@ def collapse(bands: Sequence, *, synthesis: str | None = None, border: str | Non
     pyramid_cli.core.errors.UsageError: the bands were made with synthesis 'nearest'; collapsing with 'doosabin' ...
     """
     recorded = {k: getattr(bands, k, None) for k in ("synthesis", "border")}
-    synthesis = _as_recorded("synthesis", synthesis, recorded["synthesis"], catalogue.SYNTHESIS_DEFAULT)
+    synthesis = _as_recorded("synthesis", synthesis, recorded["synthesis"], catalogue.DEFAULT_SYNTHESIS)
     border = _as_recorded("border", border, recorded["border"], "clamp")
     bands = [as_pixels(b, f"band {k}") for k, b in enumerate(bands)]
     if len(bands) < 2:
@@ -409,7 +409,7 @@ def mipmap(array, *, analysis: str = catalogue.MIP_ANALYSIS_DEFAULT, border: str
     >>> [lv.shape for lv in pyr.mipmap(np.ones((5, 8, 4)), rounding="up")]
     [(5, 8, 4), (3, 4, 4), (2, 2, 4), (1, 1, 4)]
     """
-    from pyramid_cli.workflows.mip import TextureLevels
+    from pyramid_cli.jobs.texture import TextureLevels
 
     work = TextureLevels(levels=None, analysis=analysis, border=border, rounding=rounding)
     if _bands_wanted(array, out, memory):
@@ -493,8 +493,8 @@ def fill(array, *, mask=None, holes: str | None = None, levels: int | None = Non
     return fill_output(out, pixels, holes, keep_alpha=keep_alpha)
 
 
-def blend(a, b, mask, *, levels: int | None = None, analysis: str = catalogue.ANALYSIS_DEFAULT,
-          synthesis: str = catalogue.SYNTHESIS_DEFAULT, border: str = "clamp", backend: str = "auto",
+def blend(a, b, mask, *, levels: int | None = None, analysis: str = catalogue.DEFAULT_ANALYSIS,
+          synthesis: str = catalogue.DEFAULT_SYNTHESIS, border: str = "clamp", backend: str = "auto",
           session: Session | None = None) -> np.ndarray:
     """Join ``a`` and ``b`` along ``mask`` without a seam (Burt & Adelson, "A Multiresolution Spline With
     Application to Image Mosaics", ACM ToG 1983).

@@ -12,7 +12,7 @@ import numpy as np
 import OpenImageIO as oiio
 
 from pyramid_cli import imageio as io
-from pyramid_cli.workflows.pyramids import blur_reference
+from pyramid_cli.reference.pyramids import blur_reference
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 LEVELS = 4  # keep in step with samples/Makefile

@@ -13,9 +13,10 @@ from pyramid_cli.core.border import Border
 from pyramid_cli.core.errors import PyramidError
 from pyramid_cli.core.geometry import mip_levels
 from pyramid_cli.core.parse import parse
+from pyramid_cli.core.sigma import sigma_blend
 from pyramid_cli.reference import filters as reference
-from pyramid_cli.workflows import pyramids
-from pyramid_cli.workflows.mip import mip_reference
+from pyramid_cli.reference import pyramids
+from pyramid_cli.reference.mip import mip_reference
 
 SIZES = [(1, 1), (1, 7), (5, 3), (17, 13), (129, 67)]
 CHANNELS = [1, 3, 4, 6]
@@ -43,7 +44,7 @@ def cases(a):
          [reference.run(parse("gauss5"), f64, Border.MIRROR)]),
         ("blur", lambda s: [pyr.blur(a, 3, session=s)], [pyramids.blur_reference(f64, 3)]),
         ("blur sigma", lambda s: [pyr.blur(a, sigma=1.2, border="wrap", session=s)],
-         [pyramids.blur_sigma_reference(f64, 1.2, border="wrap")]),
+         [pyramids.blur_blend_reference(f64, *sigma_blend(1.2), border="wrap")]),
         ("pyramid", lambda s: list(pyr.pyramid(a, session=s)),
          pyramids.levels_reference(f64, mip_levels(a.shape[:2]))),
         ("laplacian", lambda s: pyr.laplacian(a, 3, analysis="quadratic", synthesis="cubic", session=s),

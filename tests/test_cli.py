@@ -206,7 +206,8 @@ def test_compression_option_reaches_the_file(tmp_path):
 @pytest.mark.parametrize("channels", [3, 4])
 def test_half_exr_blur_stays_half_and_rounds_once(gl, tmp_path, channels):
     """A half file is uploaded as is and read back rounded once: the float result rounded to half."""
-    from pyramid_cli.workflows.pyramids import blur_plan, blur_reference
+    from pyramid_cli.reference.pyramids import blur_reference
+    from pyramid_cli.workflows.pyramids import blur_plan
 
     g = np.random.default_rng(5).random((33, 47, channels)).astype(np.float16)
     src, dst = tmp_path / "in.exr", tmp_path / "out.exr"
@@ -240,7 +241,7 @@ def test_cpu_backend_does_not_prepare_gl_work(tmp_path, monkeypatch):
 @pytest.mark.parametrize("border", ["mirror", "wrap", "zero"])
 def test_gl_runs_non_clamp_borders_itself_and_says_so(gl, tmp_path, border):
     """--backend gl --border mirror runs on GL (the -v line names the executor that ran the image)."""
-    from pyramid_cli.workflows.pyramids import blur_reference
+    from pyramid_cli.reference.pyramids import blur_reference
 
     g = np.random.default_rng(7).random((21, 13, 3))
     src, dst = tmp_path / "in.exr", tmp_path / "out.exr"

@@ -15,7 +15,7 @@ from cases import NAMED
 from pyramid_cli.cli import main
 from pyramid_cli.core.parse import parse
 from pyramid_cli.reference import filters as reference
-from pyramid_cli.workflows.pyramids import blur_reference
+from pyramid_cli.reference.pyramids import blur_reference
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 

@@ -1,7 +1,7 @@
 """Domain-true MIP levels: the ResamplePass, its exact weights and every executor against the float64 reference.
 
 The weights come from the analysis filter's continuous kernel (:mod:`pyramid_cli.plan.resample`); the
-reference (:func:`pyramid_cli.workflows.mip.mip_reference`) integrates the same kernel in float64 from the paper's
+reference (:func:`pyramid_cli.reference.mip.mip_reference`) integrates the same kernel in float64 from the paper's
 masks, without the planner. Every executor runs the plan and is held to the reference at every pixel.
 """
 
@@ -18,10 +18,12 @@ from click.testing import CliRunner
 import pyramid_cli as pyr
 from pyramid_cli.cli import main
 from pyramid_cli.core import catalogue
+from pyramid_cli.core.geometry import mip_sizes
 from pyramid_cli.exec import emulate
+from pyramid_cli.jobs.texture import TextureLevels
 from pyramid_cli.plan import Pass, ResamplePass, check
 from pyramid_cli.plan.resample import axis_table, column_sums, dense
-from pyramid_cli.workflows.mip import TextureLevels, mip_reference, mip_sizes, resample_matrix
+from pyramid_cli.reference.mip import mip_reference, resample_matrix
 from pyramid_cli.workflows.pyramids import mip_axis_weights, mip_plan
 
 BORDERS = ["clamp", "mirror", "wrap", "zero"]

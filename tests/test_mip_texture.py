@@ -20,7 +20,7 @@ import pytest
 from click.testing import CliRunner
 
 from pyramid_cli.cli import main
-from pyramid_cli.workflows.mip import mip_sizes
+from pyramid_cli.core.geometry import mip_sizes
 
 CPU = ["--backend", "cpu"]
 

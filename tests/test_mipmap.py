@@ -19,7 +19,8 @@ from click.testing import CliRunner
 
 from pyramid_cli import imageio as pio
 from pyramid_cli.cli import main
-from pyramid_cli.workflows.mip import hash_extra, mip_sizes, parse_wrap, pixel_sha1
+from pyramid_cli.core.geometry import mip_sizes
+from pyramid_cli.workflows.mip import hash_extra, parse_wrap, pixel_sha1
 
 BIN = Path(sys.executable).parent
 MAKETX, OIIOTOOL = str(BIN / "maketx"), str(BIN / "oiiotool")

@@ -89,11 +89,11 @@ def test_synthesis_recipes_reproduce_their_masks(key):
 def test_wrong_arrow_recipe_is_rejected():
     """The check really compares: the paper's printed box4 recipe (box↘ twice) fails it."""
     from pyramid_cli.core.algebra import mask_weights
-    from pyramid_cli.plan import _chain, conv, down
+    from pyramid_cli.plan import chain, conv, down
 
     box = mask_weights(catalogue.mask("box").mask)
     f = Named("box4")
-    assert not recipe_kernel_matches(_chain(down(box), conv(box)), Op.DOWN, f)
+    assert not recipe_kernel_matches(chain(down(box), conv(box)), Op.DOWN, f)
 
 
 def test_tap_fitting_pairs_bilinear_weights_and_keeps_the_rest_nearest():

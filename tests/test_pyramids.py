@@ -7,10 +7,13 @@ from click.testing import CliRunner
 from pyramid_cli.cli import main
 from pyramid_cli.core.catalogue import ANALYSIS_FILTERS as ANALYSIS
 from pyramid_cli.core.catalogue import SYNTHESIS_FILTERS as SYNTHESIS
+from pyramid_cli.core.geometry import level_sizes
 from pyramid_cli.core.parse import parse
+from pyramid_cli.core.sigma import impulse_sigma
 from pyramid_cli.exec import emulate
 from pyramid_cli.reference import filters as reference
-from pyramid_cli.workflows.pyramids import blur_plan, blur_reference, impulse_sigma, lattice_mismatch, level_sizes
+from pyramid_cli.reference.pyramids import blur_reference
+from pyramid_cli.workflows.pyramids import blur_plan, lattice_mismatch
 
 
 def reference_blur(g, levels, analysis, synthesis, quasi=False):

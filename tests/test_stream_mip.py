@@ -13,6 +13,7 @@ import pytest
 from pyramid_cli import imageio as io
 from pyramid_cli.core.errors import UsageError
 from pyramid_cli.exec.session import Session
+from pyramid_cli.jobs.texture import TextureLevels
 from pyramid_cli.run import batch, stream
 from pyramid_cli.run.pipeline import Reporter, process
 from pyramid_cli.workflows import mip
@@ -76,7 +77,7 @@ def session():
 
 
 def mipmap(session, src, out, memory=None, said=None, **kw):
-    work = mip.TextureLevels(levels=None, **kw)
+    work = TextureLevels(levels=None, **kw)
     rep = Reporter(verbose=True, out=said.append, err=said.append) if said is not None else Reporter(quiet=True)
     return process([str(src), str(out)], None, work, session, mip_tile=16, memory=memory,
                    reporter=rep)
@@ -139,7 +140,7 @@ def test_streamed_mipmap_with_a_mirror_border_and_a_dithered_8_bit_texture(tmp_p
     write(src, noise(128, 128, 3, seed=5), "uint8")
     said = []
     for name, budget in (("s.tx", 240 << 10), ("w.tx", None)):
-        process([str(src), str(tmp_path / name)], None, mip.TextureLevels(levels=None, border="mirror"), session,
+        process([str(src), str(tmp_path / name)], None, TextureLevels(levels=None, border="mirror"), session,
                 mip_tile=16, memory=budget, reporter=Reporter(verbose=True, out=said.append, err=said.append),
                 write=_dither())
     assert any("streamed in bands" in m for m in said), said
@@ -179,7 +180,7 @@ def test_what_cannot_stream_is_refused_with_memory_and_runs_whole_without(tmp_pa
     with pytest.raises(UsageError, match="--resize.*whole picture"):
         mipmap(session, src, tmp_path / "r.exr", 10 << 10, resize=True)
     with pytest.raises(UsageError, match="--memory streams one input"):
-        process([str(src), str(tmp_path / "other.exr")], str(tmp_path / "{stem}_t.exr"), mip.TextureLevels(levels=None),
+        process([str(src), str(tmp_path / "other.exr")], str(tmp_path / "{stem}_t.exr"), TextureLevels(levels=None),
                 session, mip_tile=16, memory=1 << 20, reporter=Reporter(quiet=True))
     with pytest.raises(Exception, match="needs at least"):
         mipmap(session, src, tmp_path / "x.exr", 4 << 10)

@@ -209,7 +209,7 @@ def test_gl_tiled_pyramids(gl, name):
 @gl_mark
 def test_gl_strip_beyond_the_texture_limit(gl):
     """A 20000×64 strip is wider than llvmpipe's 16384: GL runs it in tiles and matches the reference."""
-    from pyramid_cli.workflows import pyramids
+    from pyramid_cli.reference.pyramids import blur_reference
 
     size = (64, 20000)
     work = Blur(levels=3)
@@ -217,7 +217,7 @@ def test_gl_strip_beyond_the_texture_limit(gl):
     x = image(size, 4, seed=3)
     assert not gl.fits(p) or gl.max_texture_size > 16384
     got = gl.run(p, x)
-    ref = pyramids.blur_reference(x.astype(np.float64), 3, work.analysis, work.synthesis, False, "clamp")
+    ref = blur_reference(x.astype(np.float64), 3, work.analysis, work.synthesis, False, "clamp")
     np.testing.assert_allclose(got, ref, rtol=0, atol=1e-5)
 
 

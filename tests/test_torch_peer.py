@@ -19,7 +19,7 @@ torch = pytest.importorskip("torch")
 from pyramid_cli.core.expr import Named, Op  # noqa: E402
 from pyramid_cli.core.parse import parse  # noqa: E402
 from pyramid_cli.reference import filters as reference  # noqa: E402
-from pyramid_cli.workflows import pyramids  # noqa: E402
+from pyramid_cli.reference import pyramids  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 _spec = importlib.util.spec_from_file_location("bench_torch_peer", ROOT / "bench" / "torch_peer.py")

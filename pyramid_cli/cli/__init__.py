@@ -164,7 +164,7 @@ def plan_command(expression, size, as_json: bool, strategy: str, mip_round: str 
     w, h = size
     if mip_round is not None:
         from pyramid_cli.core.expr import Apply, Input, Named, Op, to_text
-        from pyramid_cli.workflows.mip import TextureLevels
+        from pyramid_cli.jobs.texture import TextureLevels
 
         named = (isinstance(expression, Apply) and expression.op is Op.DOWN and isinstance(expression.filter, Named)
                  and isinstance(expression.arg, Input) and expression.stride == 1 and expression.power == 1)
@@ -400,9 +400,9 @@ def apply(expression, paths, border: str, **opts) -> None:
 @click.argument("paths", metavar="INPUT OUTPUT | INPUT... -o TEMPLATE", nargs=-1, required=True)
 @click.option("--levels", "-m", type=click.IntRange(1, 16), default=4, show_default=True,
               help="Analysis steps down (and synthesis steps back up).")
-@click.option("--analysis", default=catalogue.ANALYSIS_DEFAULT, show_default=True,
+@click.option("--analysis", default=catalogue.DEFAULT_ANALYSIS, show_default=True,
               help=f"{', '.join(catalogue.ANALYSIS_FILTERS)}, or a ⊗↓ expression.")
-@click.option("--synthesis", default=catalogue.SYNTHESIS_DEFAULT, show_default=True,
+@click.option("--synthesis", default=catalogue.DEFAULT_SYNTHESIS, show_default=True,
               help=f"{', '.join(catalogue.SYNTHESIS_FILTERS)}, or a ⊗↑ expression.")
 @click.option("--quasi", is_flag=True, help="Apply the §5.5 quasi-interpolation prefilter at the coarsest level.")
 @click.option("--sigma", type=float, help="Blur strength as a Gaussian sigma in input pixels: picks the levels "
@@ -434,7 +434,7 @@ def blur(paths, levels: int, analysis: str, synthesis: str, quasi: bool, sigma: 
         work = Blur(levels=levels, analysis=analysis, synthesis=synthesis, quasi=quasi, border=border,
                     allow_mixed_lattice=allow_mixed_lattice)
     else:
-        from pyramid_cli.workflows.pyramids import sigma_blend
+        from pyramid_cli.core.sigma import sigma_blend
 
         if quasi:
             raise UsageError("--quasi and --sigma cannot be combined")
@@ -451,11 +451,11 @@ def blur(paths, levels: int, analysis: str, synthesis: str, quasi: bool, sigma: 
 @click.argument("input_path", metavar="INPUT")
 @click.argument("pattern", metavar="OUTPUT_PATTERN")
 @click.option("--levels", "-m", type=click.IntRange(1, 16), default=4, show_default=True)
-@click.option("--analysis", default=catalogue.ANALYSIS_DEFAULT, show_default=True,
+@click.option("--analysis", default=catalogue.DEFAULT_ANALYSIS, show_default=True,
               help=f"{', '.join(catalogue.ANALYSIS_FILTERS)} or a ⊗↓ expression.")
 @click.option("--laplacian", is_flag=True, help="Write band-pass levels L_k = G_k − expand(G_k+1) and the coarsest "
               "G_m, which `pyramid collapse` sums back to the input.")
-@click.option("--synthesis", default=catalogue.SYNTHESIS_DEFAULT, show_default=True,
+@click.option("--synthesis", default=catalogue.DEFAULT_SYNTHESIS, show_default=True,
               help="Expansion used by --laplacian.")
 @click.option("--multipart", is_flag=True, help="Write one multi-part EXR (OUTPUT_PATTERN is its path).")
 @click.option("--sheet", type=click.Path(dir_okay=False), help="Also draw all levels side by side (Figure 1a).")
@@ -495,7 +495,7 @@ def levels(input_path, pattern, levels, analysis, laplacian, synthesis, multipar
 @click.argument("inputs", nargs=-1, required=True, metavar="BANDS... | BANDS.exr")
 @click.argument("output_path", metavar="OUTPUT")
 @click.option("--synthesis", default=None, help="Expansion the bands were made with (default: as recorded, "
-              f"else {catalogue.SYNTHESIS_DEFAULT}).")
+              f"else {catalogue.DEFAULT_SYNTHESIS}).")
 @click.option("--border", type=_choice(BORDERS), default=None,
               help="The border the bands were made with (default: as recorded, else clamp).")
 @io_options
@@ -582,7 +582,8 @@ def mipmap(ctx: click.Context, paths, analysis, tile, wrap, swrap, twrap, consta
       pyramid mipmap --fill bake.png bake.tx                    # pad UV islands first: no dark bleeding
       pyramid mipmap --memory 2G -v matte_32k.exr matte_32k.tx.exr   # streamed: level 0 band by band
     """
-    from pyramid_cli.workflows.mip import TextureLevels, border_for_wrap, parse_wrap
+    from pyramid_cli.jobs.texture import TextureLevels
+    from pyramid_cli.workflows.mip import border_for_wrap, parse_wrap
 
     modes = parse_wrap(wrap, swrap, twrap)
     if modes is not None:
@@ -663,9 +664,9 @@ def fill(input_path, output_path, mask, holes, levels, analysis, synthesis, keep
 @click.option("--levels", "-m", type=click.IntRange(0, 16), default=None,
               help="Laplacian levels (default: as many as the size allows while the coarsest level keeps 16 "
                    "pixels on its shorter side: 4 at 256×256, 7 at 3840×2160).")
-@click.option("--analysis", default=catalogue.ANALYSIS_DEFAULT, show_default=True,
+@click.option("--analysis", default=catalogue.DEFAULT_ANALYSIS, show_default=True,
               help=f"{', '.join(catalogue.ANALYSIS_FILTERS)}, or a ⊗↓ expression.")
-@click.option("--synthesis", default=catalogue.SYNTHESIS_DEFAULT, show_default=True,
+@click.option("--synthesis", default=catalogue.DEFAULT_SYNTHESIS, show_default=True,
               help=f"{', '.join(catalogue.SYNTHESIS_FILTERS)}, or a ⊗↑ expression.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object (size, levels, executor).")
 @mixed_lattice_option

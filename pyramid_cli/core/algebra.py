@@ -290,15 +290,6 @@ def separate(m: list[list[Fraction]]) -> tuple[list[Fraction], list[Fraction]] |
 
 
 # ---------------------------------------------------------------- continuity
-def _polymul(a: list[Fraction], b: list[Fraction]) -> list[Fraction]:
-    out = [Fraction(0)] * (len(a) + len(b) - 1)
-    for i, x in enumerate(a):
-        if x:
-            for j, y in enumerate(b):
-                out[i + j] += x * y
-    return out
-
-
 def _polydiv(a: list[Fraction], b: list[Fraction]) -> list[Fraction] | None:
     """Exact quotient a / b, or None if b does not divide a."""
     a = list(a)

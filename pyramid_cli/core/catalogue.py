@@ -193,6 +193,6 @@ NATURAL_DOWN = frozenset({"box4", "quadratic"})
 # The filters offered for each pyramid role (blur, levels, mipmap), and the paper's Figure 3b pair.
 ANALYSIS_FILTERS = ("box", "box4", "quadratic", "cubic")
 SYNTHESIS_FILTERS = ("nearest", "midpoint", "doosabin", "cubic", "fourpoint")
-ANALYSIS_DEFAULT = "box4"
-SYNTHESIS_DEFAULT = "doosabin"
+DEFAULT_ANALYSIS = "box4"       # the analysis (⊗↓) of blur, levels, laplacian, fill and blend unless told
+DEFAULT_SYNTHESIS = "doosabin"  # their synthesis (⊗↑)
 MIP_ANALYSIS_DEFAULT = "quadratic"

@@ -36,15 +36,15 @@ def reduced(n: int, m: int = 1) -> int:
 
 
 def halved(size: tuple[int, ...]) -> tuple[int, ...]:
-    """Each dimension ⌈n/2⌉: the size of the next pyramid or MIP level (one ⊗↓ step)."""
+    """Each dimension ⌈n/2⌉: the size of the next pyramid level (one ⊗↓ step; odd sizes round up)."""
     return tuple(reduced(n) for n in size)
 
 
 def level_sizes(size: tuple[int, int], levels: int) -> list[tuple[int, int]]:
-    """Sizes of pyramid levels 0..m: each ⌈n/2⌉ of the one before."""
+    """Sizes of pyramid levels 0..m: each :func:`halved` of the one before."""
     out = [tuple(size)]
     for _ in range(levels):
-        out.append((reduced(out[-1][0]), reduced(out[-1][1])))
+        out.append(halved(out[-1]))
     return out
 
 
@@ -52,9 +52,19 @@ def mip_levels(size: tuple[int, int]) -> int:
     """Reductions by ⌈n/2⌉ until 1×1."""
     n = 0
     while max(size) > 1:
-        size = (reduced(size[0]), reduced(size[1]))
+        size = halved(size)
         n += 1
     return n
+
+
+def mip_sizes(size: tuple[int, int], rounding: str = "down") -> list[tuple[int, int]]:
+    """MIP level sizes (rows, columns) down to 1×1: ``max(1, ⌊n/2⌋)`` ("down", maketx's and OpenEXR's)
+    or ``⌈n/2⌉`` ("up", :func:`halved`)."""
+    out = [tuple(size)]
+    while out[-1][0] > 1 or out[-1][1] > 1:
+        h, w = out[-1]
+        out.append((max(1, h // 2), max(1, w // 2)) if rounding == "down" else halved((h, w)))
+    return out
 
 
 def check_size(width: int, height: int, limit: int, *, where: str = "") -> None:
@@ -64,4 +74,5 @@ def check_size(width: int, height: int, limit: int, *, where: str = "") -> None:
         raise DataError(f"{prefix}image size {width}x{height} exceeds the limit of {limit}x{limit} pixels")
 
 
-__all__ = ["ceil_div", "base_index", "step_size", "reduced", "level_sizes", "mip_levels", "check_size"]
+__all__ = ["ceil_div", "base_index", "step_size", "reduced", "halved", "level_sizes", "mip_levels", "mip_sizes",
+           "check_size"]

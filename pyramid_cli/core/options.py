@@ -21,6 +21,7 @@ COLORSPACES = ("auto", *ENCODINGS)                    # --colorspace: auto reads
 ALPHA_MODES = ("auto", *STORED_ALPHA)                 # --alpha: auto follows the file
 NAN_POLICIES = ("keep", "zero", "fail")
 STRATEGIES = ("cost", "paper", "fused")
+MAX_LEVELS = 16  # the most pyramid levels: --levels ranges, the API's checks, the sigma limits
 
 
 def check(name: str, value: str, choices) -> str:
@@ -32,4 +33,4 @@ def check(name: str, value: str, choices) -> str:
 
 __all__ = ["BACKENDS", "BACKEND_HELP", "BORDERS", "PRECISIONS", "PIXEL_TYPES", "ENCODINGS", "STORED_ALPHA",
            "COLORSPACES", "ALPHA_MODES",
-           "NAN_POLICIES", "STRATEGIES", "check"]
+           "NAN_POLICIES", "STRATEGIES", "MAX_LEVELS", "check"]

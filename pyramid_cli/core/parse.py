@@ -23,8 +23,8 @@ from dataclasses import dataclass
 from fractions import Fraction
 
 from pyramid_cli.core import catalogue
-from pyramid_cli.core.errors import ExpressionError
-from pyramid_cli.core.expr import Apply, Expr, Filter, Input, Literal, Named, Op
+from pyramid_cli.core.errors import ExpressionError, UsageError
+from pyramid_cli.core.expr import Apply, Expr, Filter, Input, Literal, Named, Op, steps
 
 MAX_POWER = 16
 MAX_DIGITS = 12  # digits of a number in a written mask (weights stay exact and fit a float)
@@ -426,3 +426,16 @@ def parse(text: str) -> Expr:
         return expr
     except RecursionError:
         raise ExpressionError("expression nested too deeply", text, 0) from None
+
+
+def one_step(text: str, op: Op) -> Expr:
+    """A pyramid role's filter: a filter name (applied with ``op``) or an expression that uses only ``op``.
+
+    ``one_step("box4", Op.DOWN)`` is ``box4 ⊗↓ g``; ``"box *v^2 g"`` is taken as written. Raises
+    :class:`~pyramid_cli.core.errors.UsageError` (exit 2) for an expression with another operator.
+    """
+    expr = parse(text) if any(ch in text for ch in "⊗*(") else parse(f"{text} {op.ascii} g")
+    st = steps(expr)
+    if not st or any(o is not op for o, _, _ in st):
+        raise UsageError(f"'{text}' must use only {op.unicode} for this role")
+    return expr

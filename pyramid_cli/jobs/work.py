@@ -18,7 +18,8 @@ from dataclasses import dataclass
 from pyramid_cli.core import catalogue, geometry, options
 from pyramid_cli.core.border import Border
 from pyramid_cli.core.expr import Expr
-from pyramid_cli.plan import Plan, plan
+from pyramid_cli.plan.lower import plan
+from pyramid_cli.plan.model import Plan
 from pyramid_cli.workflows import pyramids
 
 Size = tuple[int, int]
@@ -83,9 +84,9 @@ class Filter(Work):
         check_image_cost(self.expr, tuple(sizes[0][:2]), where=where)
 
     def reference(self, images):
-        from pyramid_cli.reference import filters as reference
+        from pyramid_cli.reference import filters
 
-        return [reference.run(self.expr, images[0], Border.parse(self.border))]
+        return [filters.run(self.expr, images[0], Border.parse(self.border))]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -96,8 +97,8 @@ class Blur(Work):
     :class:`Fill`'s and :class:`Blend`'s) unless ``allow_mixed_lattice`` (``--allow-mixed-lattice``)."""
 
     levels: int = 4
-    analysis: str = catalogue.ANALYSIS_DEFAULT
-    synthesis: str = catalogue.SYNTHESIS_DEFAULT
+    analysis: str = catalogue.DEFAULT_ANALYSIS
+    synthesis: str = catalogue.DEFAULT_SYNTHESIS
     quasi: bool = False
     allow_mixed_lattice: bool = False
     label = "blur"
@@ -110,8 +111,10 @@ class Blur(Work):
                                   self.border)
 
     def reference(self, images):
-        return [pyramids.blur_reference(images[0], self.levels, self.analysis, self.synthesis, self.quasi,
-                                        self.border)]
+        from pyramid_cli.reference import pyramids as oracle
+
+        return [oracle.blur_reference(images[0], self.levels, self.analysis, self.synthesis, self.quasi,
+                                      self.border)]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -119,8 +122,8 @@ class SigmaBlur(Work):
     """A blur of Gaussian-equivalent ``sigma``: two neighbouring level counts blended."""
 
     sigma: float = 1.0
-    analysis: str = catalogue.ANALYSIS_DEFAULT
-    synthesis: str = catalogue.SYNTHESIS_DEFAULT
+    analysis: str = catalogue.DEFAULT_ANALYSIS
+    synthesis: str = catalogue.DEFAULT_SYNTHESIS
     allow_mixed_lattice: bool = False
     label = "blur"
 
@@ -128,7 +131,7 @@ class SigmaBlur(Work):
         return _lattice_warnings(self, None, "blur")
 
     def check(self, sizes, where=""):
-        from pyramid_cli.workflows.limits import check_sigma
+        from pyramid_cli.core.sigma import check_sigma
 
         check_sigma(self.sigma, tuple(sizes[0][:2]), self.analysis, self.synthesis, where=where)
 
@@ -137,7 +140,11 @@ class SigmaBlur(Work):
                                         strategy)[0]
 
     def reference(self, images):
-        return [pyramids.blur_sigma_reference(images[0], self.sigma, self.analysis, self.synthesis, self.border)]
+        from pyramid_cli.core.sigma import sigma_blend
+        from pyramid_cli.reference import pyramids as oracle
+
+        m, t = sigma_blend(self.sigma, self.analysis, self.synthesis)
+        return [oracle.blur_blend_reference(images[0], m, t, self.analysis, self.synthesis, self.border)]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -148,7 +155,7 @@ class Levels(Work):
     """
 
     levels: int | None = None
-    analysis: str = catalogue.ANALYSIS_DEFAULT
+    analysis: str = catalogue.DEFAULT_ANALYSIS
     keeps_input = True
     label = "levels"
 
@@ -161,8 +168,10 @@ class Levels(Work):
                                     strategy=strategy) if m else None
 
     def reference(self, images):
-        return pyramids.levels_reference(images[0], self.count(images[0].shape[:2]), self.analysis,
-                                         self.border)[1:]
+        from pyramid_cli.reference import pyramids as oracle
+
+        return oracle.levels_reference(images[0], self.count(images[0].shape[:2]), self.analysis,
+                                       self.border)[1:]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -170,8 +179,8 @@ class Laplacian(Work):
     """Band-pass levels L_0..L_{m−1} and the coarsest G_m; :class:`Collapse` sums them back."""
 
     levels: int = 4
-    analysis: str = catalogue.ANALYSIS_DEFAULT
-    synthesis: str = catalogue.SYNTHESIS_DEFAULT
+    analysis: str = catalogue.DEFAULT_ANALYSIS
+    synthesis: str = catalogue.DEFAULT_SYNTHESIS
     label = "laplacian"
 
     def plan(self, sizes, strategy="cost"):
@@ -179,7 +188,9 @@ class Laplacian(Work):
                                     strategy)
 
     def reference(self, images):
-        return pyramids.laplacian_reference(images[0], self.levels, self.analysis, self.synthesis, self.border)
+        from pyramid_cli.reference import pyramids as oracle
+
+        return oracle.laplacian_reference(images[0], self.levels, self.analysis, self.synthesis, self.border)
 
 
 def same_setting(what: str, a: str, b: str) -> bool:
@@ -187,8 +198,9 @@ def same_setting(what: str, a: str, b: str) -> bool:
     same? What ``collapse`` checks against the setting its bands record (a file's, or :class:`api.Bands`')."""
     if what == "synthesis":
         from pyramid_cli.core.expr import Op, steps
+        from pyramid_cli.core.parse import one_step
 
-        return steps(pyramids._one_step(a, Op.UP)) == steps(pyramids._one_step(b, Op.UP))
+        return steps(one_step(a, Op.UP)) == steps(one_step(b, Op.UP))
     return a == b
 
 
@@ -197,7 +209,7 @@ class Collapse(Work):
     """G_0 = L_0 + expand(L_1 + expand(… G_m)): one input per band."""
 
     bands: int = 2
-    synthesis: str = catalogue.SYNTHESIS_DEFAULT
+    synthesis: str = catalogue.DEFAULT_SYNTHESIS
     label = "collapse"
 
     @property
@@ -206,7 +218,7 @@ class Collapse(Work):
 
     def check(self, sizes, where=""):
         for k in range(1, len(sizes)):
-            want = tuple(geometry.reduced(n) for n in sizes[k - 1][:2])
+            want = geometry.halved(tuple(sizes[k - 1][:2]))
             if tuple(sizes[k][:2]) != want:
                 from pyramid_cli.core.errors import InputError
 
@@ -217,7 +229,9 @@ class Collapse(Work):
         return pyramids.collapse_plan(tuple(tuple(s) for s in sizes), self.synthesis, self.border, strategy)
 
     def reference(self, images):
-        return [pyramids.collapse_reference(list(images), self.synthesis, self.border)]
+        from pyramid_cli.reference import pyramids as oracle
+
+        return [oracle.collapse_reference(list(images), self.synthesis, self.border)]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -226,8 +240,8 @@ class Fill(Work):
     (:func:`pyramid_cli.workflows.methods.fill_inputs` makes them from an image), output the filled colours."""
 
     levels: int | None = None
-    analysis: str = "box4"
-    synthesis: str = "doosabin"
+    analysis: str = catalogue.DEFAULT_ANALYSIS
+    synthesis: str = catalogue.DEFAULT_SYNTHESIS
     premultiplied: bool = True
     allow_mixed_lattice: bool = False
     n_inputs = 2
@@ -260,8 +274,8 @@ class Blend(Work):
     mask (the same channel count), output the blend. ``levels`` None: as many as the size allows."""
 
     levels: int | None = None
-    analysis: str = catalogue.ANALYSIS_DEFAULT
-    synthesis: str = catalogue.SYNTHESIS_DEFAULT
+    analysis: str = catalogue.DEFAULT_ANALYSIS
+    synthesis: str = catalogue.DEFAULT_SYNTHESIS
     allow_mixed_lattice: bool = False
     n_inputs = 3
     label = "blend"

@@ -14,7 +14,7 @@ from pyramid_cli.plan.lower import Builder, choose_recipe, plan, plan_steps, rec
 from pyramid_cli.plan.model import POINTWISE_OPS, Half, Image, Pass, Plan, PointwisePass, ResamplePass, Tap, check
 from pyramid_cli.plan.recipes import (
     Stage,
-    _chain,
+    chain,
     checked_recipe,
     conv,
     direct_recipe,
@@ -29,5 +29,5 @@ from pyramid_cli.plan.taps import taps_for
 __all__ = ["PointwisePass", "POINTWISE_OPS",
            "Plan", "Pass", "Tap", "Image", "Half", "Builder", "plan", "plan_steps", "check", "estimate_seconds",
            "pass_seconds", "pass_measures", "choose_recipe", "recipe_seconds", "Stage", "recipe", "direct_recipe",
-           "checked_recipe", "recipe_kernel_matches", "conv", "down", "up", "_chain", "taps_for", "render", "to_json",
+           "checked_recipe", "recipe_kernel_matches", "conv", "down", "up", "chain", "taps_for", "render", "to_json",
            "ResamplePass"]

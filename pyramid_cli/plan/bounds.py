@@ -7,47 +7,10 @@ filter read, and only the filter's input (a boundary) is read through the border
 
 from __future__ import annotations
 
-from fractions import Fraction
-
-from pyramid_cli.core.geometry import base_index
-from pyramid_cli.plan.model import Image, Pass
+from pyramid_cli.plan.model import Image, Pass, needed
 
 
-def needed(stage_pass: Pass, rows: tuple[int, int], cols: tuple[int, int], src: int):
-    """Source index ranges (1-based, inclusive) read by ``rows × cols`` (1-based, inclusive) of a pass, for one
-    source; empty (lo > hi) where no phase present in the rectangle reads it."""
-    lo_r = lo_c = 10 ** 9
-    hi_r = hi_c = -10 ** 9
-    (pr, pc), (sr, sc) = stage_pass.period, stage_pass.stride
-    for (phr, phc), taps in stage_pass.phases.items():
-        rs = [r for r in _ends(rows, pr) if r % pr == phr]
-        cs = [c for c in _ends(cols, pc) if c % pc == phc]
-        for t in taps:
-            if t.source != src:
-                continue
-            for r in rs:
-                base = base_index(r, pr, sr) - t.offset[0]
-                lo_r, hi_r = min(lo_r, _floor(base)), max(hi_r, _ceil(base))
-            for c in cs:
-                base = base_index(c, pc, sc) - t.offset[1]
-                lo_c, hi_c = min(lo_c, _floor(base)), max(hi_c, _ceil(base))
-    return (lo_r, hi_r), (lo_c, hi_c)
-
-
-def _ends(span: tuple[int, int], p: int) -> list[int]:
-    lo, hi = span
-    return sorted(set(range(lo, min(hi, lo + p - 1) + 1)) | set(range(max(lo, hi - p + 1), hi + 1)))
-
-
-def _floor(x) -> int:
-    return int(Fraction(x).__floor__())
-
-
-def _ceil(x) -> int:
-    return int(Fraction(x).__ceil__())
-
-
-def _infer_guards(images: list[Image], passes: list[Pass], first: int) -> None:
+def infer_guards(images: list[Image], passes: list[Pass], first: int) -> None:
     """Walk a named filter's passes backwards: each intermediate stores what later passes read."""
     for p in reversed(passes):
         img = images[p.target]

@@ -13,10 +13,10 @@ from functools import lru_cache
 from pyramid_cli.core import algebra
 from pyramid_cli.core.expr import Expr, Op, steps
 from pyramid_cli.plan import cost
-from pyramid_cli.plan.bounds import _infer_guards
+from pyramid_cli.plan.bounds import infer_guards
 from pyramid_cli.plan.estimate import pass_seconds
 from pyramid_cli.plan.model import Image, Pass, Plan, PointwisePass, ResamplePass, Tap
-from pyramid_cli.plan.recipes import Stage, _stage_sizes, checked_recipe, direct_recipe
+from pyramid_cli.plan.recipes import Stage, checked_recipe, direct_recipe, stage_sizes
 from pyramid_cli.plan.taps import taps_for
 
 
@@ -100,7 +100,7 @@ class Builder:
         ``source``, read clamped; intermediates get the guard bands later passes read.
         Returns the last pass's image index."""
         first = len(self.images)
-        sizes = _stage_sizes(stages, self.images[source].size)
+        sizes = stage_sizes(stages, self.images[source].size)
         if crop is not None:
             sizes[-1] = tuple(crop)
         for i, st in enumerate(stages):
@@ -113,7 +113,7 @@ class Builder:
                 phases[ph] = taps
             name = label + (f" [{i + 1}/{len(stages)}]" if len(stages) > 1 else "")
             self.passes.append(Pass(name, first + i, st.period, st.stride, phases, why if i == 0 else ""))
-        _infer_guards(self.images, self.passes[-len(stages):], first)
+        infer_guards(self.images, self.passes[-len(stages):], first)
         self.images[-1].border = self.border  # the result of a written operator is a boundary
         return len(self.images) - 1
 

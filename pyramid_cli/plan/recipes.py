@@ -48,7 +48,7 @@ def _weights(key: str) -> Weights:
     return mask_weights(catalogue.mask(key).mask)
 
 
-def _chain(*stages_outermost_last: Stage) -> list[Stage]:
+def chain(*stages_outermost_last: Stage) -> list[Stage]:
     """Stages that each read the previous one (the first reads the input)."""
     out = []
     for i, s in enumerate(stages_outermost_last):
@@ -66,10 +66,10 @@ def recipe(op: Op, f, stride: int = 1) -> list[Stage]:
     if isinstance(f, Named) and op is Op.CONV:
         key = f.key
         if key == "bartlett":                       # §3.2: box↘ ⊗ (box↖ ⊗ g)
-            return _chain(conv(nw), conv(box))
+            return chain(conv(nw), conv(box))
         if key.startswith("gauss"):                 # §3.3: (n−1)/2 Bartletts, n−1 passes
             n = int(key[5:])
-            return _chain(*[conv(nw if i % 2 == 0 else box) for i in range(n - 1)])
+            return chain(*[conv(nw if i % 2 == 0 else box) for i in range(n - 1)])
         if key == "quasi":                          # §5.5: 10/6 δ − 16/24 (box↘ ⊗ (box↖ ⊗ g))
             first = conv(nw)
             last = _stage((1, 1), (1, 1), {(0, 0): [
@@ -79,21 +79,21 @@ def recipe(op: Op, f, stride: int = 1) -> list[Stage]:
     if isinstance(f, Named) and op is Op.DOWN and stride == 1:
         key = f.key
         if key == "box4":                           # §4.2 (erratum): box↘ ⊗ (box↖ ⊗↓ g), row 0 kept
-            return _chain(down(nw), conv(box))
+            return chain(down(nw), conv(box))
         if key == "quadratic":                      # §4.3: box↘ ⊗↓ (bartlett ⊗ g)
-            return _chain(conv(nw), conv(box), down(box))
+            return chain(conv(nw), conv(box), down(box))
         if key == "cubic":                          # §4.3 (erratum): box↘ ⊗↓ (bartlett ⊗ (box↖ ⊗ g))
-            return _chain(conv(nw), conv(nw), conv(box), down(box))
+            return chain(conv(nw), conv(nw), conv(box), down(box))
         if key == "bartlett":                       # §4.2 (erratum): box↘ ⊗↓ (box↖ ⊗ g)
-            return _chain(conv(nw), down(box))
+            return chain(conv(nw), down(box))
         if key.startswith("gauss"):
             n = int(key[5:])
-            return _chain(*[conv(nw if i % 2 == 0 else box) for i in range(n - 2)], down(box))
+            return chain(*[conv(nw if i % 2 == 0 else box) for i in range(n - 2)], down(box))
     if isinstance(f, Named) and op is Op.UP:
         phases = {p: mask_weights(m) for p, m in catalogue.synthesis(f.key).phases.items()}
         if f.key == "cubic":                        # §5.4: box↘ ⊗ (Doo-Sabin ⊗↑ g)
             ds = {p: mask_weights(m) for p, m in catalogue.synthesis("doosabin").phases.items()}
-            return _chain(up(ds), conv(box))
+            return chain(up(ds), conv(box))
         if f.key == "fourpoint":                    # §5.5: rows, then columns
             split = algebra.split_step(algebra.step_of(op, f))
             if split:
@@ -116,7 +116,8 @@ def direct_recipe(op: Op, f, stride: int = 1) -> list[Stage]:
     return [down(w, stride)] if op is Op.DOWN else [conv(w)]
 
 
-def _stage_sizes(stages: list[Stage], size: tuple[int, int]) -> list[tuple[int, int]]:
+def stage_sizes(stages: list[Stage], size: tuple[int, int]) -> list[tuple[int, int]]:
+    """(rows, cols) of each stage's output, for a filter whose input is ``size``."""
     sizes: list[tuple[int, int]] = []
     for st in stages:  # a stage reading stage k takes its size
         srcs = {src for _, parts in st.phases for src, _ in parts}

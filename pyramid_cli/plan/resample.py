@@ -115,9 +115,4 @@ def column_sums(weights: Weights1D, n_in: int, n_out: int, border: str) -> list[
     return [sum((row[i] for row in m), Fraction(0)) for i in range(n_in)]
 
 
-def level_size(n: int) -> int:
-    """maketx's and OpenEXR's round-down level size, ``max(1, ⌊n/2⌋)``."""
-    return max(1, n // 2)
-
-
-__all__ = ["axis_table", "bilinear_table", "ceil2", "dense", "column_sums", "level_size", "Weights1D"]
+__all__ = ["axis_table", "bilinear_table", "ceil2", "dense", "column_sums", "Weights1D"]

@@ -19,7 +19,7 @@ import numpy as np
 
 from pyramid_cli.core import catalogue
 from pyramid_cli.core.geometry import mip_levels
-from pyramid_cli.workflows.pyramids import _expand_to, collapse_reference, laplacian_reference, levels_reference
+from pyramid_cli.reference.pyramids import collapse_reference, expand_to, laplacian_reference, levels_reference
 
 K = 4  # a coarse pixel covers 2×2 fine ones
 
@@ -28,8 +28,9 @@ def _down(x: np.ndarray, analysis: str, border: str) -> np.ndarray:
     return levels_reference(x, 1, analysis, border)[1]
 
 
-def fill(colour: np.ndarray, weight: np.ndarray, levels: int | None = None, analysis: str = "box4",
-         synthesis: str = "doosabin", border: str = "clamp") -> np.ndarray:
+def fill(colour: np.ndarray, weight: np.ndarray, levels: int | None = None,
+         analysis: str = catalogue.DEFAULT_ANALYSIS, synthesis: str = catalogue.DEFAULT_SYNTHESIS,
+         border: str = "clamp") -> np.ndarray:
     """Pull-push of straight colours ``colour`` with weights ``weight`` (same shape, in [0, 1]); float64.
 
     Pixels with weight 0 may hold anything finite: they never enter a sum.
@@ -45,13 +46,13 @@ def fill(colour: np.ndarray, weight: np.ndarray, levels: int | None = None, anal
         w.append(np.minimum(1.0, K * sw))
     out = x[m]  # the coarsest level: every pixel with a positive weight holds its mean colour
     for k in range(m - 1, -1, -1):  # push
-        expanded = _expand_to(out, synthesis, x[k].shape[:2], border)
+        expanded = expand_to(out, synthesis, x[k].shape[:2], border)
         out = w[k] * x[k] + (1 - w[k]) * expanded
     return out
 
 
 def blend(a: np.ndarray, b: np.ndarray, mask: np.ndarray, levels: int,
-          analysis: str = catalogue.ANALYSIS_DEFAULT, synthesis: str = catalogue.SYNTHESIS_DEFAULT,
+          analysis: str = catalogue.DEFAULT_ANALYSIS, synthesis: str = catalogue.DEFAULT_SYNTHESIS,
           border: str = "clamp") -> np.ndarray:
     """Burt & Adelson's multiresolution spline of ``a`` and ``b`` along ``mask`` (all the same shape); float64."""
     if levels == 0:

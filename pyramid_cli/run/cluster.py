@@ -479,7 +479,7 @@ def _line_from_disk(job: batch.Job, work, mip_tile: int | None, executor: str) -
     shape = io.read_shape(job.output) or (0, 0, 0)
     levels = None
     if mip_tile:
-        from pyramid_cli.workflows.mip import mip_sizes
+        from pyramid_cli.core.geometry import mip_sizes
 
         levels = len(mip_sizes(shape[:2], getattr(work, "rounding", "down")))
     return wrote_line(job.output, shape[1], shape[0], levels, executor)

@@ -390,7 +390,7 @@ def collapse_files(inputs: list[str], output_path: str, session: Session, *, syn
     if len(bands) < 2:
         raise UsageError(f"collapse needs at least two levels, {paths[0]} holds {len(bands)}")
     io.check_pyramid(bands)
-    synthesis = _as_recorded(bands[0], paths[0], "synthesis", synthesis, catalogue.SYNTHESIS_DEFAULT)
+    synthesis = _as_recorded(bands[0], paths[0], "synthesis", synthesis, catalogue.DEFAULT_SYNTHESIS)
     border = _as_recorded(bands[0], paths[0], "border", border, "clamp")
     work = Collapse(bands=len(bands), synthesis=synthesis, border=border)
     _announce_compiles(session, work, [b.pixels for b in bands], reporter)

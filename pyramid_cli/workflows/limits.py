@@ -1,15 +1,15 @@
 """Cost checks made before any work starts: refuse at once what would run for minutes or fill memory.
 
-Every check is cheap (interval arithmetic on the written steps, a closed form for the blur's
-sigma) and raises a :class:`~pyramid_cli.core.errors.PyramidError` with a one-line reason:
+Every check is cheap (interval arithmetic on the written steps) and raises a
+:class:`~pyramid_cli.core.errors.PyramidError` with a one-line reason:
 
 - :func:`check_kernel_cost` (``pyramid explain``): the exact kernel of a chain has at most
   :data:`MAX_KERNEL_ENTRIES` weights and its exact evaluation at most
   :data:`MAX_EVALUATION_WORK` rational multiply-adds, else :class:`UsageError` (exit 2).
 - :func:`check_image_cost` (commands that filter an image): no intermediate or output image
   of the chain is larger than :data:`MAX_PIXELS` pixels, else :class:`DataError` (exit 5).
-- :func:`check_sigma` (``blur --sigma``): the sigma is finite, positive and within what the
-  image size can express (:func:`max_sigma`), else :class:`UsageError` (exit 2).
+
+``blur --sigma``'s check, :func:`pyramid_cli.core.sigma.check_sigma`, lives with the closed form it uses.
 
 The limits are set so that work that passes them finishes in seconds on a 2-core machine:
 explain's slowest allowed kernels take about 2 s there; an image of :data:`MAX_PIXELS`
@@ -19,17 +19,14 @@ pixels is an 8192×8192 texture (1 GiB as RGBA32F).
 from __future__ import annotations
 
 import math
-from fractions import Fraction
-from functools import lru_cache
 
 from pyramid_cli.core.errors import DataError, UsageError
 from pyramid_cli.core.expr import Expr, Op, steps
-from pyramid_cli.core.geometry import mip_levels, reduced
+from pyramid_cli.core.geometry import reduced
 
 MAX_KERNEL_ENTRIES = 65_536          # weights in all phases of an exact kernel (e.g. 256×256)
 MAX_EVALUATION_WORK = 500_000        # rational multiply-adds to evaluate it exactly (estimated)
 MAX_PIXELS = 1 << 26                 # pixels in any intermediate or output image (8192×8192)
-MAX_LEVELS = 16                      # pyramid levels (the CLI's --levels range)
 
 
 # ---------------------------------------------------------------- exact kernels
@@ -142,83 +139,3 @@ def check_image_cost(expr_or_steps, size: tuple[int, int], *, where: str = "") -
             what = "the result" if k == len(sizes) - 1 else f"step {k} of {len(sizes) - 1}"
             raise DataError(f"{prefix}{what} would be {w}×{h} pixels, more than the limit of {MAX_PIXELS:,} "
                             f"({int(math.isqrt(MAX_PIXELS))}×{int(math.isqrt(MAX_PIXELS))})")
-
-
-def check_output_size(width: int, height: int, *, where: str = "") -> None:
-    """Refuse (exit 5) an image of more than :data:`MAX_PIXELS` pixels."""
-    if width * height > MAX_PIXELS:
-        prefix = f"{where}: " if where else ""
-        raise DataError(f"{prefix}image of {width}×{height} pixels, more than the limit of {MAX_PIXELS:,}")
-
-
-# ---------------------------------------------------------------- blur --sigma
-@lru_cache(maxsize=32)
-def _variance_form(analysis: str, synthesis: str) -> tuple[Fraction, Fraction] | None:
-    """(A, B) with variance(m levels) = A·4ᵐ + B, from 1 and 2 levels, checked at 3; None if it does not fit.
-
-    Variances add under the pyramid's cascade and level k's filters act 2ᵏ input pixels apart,
-    so the blur's variance is a geometric series in 4.
-    """
-    from pyramid_cli.workflows.pyramids import impulse_sigma
-
-    v = [Fraction(impulse_sigma(m, analysis, synthesis) ** 2).limit_denominator(1 << 20) for m in (1, 2, 3)]
-    a = (v[1] - v[0]) / 12
-    b = v[0] - 4 * a
-    if abs(float(a * 64 + b - v[2])) > 1e-9 * max(1.0, float(v[2])):
-        return None
-    return a, b
-
-
-def levels_sigma(levels: int, analysis: str = "box4", synthesis: str = "doosabin") -> float:
-    """The Gaussian-equivalent sigma (input pixels) of a ``levels``-level blur, in microseconds.
-
-    Equal to :func:`pyramids.impulse_sigma` (tested up to 6 levels), which costs 4× more per level.
-    """
-    form = _variance_form(analysis, synthesis)
-    if form is None:
-        from pyramid_cli.workflows.pyramids import impulse_sigma
-
-        return impulse_sigma(levels, analysis, synthesis)
-    a, b = form
-    return math.sqrt(float(a * 4 ** levels + b))
-
-
-def max_levels(size: tuple[int, int] | None) -> int:
-    """Most pyramid levels an image of ``size`` (rows, cols) has: halvings until 1×1 (at most 16)."""
-    if size is None:
-        return MAX_LEVELS
-    return max(1, min(mip_levels(tuple(size)), MAX_LEVELS))
-
-
-def max_sigma(size: tuple[int, int] | None, analysis: str = "box4", synthesis: str = "doosabin") -> float:
-    """Largest ``--sigma`` an image of ``size`` can express: the blur down to 1×1 (16 levels at most)."""
-    return levels_sigma(max_levels(size), analysis, synthesis)
-
-
-def sigma_blend(sigma: float, analysis: str = "box4", synthesis: str = "doosabin",
-                size: tuple[int, int] | None = None) -> tuple[int, float]:
-    """What :func:`pyramids.sigma_blend` returns, (m, t), without evaluating any kernel beyond 3 levels,
-    after :func:`check_sigma`."""
-    check_sigma(sigma, size, analysis, synthesis)
-    sig = [0.0]
-    while sig[-1] < sigma:
-        sig.append(levels_sigma(len(sig), analysis, synthesis))
-    m = len(sig) - 2
-    return m, (sigma ** 2 - sig[m] ** 2) / (sig[m + 1] ** 2 - sig[m] ** 2)
-
-
-def check_sigma(sigma: float, size: tuple[int, int] | None = None, analysis: str = "box4",
-                synthesis: str = "doosabin", *, where: str = "") -> None:
-    """Refuse (exit 2) a ``--sigma`` that is not a positive number or that needs more levels than an
-    image of ``size`` (rows, cols) has (``size`` None: the 16-level limit only)."""
-    if not (isinstance(sigma, (int, float)) and sigma > 0 and math.isfinite(sigma)):
-        raise UsageError(f"--sigma must be a positive finite number, not {sigma!r}")
-    top = max_sigma(size, analysis, synthesis)
-    if sigma > top:
-        prefix = f"{where}: " if where else ""
-        if size is None:
-            raise UsageError(f"{prefix}--sigma {sigma:g} needs more than {MAX_LEVELS} levels "
-                             f"(at most {top:.4g} with {analysis}/{synthesis})")
-        h, w = size
-        raise UsageError(f"{prefix}--sigma {sigma:g} is more than a {w}×{h} image can express: "
-                         f"{max_levels(size)} levels reach 1×1 at sigma {top:.4g}")

@@ -44,13 +44,15 @@ import numpy as np
 from pyramid_cli.core import catalogue
 from pyramid_cli.core.errors import DataError, UsageError
 from pyramid_cli.core.expr import Op, steps
-from pyramid_cli.core.geometry import level_sizes, mip_levels
-from pyramid_cli.plan import Builder, Plan
-from pyramid_cli.workflows.pyramids import _one_step, _run_steps
+from pyramid_cli.core.geometry import level_sizes, mip_levels, reduced
+from pyramid_cli.core.parse import one_step
+from pyramid_cli.plan.lower import Builder
+from pyramid_cli.plan.model import Plan
+from pyramid_cli.workflows.pyramids import run_steps
 
 PULL_SCALE = 4           # K: a coarse pixel covers 2×2 fine ones (Gortler's h̃ = [½ 1 ½]² sums to 4)
-FILL_ANALYSIS = "box4"   # Kraus 2009 builds on the paper's 4×4 box analysis and …
-FILL_SYNTHESIS = "doosabin"  # … the Doo-Sabin (biquadratic B-spline) synthesis, as the blur does
+FILL_ANALYSIS = catalogue.DEFAULT_ANALYSIS    # Kraus 2009 builds on the paper's 4×4 box analysis and …
+FILL_SYNTHESIS = catalogue.DEFAULT_SYNTHESIS  # … the Doo-Sabin (biquadratic B-spline) synthesis, as the blur does
 HOLES = ("alpha", "mask", "nan")
 
 
@@ -66,51 +68,51 @@ def fill_plan(size: tuple[int, int], levels: int | None = None, analysis: str = 
     ``levels`` pull steps (default: down to 1×1, :func:`pyramid_cli.core.geometry.mip_levels`).
     """
     m = mip_levels(size) if levels is None else levels
-    down = steps(_one_step(analysis, Op.DOWN))
-    up = steps(_one_step(synthesis, Op.UP))
+    down = steps(one_step(analysis, Op.DOWN))
+    up = steps(one_step(synthesis, Op.UP))
     sizes = level_sizes(size, m)
     b = Builder(size, strategy, border)
     w = [b.add_input(size)]
     p = [0 if premultiplied else b.pointwise("mul", [0, w[0]], "p0 = c·w")]
     for k in range(m):
-        big_w = _run_steps(b, w[k], down)
-        big_p = _run_steps(b, p[k], down)
+        big_w = run_steps(b, w[k], down)
+        big_p = run_steps(b, p[k], down)
         w.append(b.pointwise("pull_weight", [big_w], f"w{k + 1} = min(1, {PULL_SCALE}·A(w{k}))", PULL_SCALE))
         p.append(b.pointwise("pull_colour", [big_p, big_w], f"p{k + 1} = A(p{k})·w{k + 1}/A(w{k})", PULL_SCALE))
     c = b.pointwise("divide", [p[m], w[m]], f"c{m} = p{m}/w{m}")
     for k in range(m - 1, -1, -1):
-        expanded = _run_steps(b, c, up, crop=sizes[k])
+        expanded = run_steps(b, c, up, crop=sizes[k])
         c = b.pointwise("over", [p[k], w[k], expanded], f"c{k} = p{k} + (1 − w{k})·S(c{k + 1})")
     return b.build(f"fill: pull-push, {m} level(s), {analysis} ⊗↓ / {synthesis} ⊗↑", outputs=[c])
 
 
 @lru_cache(maxsize=32)
-def blend_plan(size: tuple[int, int], levels: int, analysis: str = catalogue.ANALYSIS_DEFAULT,
-               synthesis: str = catalogue.SYNTHESIS_DEFAULT, border: str = "clamp", strategy: str = "cost") -> Plan:
+def blend_plan(size: tuple[int, int], levels: int, analysis: str = catalogue.DEFAULT_ANALYSIS,
+               synthesis: str = catalogue.DEFAULT_SYNTHESIS, border: str = "clamp", strategy: str = "cost") -> Plan:
     """Multiresolution blending as one job. Inputs: 0 image A, 1 image B, 2 the mask (the same
     channel count). Output: the collapsed blend."""
     if levels < 0:
         raise UsageError("--levels must be at least 0")
-    down = steps(_one_step(analysis, Op.DOWN))
-    up = steps(_one_step(synthesis, Op.UP))
+    down = steps(one_step(analysis, Op.DOWN))
+    up = steps(one_step(synthesis, Op.UP))
     sizes = level_sizes(size, levels)
     b = Builder(size, strategy, border)
     b_in, m_in = b.add_input(size), b.add_input(size)
     ga, gb, gm = [0], [b_in], [m_in]
     for _ in range(levels):
-        ga.append(_run_steps(b, ga[-1], down))
-        gb.append(_run_steps(b, gb[-1], down))
-        gm.append(_run_steps(b, gm[-1], down))
+        ga.append(run_steps(b, ga[-1], down))
+        gb.append(run_steps(b, gb[-1], down))
+        gm.append(run_steps(b, gm[-1], down))
     bands = []
     for k in range(levels):
-        la = b.combine([(ga[k], Fraction(1)), (_run_steps(b, ga[k + 1], up, crop=sizes[k]), Fraction(-1))],
+        la = b.combine([(ga[k], Fraction(1)), (run_steps(b, ga[k + 1], up, crop=sizes[k]), Fraction(-1))],
                        f"LA{k} = GA{k} − expand(GA{k + 1})")
-        lb = b.combine([(gb[k], Fraction(1)), (_run_steps(b, gb[k + 1], up, crop=sizes[k]), Fraction(-1))],
+        lb = b.combine([(gb[k], Fraction(1)), (run_steps(b, gb[k + 1], up, crop=sizes[k]), Fraction(-1))],
                        f"LB{k} = GB{k} − expand(GB{k + 1})")
         bands.append(b.pointwise("blend", [la, lb, gm[k]], f"LS{k} = GM{k}·LA{k} + (1 − GM{k})·LB{k}"))
     x = b.pointwise("blend", [ga[levels], gb[levels], gm[levels]], f"S{levels} = blend of GA{levels}, GB{levels}")
     for k in range(levels - 1, -1, -1):
-        expanded = _run_steps(b, x, up, crop=sizes[k])
+        expanded = run_steps(b, x, up, crop=sizes[k])
         x = b.combine([(bands[k], Fraction(1)), (expanded, Fraction(1))], f"S{k} = LS{k} + expand(S{k + 1})")
     return b.build(f"blend: {levels} level(s), {analysis} ⊗↓ / {synthesis} ⊗↑", outputs=[x])
 
@@ -125,7 +127,7 @@ def blend_levels(size: tuple[int, int]) -> int:
     the whole frame (a tint far from the seam) instead of joining them along it."""
     n, short = 0, min(size)
     while short >= 2 * BLEND_COARSEST:
-        short = -(-short // 2)
+        short = reduced(short)
         n += 1
     return max(n, min(1, mip_levels(size)))
 

@@ -9,13 +9,11 @@ constant colour, the SHA-1 of the source pixels), computed the way OpenImageIO's
 from __future__ import annotations
 
 import hashlib
-from dataclasses import dataclass
 
 import numpy as np
 
-from pyramid_cli.core import catalogue
 from pyramid_cli.core.errors import UsageError
-from pyramid_cli.jobs.work import Levels
+from pyramid_cli.core.version import __version__
 
 # maketx's wrap modes and the Plan's border that reads past the edges the same way.
 WRAP_TO_BORDER: dict[str, str] = {"black": "zero", "clamp": "clamp", "periodic": "wrap", "mirror": "mirror"}
@@ -24,82 +22,6 @@ WRAP_NAMES = tuple(WRAP_TO_BORDER)
 
 # computePixelHashSHA1's block height in maketx (scanlines per block digest).
 SHA1_BLOCK = 256
-
-
-ROUNDING = ("down", "up")  # level sizes max(1, ⌊n/2⌋) (maketx's, the default) or ⌈n/2⌉ (⊗↓'s)
-
-
-@dataclass(frozen=True, kw_only=True)
-class TextureLevels(Levels):
-    """A MIP chain down to 1×1 (:class:`pyramid_cli.jobs.work.Levels`) as a renderer reads it.
-
-    ``rounding`` "down" (the default): maketx's and OpenEXR's level sizes ``max(1, ⌊n/2⌋)``;
-    levels that halve exactly use the paper's ``analysis`` filter, the others are resampled with
-    the same filter's continuous kernel so that every level covers the whole texture domain
-    (:mod:`pyramid_cli.plan.resample`, :func:`pyramids.mip_plan`). "up": the analysis pyramid's
-    sizes ``⌈n/2⌉`` (odd sizes padded by the border), :class:`Levels` as it is.
-    ``constant_detect``: an image whose pixels are all the same becomes one tile of that colour
-    before the levels are made (:func:`shrink_constant`).
-    """
-
-    analysis: str = catalogue.MIP_ANALYSIS_DEFAULT
-    constant_detect: bool = False
-    rounding: str = "down"
-    resize: bool = False           # maketx's --resize: level 0 up to powers of two first (rounding "down" only)
-    nchannels: int | None = None   # maketx's --nchannels: keep or pad to this many channels (:func:`channel_plan`)
-    monochrome_detect: bool = False  # maketx's --monochrome-detect: R = G = B everywhere → one channel
-    fill: bool = False        # pull-push texels of alpha < 1 first (pyramid_cli.run.methods_files.fill_texture)
-
-    @property
-    def keeps_input(self) -> bool:  # type: ignore[override]
-        """Level 0 is the input, except when it is resized."""
-        return not self.resize
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        if self.rounding not in ROUNDING:
-            raise UsageError(f"unknown rounding {self.rounding!r} (down or up)")
-        if self.rounding == "down":
-            from pyramid_cli.workflows.pyramids import mip_axis_weights
-
-            mip_axis_weights(self.analysis)  # refuses a filter the rule cannot resample (exit 2)
-        elif self.resize:
-            raise UsageError("--resize makes maketx's power-of-two levels: it needs --round down")
-        if self.nchannels is not None and self.nchannels < 1:
-            raise UsageError(f"--nchannels {self.nchannels}: at least 1")
-
-    @property
-    def filter_name(self) -> str:
-        """The filter, rule and whatever else changes the texels, as the SHA-1's appended text and
-        ImageHistory name them: ``quadratic``, ``quadratic/up``, ``quadratic/resize/nchannels=1/fill`` …
-        (the hash is of the source's pixels, so two files that differ below must differ here)."""
-        flags = (["up"] if self.rounding == "up" else []) + (["resize"] if self.resize else [])
-        flags += [f"nchannels={self.nchannels}"] if self.nchannels is not None else []
-        flags += (["monochrome-detect"] if self.monochrome_detect else []) + (["fill"] if self.fill else [])
-        return "/".join([self.analysis, *flags])
-
-    def count(self, size) -> int:
-        size = tuple(size[:2])
-        if self.resize:
-            from pyramid_cli.plan.resample import ceil2
-
-            return len(mip_sizes((ceil2(size[0]), ceil2(size[1]))))  # level 0 is made too
-        return len(mip_sizes(size, self.rounding)) - 1
-
-    def plan(self, sizes, strategy="cost"):
-        if self.rounding == "up":
-            return super().plan(sizes, strategy)
-        from pyramid_cli.workflows.pyramids import mip_plan
-
-        if not self.count(sizes[0]):
-            return None
-        return mip_plan(tuple(sizes[0][:2]), self.analysis, self.border, strategy, self.resize)
-
-    def reference(self, images):
-        if self.rounding == "up":
-            return super().reference(images)
-        levels = mip_reference(images[0], self.analysis, self.border, self.resize)
-        return levels if self.resize else levels[1:]
 
 
 def channel_plan(nchannels: int, names: list[str], alpha: int, wanted: int | None,
@@ -134,95 +56,6 @@ def apply_channels(pixels: np.ndarray, kept: int, total: int) -> np.ndarray:
     out = np.zeros(pixels.shape[:2] + (total,), dtype=pixels.dtype)
     out[..., :kept] = pixels[..., :kept]
     return out
-
-
-def mip_sizes(size: tuple[int, int], rounding: str = "down") -> list[tuple[int, int]]:
-    """Level sizes (rows, columns) down to 1×1: ``max(1, ⌊n/2⌋)`` ("down") or ``⌈n/2⌉`` ("up")."""
-    out = [tuple(size)]
-    while out[-1][0] > 1 or out[-1][1] > 1:
-        h, w = out[-1]
-        out.append((max(1, h // 2), max(1, w // 2)) if rounding == "down" else ((h + 1) // 2, (w + 1) // 2))
-    return out
-
-
-# ------------------------------------------------------------------ the float64 reference of domain-true levels
-def _kernel_1d(analysis: str) -> tuple[np.ndarray, np.ndarray] | None:
-    """(offsets d, weights w_d) of a named analysis mask, f[r] = Σ w_d g[2r − d], straight from the paper's
-    index formula ``d = ⌊i − n/2⌋`` (1-based i) and the mask's row sums; None for expressions."""
-    from pyramid_cli.core import catalogue
-
-    if analysis not in catalogue.ANALYSIS_FILTERS:
-        return None
-    mask = np.array([[float(v) for v in row] for row in catalogue.mask(analysis).mask])
-    n = mask.shape[0]
-    return np.floor(np.arange(1, n + 1) - n / 2).astype(int), mask.sum(axis=1)
-
-
-def resample_matrix(d: np.ndarray, w: np.ndarray, n_in: int, n_out: int, border: str) -> np.ndarray:
-    """(n_out, n_in) float64 matrix resampling an axis with the continuous kernel of the weights ``w_d``.
-
-    Independent of the planner's exact tables (:mod:`pyramid_cli.plan.resample`, whose docstring
-    derives the kernel): here the kernel's integral ``F(u)`` is a piecewise-linear function through its
-    breakpoints, and each texel's weight is ``F`` at the end of its footprint minus ``F`` at its start,
-    ``u = (x − (j + ½)·s)/s`` for input position x and ``s = n_in/n_out``; reads past the edges fold by
-    ``border`` into the matrix's columns (zero drops them).
-    """
-    from pyramid_cli.core.border import Border, fold
-
-    if n_in == n_out == 1:
-        return np.ones((1, 1))
-    dd = np.arange(d.max(), d.min() - 1, -1)  # every offset, the kernel's pieces left to right
-    wd = np.array([w[d == k].sum() for k in dd])
-    lo = -dd / 2.0  # piece of weight w_d: [−d/2, (1 − d)/2) in output units, density 2·w_d
-    xs = np.concatenate([lo, [lo[-1] + 0.5]])
-    cum = np.concatenate([[0.0], np.cumsum(wd)])
-    s = n_in / n_out
-    reach = int(np.ceil(np.abs(xs).max() * s)) + 2
-    i = np.arange(-reach, n_in + reach)
-    c = (np.arange(n_out)[:, None] + 0.5) * s
-    ext = np.interp((i[None, :] + 1 - c) / s, xs, cum) - np.interp((i[None, :] - c) / s, xs, cum)
-    cols = fold(i + 1, n_in, Border.parse(border))
-    out = np.zeros((n_out, n_in + 1))
-    np.add.at(out.T, cols, ext.T)  # folded column 0 means "outside, reads zero"
-    return out[:, 1:]
-
-
-def bilinear_matrix(n_in: int, n_out: int, border: str) -> np.ndarray:
-    """(n_out, n_in) float64 matrix of a bilinear lookup at the texel centres of ``n_out`` samples spread over
-    the same domain (independent of :func:`pyramid_cli.plan.resample.bilinear_table`); reads fold by ``border``."""
-    from pyramid_cli.core.border import Border, fold
-
-    x = (np.arange(n_out) + 0.5) * n_in / n_out - 0.5
-    i0 = np.floor(x).astype(int)
-    out = np.zeros((n_out, n_in + 1))
-    for i, w in ((i0, 1 - (x - i0)), (i0 + 1, x - i0)):
-        np.add.at(out, (np.arange(n_out), fold(i + 1, n_in, Border.parse(border))), w)
-    return out[:, 1:]
-
-
-def mip_reference(pixels: np.ndarray, analysis: str, border: str = "clamp", resize: bool = False) -> list[np.ndarray]:
-    """Levels 0..1×1 with maketx's sizes, every level resampled from the one above by ``analysis``'s
-    continuous kernel (at exact halvings that is the filter itself), in float64; with ``resize``, level 0
-    is first resampled up to powers of two by a bilinear lookup."""
-    from pyramid_cli.workflows.pyramids import mip_axis_weights
-
-    kern = _kernel_1d(analysis)
-    if kern is None:  # an expression: its separated 1-D weights (the planner's source, no other exists)
-        rows, _ = mip_axis_weights(analysis)
-        kern = (np.array([d for d, _ in rows]), np.array([float(v) for _, v in rows]))
-    x = np.asarray(pixels, dtype=np.float64)
-    if resize:
-        h, w = (1 << max(0, n - 1).bit_length() for n in x.shape[:2])
-        x = np.einsum("ji,ik...->jk...", bilinear_matrix(x.shape[0], h, border), x)
-        x = np.einsum("lk,jk...->jl...", bilinear_matrix(x.shape[1], w, border), x)
-    levels = [x]
-    for h, w in mip_sizes(x.shape[:2])[1:]:
-        a = resample_matrix(*kern, x.shape[0], h, border)
-        b = resample_matrix(*kern, x.shape[1], w, border)
-        x = np.einsum("ji,ik...->jk...", a, x)
-        x = np.einsum("lk,jk...->jl...", b, x)
-        levels.append(x)
-    return levels
 
 
 def shrink_constant(pixels: np.ndarray, tile: int) -> np.ndarray | None:
@@ -378,8 +211,6 @@ def texture_metadata(border: str, analysis: str, sha1: str | None = None, oiio_v
     "maketx" (``check_texture_metadata_sanity``). ``Exif:ImageHistory`` gets a line saying how the
     levels were made (maketx appends its command line).
     """
-    from pyramid_cli import __version__
-
     tool = f"pyramid mipmap (bilinear-pyramid {__version__})"
     name, *flags = analysis.split("/")  # TextureLevels.filter_name: "quadratic", "quadratic/up/resize", …
     options = "".join(f" --{f.replace('=', ' ')}" for f in flags if f != "up")

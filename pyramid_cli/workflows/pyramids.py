@@ -11,52 +11,15 @@ from functools import lru_cache
 
 from pyramid_cli.core import algebra, catalogue
 from pyramid_cli.core.errors import UsageError
-from pyramid_cli.core.expr import Apply, Expr, Input, Named, Op, steps
-from pyramid_cli.core.geometry import level_sizes
-from pyramid_cli.plan import Builder, Plan, plan_steps
+from pyramid_cli.core.expr import Op, steps
+from pyramid_cli.core.geometry import level_sizes, mip_sizes
+from pyramid_cli.core.parse import one_step
+from pyramid_cli.core.sigma import blur_steps, sigma_blend
+from pyramid_cli.plan.lower import Builder, plan_steps
+from pyramid_cli.plan.model import Plan
+from pyramid_cli.plan.resample import axis_table, bilinear_table, ceil2
 
-A0, S0 = catalogue.ANALYSIS_DEFAULT, catalogue.SYNTHESIS_DEFAULT
-
-
-def _one_step(text: str, op: Op) -> Expr:
-    """A filter name or a one-step expression for the given operator."""
-    from pyramid_cli.core.parse import parse
-
-    expr = parse(text) if any(ch in text for ch in "⊗*(") else parse(f"{text} {op.ascii} g")
-    st = steps(expr)
-    if not st or any(o is not op for o, _, _ in st):
-        raise UsageError(f"'{text}' must use only {op.unicode} for this role")
-    return expr
-
-
-def blur_steps(size: tuple[int, int], levels: int, analysis: str = A0, synthesis: str = S0,
-               quasi: bool = False):
-    """Written steps and crops of an m-level pyramid blur back to ``size``."""
-    if levels < 1:
-        raise UsageError("--levels must be at least 1")
-    down = steps(_one_step(analysis, Op.DOWN))
-    up = steps(_one_step(synthesis, Op.UP))
-    sizes = level_sizes(size, levels)
-    step_list, crops = [], {}
-    for _ in range(levels):
-        step_list += down
-    if quasi:
-        step_list.append((Op.CONV, Named("quasi"), 1))
-    for k in range(levels, 0, -1):
-        step_list += up
-        crops[len(step_list) - 1] = sizes[k - 1]
-    return step_list, crops
-
-
-def sigma_blend(sigma: float, analysis: str = A0, synthesis: str = S0) -> tuple[int, float]:
-    """(m, t): blending (1 − t) × the m-level blur with t × the (m+1)-level one has variance sigma².
-
-    Refuses (exit 2) a sigma that is not positive and finite or needs more than 16 levels;
-    the variances come in closed form (:func:`pyramid_cli.workflows.limits.levels_sigma`).
-    """
-    from pyramid_cli.workflows.limits import sigma_blend as closed_form
-
-    return closed_form(sigma, analysis, synthesis)
+A0, S0 = catalogue.DEFAULT_ANALYSIS, catalogue.DEFAULT_SYNTHESIS
 
 
 @lru_cache(maxsize=32)  # batches re-use a plan per image size
@@ -65,18 +28,18 @@ def blur_plan_sigma(size: tuple[int, int], sigma: float, analysis: str = A0, syn
     """A blur of Gaussian-equivalent ``sigma`` (input pixels): the blend of the m- and (m+1)-level blurs
     whose variance is sigma², so the strength changes continuously with sigma. Returns (plan, levels, t)."""
     m, t = sigma_blend(sigma, analysis, synthesis)
-    down = steps(_one_step(analysis, Op.DOWN))
-    up = steps(_one_step(synthesis, Op.UP))
+    down = steps(one_step(analysis, Op.DOWN))
+    up = steps(one_step(synthesis, Op.UP))
     sizes = level_sizes(size, m + 1)
     b = Builder(size, strategy, border)
     g = [0]
     for _ in range(m + 1):
-        g.append(_run_steps(b, g[-1], down))
+        g.append(run_steps(b, g[-1], down))
     ends = []
     for levels in (m, m + 1):
         x = g[levels]
         for k in range(levels, 0, -1):
-            x = _run_steps(b, x, up, crop=sizes[k - 1])
+            x = run_steps(b, x, up, crop=sizes[k - 1])
         ends.append(x)
     out = b.combine([(ends[0], Fraction(1) - Fraction(t)), (ends[1], Fraction(t))],
                     f"blend {1 - t:.4f} × {m} level(s) + {t:.4f} × {m + 1}")
@@ -84,7 +47,9 @@ def blur_plan_sigma(size: tuple[int, int], sigma: float, analysis: str = A0, syn
     return b.build(text, outputs=[out]), m, t
 
 
-def _run_steps(b: Builder, source: int, step_list, crop=None) -> int:
+def run_steps(b: Builder, source: int, step_list, crop=None) -> int:
+    """Add ``step_list``'s passes to ``b`` after image ``source``, the last one cropped to ``crop``; returns
+    the image the last step writes."""
     for i, (op, f, s) in enumerate(step_list):
         source = b.step(source, op, f, s, crop if i == len(step_list) - 1 else None)
     return source
@@ -97,18 +62,18 @@ def levels_plan(size: tuple[int, int], levels: int, analysis: str = A0, laplacia
     (L_k = G_k − expand(G_{k+1}), cropped to level k), as one job."""
     if levels < 1:
         raise UsageError("--levels must be at least 1")
-    down = steps(_one_step(analysis, Op.DOWN))
+    down = steps(one_step(analysis, Op.DOWN))
     sizes = level_sizes(size, levels)
     b = Builder(size, strategy, border)
     g = [0]
     for _ in range(levels):
-        g.append(_run_steps(b, g[-1], down))
+        g.append(run_steps(b, g[-1], down))
     if not laplacian:
         return b.build(f"levels: {levels} × {analysis} ⊗↓", outputs=g[1:])
-    up = steps(_one_step(synthesis, Op.UP))
+    up = steps(one_step(synthesis, Op.UP))
     bands = []
     for k in range(levels):
-        expanded = _run_steps(b, g[k + 1], up, crop=sizes[k])
+        expanded = run_steps(b, g[k + 1], up, crop=sizes[k])
         bands.append(b.combine([(g[k], Fraction(1)), (expanded, Fraction(-1))], f"L{k} = G{k} − expand(G{k + 1})"))
     return b.build(f"Laplacian: {levels} × {analysis} ⊗↓, {synthesis} ⊗↑", outputs=bands + [g[-1]])
 
@@ -117,13 +82,13 @@ def levels_plan(size: tuple[int, int], levels: int, analysis: str = A0, laplacia
 def collapse_plan(sizes: tuple[tuple[int, int], ...], synthesis: str = S0, border: str = "clamp",
                   strategy: str = "cost") -> Plan:
     """Rebuild G_0 from L_0..L_{m−1}, G_m (inputs 0..m): G_k = L_k + expand(G_{k+1})."""
-    up = steps(_one_step(synthesis, Op.UP))
+    up = steps(one_step(synthesis, Op.UP))
     b = Builder(sizes[0], strategy, border)
     for sz in sizes[1:]:
         b.add_input(sz)
     x = len(sizes) - 1
     for k in range(len(sizes) - 2, -1, -1):
-        expanded = _run_steps(b, x, up, crop=sizes[k])
+        expanded = run_steps(b, x, up, crop=sizes[k])
         x = b.combine([(k, Fraction(1)), (expanded, Fraction(1))], f"G{k} = L{k} + expand(G{k + 1})")
     return b.build(f"collapse: {len(sizes) - 1} level(s), {synthesis} ⊗↑", outputs=[x])
 
@@ -140,7 +105,7 @@ def blur_plan(size: tuple[int, int], levels: int, analysis: str = A0, synthesis:
 def mip_axis_weights(analysis: str):
     """The 1-D weights (rows, columns) of a one-step separable ⊗↓ filter, ``((d, w_d), …)`` each, for
     :func:`mip_plan`; UsageError (exit 2) for an analysis that maketx's level sizes cannot use."""
-    st = steps(_one_step(analysis, Op.DOWN))
+    st = steps(one_step(analysis, Op.DOWN))
     split = algebra.split_step(algebra.step_of(*st[0])) if len(st) == 1 and st[0][2] == 1 else None
     if split is None:
         raise UsageError(f"--analysis {analysis!r}: maketx's level sizes (--round down) need one separable ⊗↓ "
@@ -161,11 +126,8 @@ def mip_plan(size: tuple[int, int], analysis: str = catalogue.MIP_ANALYSIS_DEFAU
     ``resize`` (maketx's ``--resize``): level 0 is first resampled up to powers of two, as a bilinear
     lookup reads the source (:func:`pyramid_cli.plan.resample.bilinear_table`); it is then output 0.
     """
-    from pyramid_cli.plan.resample import axis_table, bilinear_table, ceil2
-    from pyramid_cli.workflows.mip import mip_sizes
-
     weights = mip_axis_weights(analysis)
-    down = steps(_one_step(analysis, Op.DOWN))
+    down = steps(one_step(analysis, Op.DOWN))
     b = Builder(size, strategy, border)
     outs, current = [], 0
     if resize:
@@ -183,7 +145,7 @@ def mip_plan(size: tuple[int, int], analysis: str = catalogue.MIP_ANALYSIS_DEFAU
         (h, w), (h2, w2) = sizes[k - 1], sizes[k]
         if h == 2 * h2 and w == 2 * w2:
             first = len(b.passes)
-            current = _run_steps(b, current, down)
+            current = run_steps(b, current, down)
             for ps in b.passes[first:]:
                 ps.label = f"level {k} {w2}×{h2}: {ps.label} (exact halving: the paper's passes)"
         else:
@@ -200,68 +162,8 @@ def mip_plan(size: tuple[int, int], analysis: str = catalogue.MIP_ANALYSIS_DEFAU
     return b.build(text + (", level 0 resized to powers of two" if resize else ""), outputs=outs)
 
 
-# ------------------------------------------------------------------ the same workflows by the reference
-def _ref(expr: Expr, x, border: str):
-    from pyramid_cli.core.border import Border
-    from pyramid_cli.reference import filters as reference
-
-    return reference.run(expr, x, Border.parse(border))
-
-
-def _expand_to(x, synthesis: str, size: tuple[int, int], border: str):
-    return _ref(_one_step(synthesis, Op.UP), x, border)[:size[0], :size[1]]
-
-
-def blur_reference(pixels, levels: int, analysis: str = A0, synthesis: str = S0,
-                   quasi: bool = False, border: str = "clamp"):
-    """The blur by the numpy reference, level by level, cropping each synthesis to its level's size."""
-    sizes = level_sizes(pixels.shape[:2], levels)
-    x = levels_reference(pixels, levels, analysis, border)[-1]
-    if quasi:
-        x = _ref(Apply(Op.CONV, Named("quasi"), Input()), x, border)
-    for k in range(levels, 0, -1):
-        x = _expand_to(x, synthesis, sizes[k - 1], border)
-    return x
-
-
-def blur_sigma_reference(pixels, sigma: float, analysis: str = A0, synthesis: str = S0,
-                         border: str = "clamp"):
-    """:func:`blur_plan_sigma` by the reference: (1 − t) × the m-level blur + t × the (m+1)-level one."""
-    m, t = sigma_blend(sigma, analysis, synthesis)
-    low = blur_reference(pixels, m, analysis, synthesis, border=border) if m else pixels
-    return (1 - t) * low + t * blur_reference(pixels, m + 1, analysis, synthesis, border=border)
-
-
-def levels_reference(pixels, levels: int, analysis: str = A0, border: str = "clamp") -> list:
-    """Levels 0..m of the analysis pyramid by the reference (level 0 is the input, as float64)."""
-    import numpy as np
-
-    out = [np.asarray(pixels, dtype=np.float64)]
-    down = _one_step(analysis, Op.DOWN)
-    for _ in range(levels):
-        out.append(_ref(down, out[-1], border))
-    return out
-
-
-def laplacian_reference(pixels, levels: int, analysis: str = A0, synthesis: str = S0,
-                        border: str = "clamp") -> list:
-    """L_0..L_{m−1}, G_m by the reference (:func:`levels_plan` with ``laplacian``)."""
-    g = levels_reference(pixels, levels, analysis, border)
-    return [g[k] - _expand_to(g[k + 1], synthesis, g[k].shape[:2], border) for k in range(levels)] + [g[-1]]
-
-
-def collapse_reference(bands: list, synthesis: str = S0, border: str = "clamp"):
-    """G_0 from L_0..L_{m−1}, G_m by the reference (:func:`collapse_plan`)."""
-    import numpy as np
-
-    x = np.asarray(bands[-1], dtype=np.float64)
-    for band in reversed(bands[:-1]):
-        x = np.asarray(band, dtype=np.float64) + _expand_to(x, synthesis, band.shape[:2], border)
-    return x
-
-
 def _lattice(text: str, op: Op) -> str:
-    return algebra.lattice(algebra.kernel(_one_step(text, op)))[0]
+    return algebra.lattice(algebra.kernel(one_step(text, op)))[0]
 
 
 LATTICE_EFFECTS = {  # what a mixed pair costs each method; {shift}: ", about 7.5 px after 4 level(s)"
@@ -291,27 +193,3 @@ def lattice_mismatch(analysis: str, synthesis: str, levels: int | None = None, m
         names = same[0] if len(same) == 1 else f"{', '.join(same[:-1])} or {same[-1]}"
         text += f"; synthesis {names} shares {analysis}'s lattice"
     return text
-
-
-def blur_expression(levels: int, analysis: str, synthesis: str) -> Expr:
-    """The blur without crops, as an expression (used to describe its equivalent kernel)."""
-    expr: Expr = Input()
-    for op, f, s in blur_steps((2 ** levels, 2 ** levels), levels, analysis, synthesis)[0]:
-        expr = Apply(op, f, expr, 1, s)
-    return expr
-
-
-def impulse_sigma(levels: int, analysis: str, synthesis: str) -> float:
-    """Standard deviation (input pixels) of the blur's equivalent kernel along a row, mean over phases."""
-    split = algebra.axis_kernels(algebra.chain_steps(blur_expression(levels, analysis, synthesis)))
-    if split is None:
-        raise UsageError("the blur's filters are not separable")
-    _, _, phases = split[1]
-    total = 0.0
-    for w in phases.values():
-        s = sum(w.values())
-        mean = sum(v * d for d, v in w.items()) / s
-        total += float(sum(v * (d - mean) ** 2 for d, v in w.items()) / s)
-    return (total / len(phases)) ** 0.5
-
-
