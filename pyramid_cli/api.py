@@ -593,7 +593,7 @@ def process_files(work: Work, inputs: Sequence[str], output: str | None = None, 
     """Run a job on files through the CLI's pipeline: ``inputs[0]`` → ``output``, or every input → ``template``.
 
     ``work`` is a :mod:`pyramid_cli.jobs.work` value (``Filter``, ``Blur``, …); ``io_options``
-    are :class:`~pyramid_cli.run.pipeline.ReadOptions` and ``WriteOptions`` fields. Inputs may
+    are :class:`~pyramid_cli.run.settings.ReadOptions` and ``WriteOptions`` fields. Inputs may
     be frame sequences (``plate.####.exr``; ``frames="1001-1240x2"`` selects); ``shard``
     (``"K/N"`` or ``"auto"``) keeps one chunk of the jobs; ``cluster`` (a Dask address,
     ``"local:N"`` or a ``distributed.Client``) runs them on a Dask cluster in tasks of
@@ -601,7 +601,9 @@ def process_files(work: Work, inputs: Sequence[str], output: str | None = None, 
     no worker connected. Returns the batch's exit code (0 when every file was written); a
     single file's failure raises.
     """
-    from pyramid_cli.run.pipeline import ReadOptions, Reporter, WriteOptions, process
+    from pyramid_cli.run.pipeline import process
+    from pyramid_cli.run.report import Reporter
+    from pyramid_cli.run.settings import ReadOptions, WriteOptions
 
     read_keys = {"colorspace", "alpha", "nan"}
     ro = ReadOptions(**{k: v for k, v in io_options.items() if k in read_keys})

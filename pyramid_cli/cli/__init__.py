@@ -308,7 +308,7 @@ class _Bar:
 
 
 def _reporter(opts: dict):
-    from pyramid_cli.run.pipeline import Reporter
+    from pyramid_cli.run.report import Reporter
 
     return Reporter(quiet=opts["quiet"], verbose=opts["verbose"], interactive=sys.stderr.isatty(), out=click.echo,
                     err=lambda msg: click.echo(msg, err=True), progress=_Bar if sys.stderr.isatty() else None)
@@ -327,7 +327,7 @@ def _session(opts: dict, reporter):
 
 
 def _read_write(opts: dict):
-    from pyramid_cli.run.pipeline import ReadOptions, WriteOptions
+    from pyramid_cli.run.settings import ReadOptions, WriteOptions
 
     return (ReadOptions(opts["colorspace"], opts["alpha"], opts["nan_policy"]),
             WriteOptions(opts["pixel_type"], opts["dither"], opts["compression"], opts["force"]))

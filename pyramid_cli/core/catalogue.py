@@ -196,3 +196,5 @@ SYNTHESIS_FILTERS = ("nearest", "midpoint", "doosabin", "cubic", "fourpoint")
 ANALYSIS_DEFAULT = "box4"
 SYNTHESIS_DEFAULT = "doosabin"
 MIP_ANALYSIS_DEFAULT = "quadratic"
+DEFAULT_ANALYSIS = "box4"
+DEFAULT_SYNTHESIS = "doosabin"

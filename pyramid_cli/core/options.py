@@ -5,6 +5,8 @@ from __future__ import annotations
 
 from pyramid_cli.core.border import BORDER_NAMES
 
+#: The most pyramid levels (analysis steps) a command or function takes.
+MAX_LEVELS = 16
 BACKENDS = ("auto", "gl", "cpu", "reference")
 BACKEND_HELP = {
     "auto": "the fastest exact executor here: GL on a hardware GPU, else the CPU executor",
