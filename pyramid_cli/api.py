@@ -47,7 +47,7 @@ from pyramid_cli.core.errors import MixedLatticeWarning
 from pyramid_cli.core.expr import Expr
 from pyramid_cli.core.geometry import reduced
 from pyramid_cli.exec.session import Session
-from pyramid_cli.jobs.work import Blur, Collapse, Filter, Laplacian, Levels, SigmaBlur, Work, same_setting
+from pyramid_cli.jobs.work import Blur, Collapse, Filter, Laplacian, Levels, SigmaBlur, Work, blur_work, same_setting
 
 _sessions: dict[str, Session] = {}
 
@@ -102,6 +102,11 @@ def _expr(expr: str | Expr) -> Expr:
 
 def _run(work: Work, arrays: list, session: Session | None, backend: str) -> list[np.ndarray]:
     return _session(session, backend).run(work, arrays)
+
+
+def _check_levels(levels: int) -> None:
+    if not 1 <= levels <= options.MAX_LEVELS:
+        raise ValueError(f"levels must be 1 to {options.MAX_LEVELS}, not {levels}")
 
 
 def _warn_work(work: Work, size=None) -> None:
@@ -214,8 +219,8 @@ def apply(expr: str | Expr, array, *, border: str = "clamp", backend: str = "aut
     return result
 
 
-def blur(array, levels: int = 4, *, sigma: float | None = None, analysis: str = catalogue.ANALYSIS_DEFAULT,
-         synthesis: str = catalogue.SYNTHESIS_DEFAULT, quasi: bool = False, border: str = "clamp",
+def blur(array, levels: int = 4, *, sigma: float | None = None, analysis: str = catalogue.DEFAULT_ANALYSIS,
+         synthesis: str = catalogue.DEFAULT_SYNTHESIS, quasi: bool = False, border: str = "clamp",
          backend: str = "auto", session: Session | None = None, out: np.ndarray | None = None,
          memory: int | str | None = None) -> np.ndarray:
     """Pyramidal blur: ``levels`` analysis steps down, then synthesis back to the input size (§2, Figure 3).
@@ -252,14 +257,9 @@ def blur(array, levels: int = 4, *, sigma: float | None = None, analysis: str = 
     >>> soft.shape, round(float(soft.sum()), 4)
     ((33, 33), 1.0)
     """
-    if sigma is not None:
-        if quasi:
-            raise ValueError("quasi and sigma cannot be combined")
-        work: Work = SigmaBlur(sigma=sigma, analysis=analysis, synthesis=synthesis, border=border)
-    else:
-        if not 1 <= levels <= 16:
-            raise ValueError(f"levels must be 1 to 16, not {levels}")
-        work = Blur(levels=levels, analysis=analysis, synthesis=synthesis, quasi=quasi, border=border)
+    if sigma is None:
+        _check_levels(levels)
+    work = blur_work(levels, sigma=sigma, analysis=analysis, synthesis=synthesis, quasi=quasi, border=border)
     _warn_work(work)
     if _bands_wanted(array, out, memory):
         return _banded(work, array, None if out is None else [out], memory, session, backend)[0]
@@ -267,7 +267,7 @@ def blur(array, levels: int = 4, *, sigma: float | None = None, analysis: str = 
     return result
 
 
-def pyramid(array, *, analysis: str = catalogue.ANALYSIS_DEFAULT, levels: int | None = None, border: str = "clamp",
+def pyramid(array, *, analysis: str = catalogue.DEFAULT_ANALYSIS, levels: int | None = None, border: str = "clamp",
             backend: str = "auto", session: Session | None = None, out: Sequence[np.ndarray] | None = None,
             memory: int | str | None = None) -> Iterator[np.ndarray]:
     """The analysis pyramid (§4), level 0 (the input itself) first.
@@ -311,8 +311,8 @@ def pyramid(array, *, analysis: str = catalogue.ANALYSIS_DEFAULT, levels: int | 
     yield from outs[1:]
 
 
-def laplacian(array, levels: int = 4, *, analysis: str = catalogue.ANALYSIS_DEFAULT,
-              synthesis: str = catalogue.SYNTHESIS_DEFAULT, border: str = "clamp", backend: str = "auto",
+def laplacian(array, levels: int = 4, *, analysis: str = catalogue.DEFAULT_ANALYSIS,
+              synthesis: str = catalogue.DEFAULT_SYNTHESIS, border: str = "clamp", backend: str = "auto",
               session: Session | None = None, out: Sequence[np.ndarray] | None = None,
               memory: int | str | None = None) -> list[np.ndarray]:
     """Laplacian bands L_k = G_k − expand(G_k+1) for k < ``levels``, then the coarsest G_m.
@@ -331,8 +331,7 @@ def laplacian(array, levels: int = 4, *, analysis: str = catalogue.ANALYSIS_DEFA
     >>> bool(np.abs(pyr.collapse(bands) - a).max() < 1e-5)
     True
     """
-    if not 1 <= levels <= 16:
-        raise ValueError(f"levels must be 1 to 16, not {levels}")
+    _check_levels(levels)
     work = Laplacian(levels=levels, analysis=analysis, synthesis=synthesis, border=border)
     if _bands_wanted(array, out, memory):
         bands = _banded(work, array, out, memory, session, backend)
@@ -364,7 +363,7 @@ def collapse(bands: Sequence, *, synthesis: str | None = None, border: str | Non
     pyramid_cli.core.errors.UsageError: the bands were made with synthesis 'nearest'; collapsing with 'doosabin' ...
     """
     recorded = {k: getattr(bands, k, None) for k in ("synthesis", "border")}
-    synthesis = _as_recorded("synthesis", synthesis, recorded["synthesis"], catalogue.SYNTHESIS_DEFAULT)
+    synthesis = _as_recorded("synthesis", synthesis, recorded["synthesis"], catalogue.DEFAULT_SYNTHESIS)
     border = _as_recorded("border", border, recorded["border"], "clamp")
     bands = [as_pixels(b, f"band {k}") for k, b in enumerate(bands)]
     if len(bands) < 2:
@@ -420,8 +419,9 @@ def mipmap(array, *, analysis: str = catalogue.MIP_ANALYSIS_DEFAULT, border: str
     return [array if pixels is array else pixels, *_run(work, [pixels], session, backend)[1:]]
 
 
-def fill(array, *, mask=None, holes: str | None = None, levels: int | None = None, analysis: str = "box4",
-         synthesis: str = "doosabin", keep_alpha: bool = False, border: str = "clamp", backend: str = "auto",
+def fill(array, *, mask=None, holes: str | None = None, levels: int | None = None,
+         analysis: str = catalogue.DEFAULT_ANALYSIS, synthesis: str = catalogue.DEFAULT_SYNTHESIS,
+         keep_alpha: bool = False, border: str = "clamp", backend: str = "auto",
          session: Session | None = None) -> np.ndarray:
     """Fill holes by pull-push (Kraus, "The Pull-Push Algorithm Revisited", GRAPP 2009).
 
@@ -495,8 +495,8 @@ def fill(array, *, mask=None, holes: str | None = None, levels: int | None = Non
     return fill_output(out, pixels, holes, keep_alpha=keep_alpha)
 
 
-def blend(a, b, mask, *, levels: int | None = None, analysis: str = catalogue.ANALYSIS_DEFAULT,
-          synthesis: str = catalogue.SYNTHESIS_DEFAULT, border: str = "clamp", backend: str = "auto",
+def blend(a, b, mask, *, levels: int | None = None, analysis: str = catalogue.DEFAULT_ANALYSIS,
+          synthesis: str = catalogue.DEFAULT_SYNTHESIS, border: str = "clamp", backend: str = "auto",
           session: Session | None = None) -> np.ndarray:
     """Join ``a`` and ``b`` along ``mask`` without a seam (Burt & Adelson, "A Multiresolution Spline With
     Application to Image Mosaics", ACM ToG 1983).

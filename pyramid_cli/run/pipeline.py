@@ -18,7 +18,7 @@ from pyramid_cli import imageio as io
 from pyramid_cli.core import catalogue
 from pyramid_cli.core.errors import UsageError
 from pyramid_cli.exec.session import Session
-from pyramid_cli.jobs.work import Collapse, Laplacian, Levels, Work, same_setting
+from pyramid_cli.jobs.work import Collapse, Laplacian, Levels, Work, check_texture_tile, same_setting
 from pyramid_cli.run import batch
 from pyramid_cli.run.inputs import read_input
 from pyramid_cli.run.local import run_jobs
@@ -52,6 +52,10 @@ def process(paths: list[str], template: str | None, work: Work, session: Session
     (:mod:`pyramid_cli.run.stream`); images that fit run whole.
     """
     ro, wo, reporter = read or ReadOptions(), write or WriteOptions(), reporter or Reporter()
+    if mip_tile:
+        check_texture_tile(mip_tile, template or (paths[-1] if len(paths) > 1 else ""))
+    for message in work.notes():  # a --sigma blur's blend
+        reporter.say(message)
     for message in work.warnings():  # said once, before the first input is read (the CLI and process_files)
         reporter.warn(message)
     if cluster is None and (chunk is not None or cluster_timeout is not None):

@@ -41,6 +41,11 @@ class Reporter:
         if self.verbose:
             self.err(f"pyramid: {msg}")
 
+    def say(self, msg: str) -> None:
+        """A line for the person running the command (not a warning), on standard error, never under -q."""
+        if not self.quiet:
+            self.err(f"pyramid: {msg}")
+
     def error(self, msg: str) -> None:
         self.err(f"pyramid: error: {msg}")
 
