@@ -59,9 +59,10 @@ def _sequence(folder: Path, n: int, rows: int, cols: int, half: bool) -> str:
 def _process(pattern: str, out: str, session, **kw) -> float:
     from pyramid_cli.jobs.work import Blur
     from pyramid_cli.run import pipeline
+    from pyramid_cli.run.report import Reporter
 
     t0 = perf()
-    report = pipeline.process([pattern], out, Blur(levels=5), session, reporter=pipeline.Reporter(quiet=True), **kw)
+    report = pipeline.process([pattern], out, Blur(levels=5), session, reporter=Reporter(quiet=True), **kw)
     dt = perf() - t0
     if report.failed:
         raise RuntimeError(str(report.failed[0][1]))
@@ -100,7 +101,8 @@ def dask(tmp: Path, quick: bool) -> dict:
         return {"skipped": "distributed is not installed (pip install 'bilinear-pyramid[cluster]')"}
     from pyramid_cli.exec.session import Session
     from pyramid_cli.jobs.work import Blur
-    from pyramid_cli.run import batch, cluster, pipeline
+    from pyramid_cli.run import batch, cluster, pipeline, settings
+    from pyramid_cli.run.report import Reporter
 
     n_empty = 100 if quick else 400
     pattern = _sequence(tmp / "dask", 64, 32, 32, False)
@@ -112,7 +114,7 @@ def dask(tmp: Path, quick: bool) -> dict:
         res["cluster_start_s"] = perf() - t0
         spec = cluster.SessionSpec("cpu")
         client.register_plugin(cluster.SessionPlugin(spec), name=spec.plugin_name)
-        ro, wo = pipeline.ReadOptions(), pipeline.WriteOptions()
+        ro, wo = settings.ReadOptions(), settings.WriteOptions()
         kw = {"keep_going": False, "skip_existing": False, "threads": 1, "mip_tile": None, "started": time.time(),
               "quiet": True, "verbose": False, "bar": False, "plugin": spec.plugin_name}
         client.gather([client.submit(cluster.run_chunk, [], Blur(), ro, wo, pure=False, **kw) for _ in range(4)])
@@ -133,7 +135,7 @@ def dask(tmp: Path, quick: bool) -> dict:
                 out = str(tmp / "dask" / f"c{chunk}_{rep}" / "o.####.exr")
                 t0 = perf()
                 pipeline.process([pattern], out, Blur(levels=5), cluster.SessionSpec("cpu"),
-                                 reporter=pipeline.Reporter(quiet=True), cluster=client, chunk=chunk)
+                                 reporter=Reporter(quiet=True), cluster=client, chunk=chunk)
                 timings.append(perf() - t0)
             res[f"64 frames, chunk {chunk}_s"] = statistics.median(timings)
     with Session("cpu") as s:

@@ -47,7 +47,7 @@ from pyramid_cli.core.errors import MixedLatticeWarning
 from pyramid_cli.core.expr import Expr
 from pyramid_cli.core.geometry import reduced
 from pyramid_cli.exec.session import Session
-from pyramid_cli.jobs.work import Blur, Collapse, Filter, Laplacian, Levels, SigmaBlur, Work, same_setting
+from pyramid_cli.jobs.work import Blur, Collapse, Filter, Laplacian, Levels, SigmaBlur, Work, blur_work, same_setting
 
 _sessions: dict[str, Session] = {}
 
@@ -102,6 +102,11 @@ def _expr(expr: str | Expr) -> Expr:
 
 def _run(work: Work, arrays: list, session: Session | None, backend: str) -> list[np.ndarray]:
     return _session(session, backend).run(work, arrays)
+
+
+def _check_levels(levels: int) -> None:
+    if not 1 <= levels <= options.MAX_LEVELS:
+        raise ValueError(f"levels must be 1 to {options.MAX_LEVELS}, not {levels}")
 
 
 def _warn_work(work: Work, size=None) -> None:
@@ -250,14 +255,9 @@ def blur(array, levels: int = 4, *, sigma: float | None = None, analysis: str = 
     >>> soft.shape, round(float(soft.sum()), 4)
     ((33, 33), 1.0)
     """
-    if sigma is not None:
-        if quasi:
-            raise ValueError("quasi and sigma cannot be combined")
-        work: Work = SigmaBlur(sigma=sigma, analysis=analysis, synthesis=synthesis, border=border)
-    else:
-        if not 1 <= levels <= 16:
-            raise ValueError(f"levels must be 1 to 16, not {levels}")
-        work = Blur(levels=levels, analysis=analysis, synthesis=synthesis, quasi=quasi, border=border)
+    if sigma is None:
+        _check_levels(levels)
+    work = blur_work(levels, sigma=sigma, analysis=analysis, synthesis=synthesis, quasi=quasi, border=border)
     _warn_work(work)
     if _bands_wanted(array, out, memory):
         return _banded(work, array, None if out is None else [out], memory, session, backend)[0]
@@ -329,8 +329,7 @@ def laplacian(array, levels: int = 4, *, analysis: str = catalogue.DEFAULT_ANALY
     >>> bool(np.abs(pyr.collapse(bands) - a).max() < 1e-5)
     True
     """
-    if not 1 <= levels <= 16:
-        raise ValueError(f"levels must be 1 to 16, not {levels}")
+    _check_levels(levels)
     work = Laplacian(levels=levels, analysis=analysis, synthesis=synthesis, border=border)
     if _bands_wanted(array, out, memory):
         bands = _banded(work, array, out, memory, session, backend)
@@ -418,8 +417,9 @@ def mipmap(array, *, analysis: str = catalogue.MIP_ANALYSIS_DEFAULT, border: str
     return [array if pixels is array else pixels, *_run(work, [pixels], session, backend)[1:]]
 
 
-def fill(array, *, mask=None, holes: str | None = None, levels: int | None = None, analysis: str = "box4",
-         synthesis: str = "doosabin", keep_alpha: bool = False, border: str = "clamp", backend: str = "auto",
+def fill(array, *, mask=None, holes: str | None = None, levels: int | None = None,
+         analysis: str = catalogue.DEFAULT_ANALYSIS, synthesis: str = catalogue.DEFAULT_SYNTHESIS,
+         keep_alpha: bool = False, border: str = "clamp", backend: str = "auto",
          session: Session | None = None) -> np.ndarray:
     """Fill holes by pull-push (Kraus, "The Pull-Push Algorithm Revisited", GRAPP 2009).
 
@@ -591,7 +591,7 @@ def process_files(work: Work, inputs: Sequence[str], output: str | None = None, 
     """Run a job on files through the CLI's pipeline: ``inputs[0]`` → ``output``, or every input → ``template``.
 
     ``work`` is a :mod:`pyramid_cli.jobs.work` value (``Filter``, ``Blur``, …); ``io_options``
-    are :class:`~pyramid_cli.run.pipeline.ReadOptions` and ``WriteOptions`` fields. Inputs may
+    are :class:`~pyramid_cli.run.settings.ReadOptions` and ``WriteOptions`` fields. Inputs may
     be frame sequences (``plate.####.exr``; ``frames="1001-1240x2"`` selects); ``shard``
     (``"K/N"`` or ``"auto"``) keeps one chunk of the jobs; ``cluster`` (a Dask address,
     ``"local:N"`` or a ``distributed.Client``) runs them on a Dask cluster in tasks of
@@ -599,7 +599,9 @@ def process_files(work: Work, inputs: Sequence[str], output: str | None = None, 
     no worker connected. Returns the batch's exit code (0 when every file was written); a
     single file's failure raises.
     """
-    from pyramid_cli.run.pipeline import ReadOptions, Reporter, WriteOptions, process
+    from pyramid_cli.run.pipeline import process
+    from pyramid_cli.run.report import Reporter
+    from pyramid_cli.run.settings import ReadOptions, WriteOptions
 
     read_keys = {"colorspace", "alpha", "nan"}
     ro = ReadOptions(**{k: v for k, v in io_options.items() if k in read_keys})

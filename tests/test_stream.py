@@ -264,7 +264,8 @@ def test_resource_module_measures_children():
 def test_levels_stream_every_level(tmp_path, session, laplacian, budget):
     """Every level (the input itself as level 0, or the Laplacian bands) streamed equals the whole run's files."""
     from pyramid_cli.jobs.work import Laplacian, Levels
-    from pyramid_cli.run.pipeline import Reporter, write_levels_files
+    from pyramid_cli.run.pipeline import write_levels_files
+    from pyramid_cli.run.report import Reporter
 
     src = tmp_path / "in.exr"
     write(src, noise(150, 97, seed=4))

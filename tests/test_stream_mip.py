@@ -15,7 +15,8 @@ from pyramid_cli.core.errors import UsageError
 from pyramid_cli.exec.session import Session
 from pyramid_cli.jobs.texture import TextureLevels
 from pyramid_cli.run import batch, stream
-from pyramid_cli.run.pipeline import Reporter, process
+from pyramid_cli.run.pipeline import process
+from pyramid_cli.run.report import Reporter
 from pyramid_cli.workflows import mip
 
 CLI = [sys.executable, "-m", "pyramid_cli.cli"]
@@ -148,7 +149,7 @@ def test_streamed_mipmap_with_a_mirror_border_and_a_dithered_8_bit_texture(tmp_p
 
 
 def _dither():
-    from pyramid_cli.run.pipeline import WriteOptions
+    from pyramid_cli.run.settings import WriteOptions
 
     return WriteOptions(dither=True)
 

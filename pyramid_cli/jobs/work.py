@@ -64,6 +64,11 @@ class Work:
         any size: the command line prints each as ``pyramid: warning: …``, the API as a UserWarning."""
         return []
 
+    def notes(self, size: Size | None = None) -> list[str]:
+        """What the caller is told (not warned) before this job runs: the command line prints each as
+        ``pyramid: …`` on standard error, not under -q (:meth:`SigmaBlur.notes` says how it blends)."""
+        return []
+
     def __post_init__(self) -> None:
         object.__setattr__(self, "border", _border(self.border))
 
@@ -127,8 +132,17 @@ class SigmaBlur(Work):
     allow_mixed_lattice: bool = False
     label = "blur"
 
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        pyramids.sigma_blend(self.sigma, self.analysis, self.synthesis)  # refused (exit 2) when made, as --sigma is
+
     def warnings(self, size=None):
         return _lattice_warnings(self, None, "blur")
+
+    def notes(self, size=None):
+        m, t = pyramids.sigma_blend(self.sigma, self.analysis, self.synthesis)
+        return [f"sigma {self.sigma:g}: {1 - t:.3f} × {m} level(s) + {t:.3f} × {m + 1} "
+                f"(the blend's equivalent kernel has standard deviation {self.sigma:g} px)"]
 
     def check(self, sizes, where=""):
         from pyramid_cli.core.sigma import check_sigma
@@ -145,6 +159,42 @@ class SigmaBlur(Work):
 
         m, t = sigma_blend(self.sigma, self.analysis, self.synthesis)
         return [oracle.blur_blend_reference(images[0], m, t, self.analysis, self.synthesis, self.border)]
+
+
+def blur_work(levels: int = 4, *, sigma: float | None = None, analysis: str = catalogue.DEFAULT_ANALYSIS,
+              synthesis: str = catalogue.DEFAULT_SYNTHESIS, quasi: bool = False, border: str = "clamp",
+              allow_mixed_lattice: bool = False) -> Blur | SigmaBlur:
+    """The blur ``pyramid blur`` and :func:`pyramid_cli.api.blur` ask for: ``levels`` steps (:class:`Blur`), or
+    Gaussian-equivalent ``sigma`` (:class:`SigmaBlur`), which the quasi-interpolation prefilter cannot join.
+
+    Raises
+    ------
+    UsageError
+        ``quasi`` with ``sigma``; a ``sigma`` that is not positive and finite or needs more than 16 levels.
+    """
+    if sigma is None:
+        return Blur(levels=levels, analysis=analysis, synthesis=synthesis, quasi=quasi, border=border,
+                    allow_mixed_lattice=allow_mixed_lattice)
+    if quasi:
+        from pyramid_cli.core.errors import UsageError
+
+        raise UsageError("--quasi and --sigma cannot be combined")
+    return SigmaBlur(sigma=sigma, analysis=analysis, synthesis=synthesis, border=border,
+                     allow_mixed_lattice=allow_mixed_lattice)
+
+
+#: File name endings of TIFF textures, whose tiles must be a multiple of :data:`TIFF_TILE` pixels.
+TIFF_ENDINGS = (".tx", ".tif", ".tiff")
+TIFF_TILE = 16
+
+
+def check_texture_tile(tile: int, output: str) -> None:
+    """Refuse (exit 2) a MIP-mapped texture's ``tile`` that a TIFF ``output`` (.tx, .tif, .tiff: a path or an
+    output template) cannot hold: TIFF tiles are multiples of 16 pixels."""
+    if tile % TIFF_TILE and output.lower().endswith(TIFF_ENDINGS):
+        from pyramid_cli.core.errors import UsageError
+
+        raise UsageError(f"--tile {tile}: TIFF tiles must be a multiple of {TIFF_TILE} ({output})")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -312,4 +362,5 @@ class Blend(Work):
                                         self.border)]
 
 
-__all__ = ["Work", "Filter", "Blur", "SigmaBlur", "Levels", "Laplacian", "Collapse", "Fill", "Blend", "same_setting"]
+__all__ = ["Work", "Filter", "Blur", "SigmaBlur", "Levels", "Laplacian", "Collapse", "Fill", "Blend", "same_setting",
+           "blur_work", "check_texture_tile", "TIFF_ENDINGS", "TIFF_TILE"]

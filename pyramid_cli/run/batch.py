@@ -6,46 +6,16 @@ executor works on image k (OpenImageIO releases the GIL in its codecs).
 
 from __future__ import annotations
 
-import glob
 import os
 from collections.abc import Callable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
-from dataclasses import dataclass, field
 
-from pyramid_cli.core.errors import InputError, PyramidError, UsageError
+from pyramid_cli.core.errors import PyramidError, UsageError
+from pyramid_cli.run import sequence
+from pyramid_cli.run.joblist import GLOB_CHARS, Job, Report, expand, is_fresh
 
-_GLOB = set("*?[")
-
-
-@dataclass
-class Job:
-    input: str
-    output: str
-
-
-@dataclass
-class Report:
-    done: list[Job] = field(default_factory=list)
-    skipped: list[Job] = field(default_factory=list)
-    failed: list[tuple[Job, PyramidError]] = field(default_factory=list)
-
-    @property
-    def exit_code(self) -> int:
-        return self.failed[0][1].exit_code if self.failed else 0
-
-
-def expand(patterns: list[str]) -> list[str]:
-    """Input paths; quoted glob patterns are expanded here (sorted), so Makefiles need no shell globbing."""
-    out: list[str] = []
-    for p in patterns:
-        if _GLOB & set(p):
-            found = sorted(glob.glob(p))
-            if not found:
-                raise InputError(f"{p}: no file matches this pattern")
-            out += found
-        else:
-            out.append(p)
-    return out
+# Job, Report, expand and is_fresh live in pyramid_cli.run.joblist; batch.Job etc. name them too.
+__all__ = ["Job", "Report", "expand", "is_fresh", "output_for", "plan_jobs", "run"]
 
 
 def output_for(template: str, path: str) -> str:
@@ -55,9 +25,7 @@ def output_for(template: str, path: str) -> str:
     folder (``.`` when it has none). A frame token or ``{frame}`` needs a frame sequence's input
     (:func:`pyramid_cli.run.sequence.output_path`, which fills every template).
     """
-    from pyramid_cli.run.sequence import output_path
-
-    return output_path(template, path, None)
+    return sequence.output_path(template, path, None)
 
 
 def plan_jobs(paths: list[str], output: str | None, frames: str | None = None) -> list[Job]:
@@ -65,12 +33,10 @@ def plan_jobs(paths: list[str], output: str | None, frames: str | None = None) -
 
     ``OUT`` of a plain ``IN`` is a path as it is (braces included); it may not hold a frame token.
     """
-    from pyramid_cli.run import sequence
-
     if frames is not None or any(sequence.is_sequence(p) for p in (paths if output else paths[:1])):
         return sequence.plan_jobs(paths, output, frames)
     if output is None:
-        if len(paths) != 2 or _GLOB & set(paths[0]):
+        if len(paths) != 2 or GLOB_CHARS & set(paths[0]):
             raise UsageError("give INPUT OUTPUT, or several inputs with -o/--output TEMPLATE "
                              "(e.g. -o 'out/{stem}_blur.exr')")
         if sequence.is_sequence(paths[1]):
@@ -84,14 +50,6 @@ def plan_jobs(paths: list[str], output: str | None, frames: str | None = None) -
     if len(jobs) > 1 and len({os.path.abspath(j.output) for j in jobs}) < len(jobs):
         raise UsageError(f"output template {output!r} gives several inputs the same output: add {{stem}}")
     return jobs
-
-
-def is_fresh(job: Job) -> bool:
-    """Is the output newer than its input (make's rule)?"""
-    try:
-        return os.path.getmtime(job.output) >= os.path.getmtime(job.input)
-    except OSError:
-        return False
 
 
 def _prepare_quietly(prepare: Callable[[Job], None], job: Job) -> None:

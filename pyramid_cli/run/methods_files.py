@@ -1,7 +1,7 @@
 """Files in, files out for the pyramid methods: ``pyramid fill`` and ``pyramid blend``.
 
 Read → weights and masks → one plan on the session's executor → write, with the CLI's read and
-write options (:class:`~pyramid_cli.run.pipeline.ReadOptions`, ``WriteOptions``) and its reporter.
+write options (:class:`~pyramid_cli.run.settings.ReadOptions`, ``WriteOptions``) and its reporter.
 """
 
 from __future__ import annotations
@@ -11,10 +11,13 @@ import dataclasses
 import numpy as np
 
 from pyramid_cli import imageio as io
+from pyramid_cli.core import catalogue
 from pyramid_cli.core.errors import InputError, UsageError
 from pyramid_cli.exec.session import Session
 from pyramid_cli.jobs.work import Blend, Fill
-from pyramid_cli.run.pipeline import NAN_HINT, ReadOptions, Reporter, WriteOptions, _announce_compiles, _read
+from pyramid_cli.run.inputs import read_input
+from pyramid_cli.run.report import NAN_HINT, Reporter, announce_compiles
+from pyramid_cli.run.settings import ReadOptions, WriteOptions
 from pyramid_cli.workflows.methods import fill_inputs, fill_output, mask_channels, mask_weights
 
 
@@ -44,8 +47,8 @@ def _read_mask(path: str, shape: tuple[int, ...], ro: ReadOptions, reporter: Rep
 
 
 def fill_file(input_path: str, output_path: str, session: Session, *, mask: str | None = None,
-              holes: str | None = None, levels: int | None = None, analysis: str = "box4",
-              synthesis: str = "doosabin", keep_alpha: bool = False, border: str = "clamp",
+              holes: str | None = None, levels: int | None = None, analysis: str = catalogue.DEFAULT_ANALYSIS,
+              synthesis: str = catalogue.DEFAULT_SYNTHESIS, keep_alpha: bool = False, border: str = "clamp",
               allow_mixed_lattice: bool = False, read: ReadOptions | None = None, write: WriteOptions | None = None,
               reporter: Reporter | None = None) -> dict:
     """Pull-push fill of one image file (:func:`pyramid_cli.api.fill`); returns what ``--json`` prints.
@@ -78,7 +81,7 @@ def fill_file(input_path: str, output_path: str, session: Session, *, mask: str 
                 allow_mixed_lattice=allow_mixed_lattice)
     for message in work.warnings(px.shape[:2]):
         reporter.warn(message)
-    _announce_compiles(session, work, [colour, weight], reporter)
+    announce_compiles(session, work, [colour, weight], reporter)
     (filled,) = session.run(work, [colour, weight])
     out = fill_output(filled, px, holes, alpha, keep_alpha)
     spec = dataclasses.replace(image.spec, alpha_mode="none") if keep_alpha else image.spec  # colours as they are
@@ -116,14 +119,15 @@ def _levels(work, size) -> int:
 
 
 def blend_files(a_path: str, b_path: str, mask_path: str, output_path: str, session: Session, *,
-                levels: int | None = None, analysis: str = "box4", synthesis: str = "doosabin",
-                border: str = "clamp", allow_mixed_lattice: bool = False, read: ReadOptions | None = None,
-                write: WriteOptions | None = None, reporter: Reporter | None = None) -> dict:
+                levels: int | None = None, analysis: str = catalogue.DEFAULT_ANALYSIS,
+                synthesis: str = catalogue.DEFAULT_SYNTHESIS, border: str = "clamp", allow_mixed_lattice: bool = False,
+                read: ReadOptions | None = None, write: WriteOptions | None = None,
+                reporter: Reporter | None = None) -> dict:
     """Multiresolution blend of two image files along a mask file (:func:`pyramid_cli.api.blend`)."""
     ro, wo, reporter = read or ReadOptions(), write or WriteOptions(), reporter or Reporter()
     io.check_write_options(output_path, wo.pixel_type, wo.compression)
-    a = _read(a_path, ro, reporter)
-    b = _read(b_path, ro, reporter)
+    a = read_input(a_path, ro, reporter)
+    b = read_input(b_path, ro, reporter)
     if a.pixels.shape != b.pixels.shape:
         raise InputError(f"{b_path}: {b.pixels.shape[1]}×{b.pixels.shape[0]} with {b.pixels.shape[2]} channel(s); "
                          f"{a_path} is {a.pixels.shape[1]}×{a.pixels.shape[0]} with {a.pixels.shape[2]}")
@@ -135,7 +139,7 @@ def blend_files(a_path: str, b_path: str, mask_path: str, output_path: str, sess
     work.check(tuple(im.shape[:2] for im in images), where=a_path)
     for message in work.warnings(a.pixels.shape[:2]):
         reporter.warn(message)
-    _announce_compiles(session, work, images, reporter)
+    announce_compiles(session, work, images, reporter)
     (out,) = session.run(work, images)
     io.write_image(output_path, io.Image(out, a.spec), **wo.for_inputs([a_path, b_path, mask_path]))
     h, w = out.shape[:2]

@@ -1,112 +1,29 @@
-"""Files in, files out: read → plan → run → write, for one image or a batch.
+"""Files in, files out: the one dispatcher at the top of :mod:`pyramid_cli.run`.
 
 The CLI and the Python API's file helpers call these functions; they hold the
 policies that used to live in command bodies: which inputs become which outputs,
-whether a half file travels as half, NaN warnings, refusals before work
-(:mod:`pyramid_cli.workflows.limits`, options a format would ignore), and what is said on
-the way (a :class:`Reporter`). Writes are atomic (:mod:`pyramid_cli.imageio`); a batch goes
-through :mod:`pyramid_cli.run.batch`.
+whether one picture streams (:mod:`pyramid_cli.run.stream`), runs here
+(:mod:`pyramid_cli.run.local`) or on a cluster (:mod:`pyramid_cli.run.cluster`), refusals
+before work (:mod:`pyramid_cli.workflows.limits`, options a format would ignore), and what
+is said on the way (a :class:`~pyramid_cli.run.report.Reporter`). Writes are atomic
+(:mod:`pyramid_cli.imageio`). Nothing else in :mod:`pyramid_cli.run` imports this module.
 """
 
 from __future__ import annotations
 
 import os
 import re
-import sys
-from collections.abc import Callable
-from dataclasses import dataclass, field
-
-import numpy as np
 
 from pyramid_cli import imageio as io
 from pyramid_cli.core import catalogue
 from pyramid_cli.core.errors import UsageError
 from pyramid_cli.exec.session import Session
-from pyramid_cli.jobs.work import Collapse, Laplacian, Levels, Work, same_setting
+from pyramid_cli.jobs.work import Collapse, Laplacian, Levels, Work, check_texture_tile, same_setting
 from pyramid_cli.run import batch
-
-#: What a warning about NaN/Inf kept in an input (an image or a mask) advises.
-NAN_HINT = "--nan zero or --nan fail to change that"
-
-
-@dataclass
-class ReadOptions:
-    """How inputs are decoded (see :func:`pyramid_cli.imageio.read_image`)."""
-
-    colorspace: str = "auto"
-    alpha: str = "auto"
-    nan: str = "keep"
-
-
-@dataclass
-class WriteOptions:
-    """How outputs are encoded (see :func:`pyramid_cli.imageio.write_image`)."""
-
-    pixel_type: str | None = None
-    dither: bool = False
-    compression: str | None = None
-    force: bool = False
-
-    def for_inputs(self, inputs) -> dict:
-        return {"pixel_type": self.pixel_type, "dither": self.dither, "compression": self.compression,
-                "force": self.force, "inputs": tuple(inputs)}
-
-
-@dataclass
-class Reporter:
-    """What a run says: results on standard output, warnings and -v lines on standard error.
-
-    ``progress(total)`` (optional) returns a context manager with ``update(n)``, shown
-    instead of per-file lines for batches (the CLI passes a progress bar at a terminal).
-    """
-
-    quiet: bool = False
-    verbose: bool = False
-    interactive: bool = False  # standard error is a terminal: one-time notices (kernel compiles) are shown
-    out: Callable[[str], None] = field(default=lambda msg: print(msg))
-    err: Callable[[str], None] = field(default=lambda msg: print(msg, file=sys.stderr))
-    progress: Callable | None = None
-
-    def result(self, msg: str) -> None:
-        if not self.quiet:
-            self.out(msg)
-
-    def warn(self, msg: str) -> None:
-        if not self.quiet:
-            self.err(f"pyramid: warning: {msg}")
-
-    def detail(self, msg: str) -> None:
-        if self.verbose:
-            self.err(f"pyramid: {msg}")
-
-    def error(self, msg: str) -> None:
-        self.err(f"pyramid: error: {msg}")
-
-    def notice(self, msg: str) -> None:
-        """A one-time notice, at a terminal only and never under -q."""
-        if self.interactive and not self.quiet:
-            self.err(f"pyramid: {msg}")
-
-
-def _announce_compiles(session: Session, work: Work, images, reporter: Reporter) -> None:
-    """On a machine's first run the CPU executor compiles its kernels: say so, and for how long."""
-    if not (reporter.interactive and not reporter.quiet):
-        return
-    n = session.uncached(work, images)
-    if n:
-        reporter.notice(f"compiling {n} CPU kernel(s) for this machine, once (about {max(1, round(0.8 * n))} s; "
-                        "later runs load them from the cache in a fraction of a second)")
-
-
-def _read(path: str, ro: ReadOptions, reporter: Reporter, keep_half: bool = False,
-          hash_source: bool = False) -> io.Image:
-    image = io.read_image(path, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan, keep_half=keep_half,
-                          hash_source=hash_source)
-    integer = image.spec.pixel_type in ("uint8", "uint16") and not image.spec.channel_pixel_types
-    bad = io.count_nonfinite(image.pixels) if ro.nan == "keep" and not integer else 0  # decoded codes are finite
-    if bad:
-        reporter.warn(f"{path}: {bad} NaN/Inf value(s) kept; they spread through the filter ({NAN_HINT})")
-    return image
+from pyramid_cli.run.inputs import read_input
+from pyramid_cli.run.local import run_jobs
+from pyramid_cli.run.report import Reporter, announce_compiles
+from pyramid_cli.run.settings import ReadOptions, WriteOptions
 
 
 def process(paths: list[str], template: str | None, work: Work, session: Session | None, *,
@@ -135,6 +52,10 @@ def process(paths: list[str], template: str | None, work: Work, session: Session
     (:mod:`pyramid_cli.run.stream`); images that fit run whole.
     """
     ro, wo, reporter = read or ReadOptions(), write or WriteOptions(), reporter or Reporter()
+    if mip_tile:
+        check_texture_tile(mip_tile, template or (paths[-1] if len(paths) > 1 else ""))
+    for message in work.notes():  # a --sigma blur's blend
+        reporter.say(message)
     for message in work.warnings():  # said once, before the first input is read (the CLI and process_files)
         reporter.warn(message)
     if cluster is None and (chunk is not None or cluster_timeout is not None):
@@ -187,104 +108,6 @@ def process(paths: list[str], template: str | None, work: Work, session: Session
     return report
 
 
-def _texture_channels(image: io.Image, work, path: str, reporter: Reporter) -> io.Image:
-    """maketx's ``--monochrome-detect`` and ``--nchannels`` on a texture's source (:func:`mip.channel_plan`)."""
-    import dataclasses
-
-    from pyramid_cli.workflows.mip import apply_channels, channel_plan, is_monochrome
-
-    spec, px = image.spec, image.pixels
-    n = px.shape[2]
-    mono = work.monochrome_detect and n == 3 and spec.alpha_channel < 0 and is_monochrome(px)
-    change = channel_plan(n, list(spec.channel_names), spec.alpha_channel, work.nchannels, work.monochrome_detect,
-                          mono)
-    if change is None:
-        return image
-    kept, names, alpha = change
-    reporter.detail(f"{path}: {n} channel(s) → {len(names)} ({', '.join(names)})"
-                    + (": monochrome" if mono and work.nchannels is None else ""))
-    new = dataclasses.replace(spec, channel_names=names, alpha_channel=alpha,
-                              alpha_mode=spec.alpha_mode if alpha >= 0 else "none", channel_pixel_types=[])
-    return io.Image(apply_channels(px, kept, len(names)), new)
-
-
-def wrote_line(path: str, width: int, height: int, levels: int | None, executor: str) -> str:
-    """A batch's line for one output: ``wrote PATH (W×H[, N MIP levels], EXECUTOR)``."""
-    return f"wrote {path} ({width}×{height}{f', {levels} MIP levels' if levels else ''}, {executor})"
-
-
-def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: ReadOptions, write: WriteOptions,
-             reporter: Reporter, keep_going: bool = False, skip_existing: bool = False, jobs: int = 2,
-             mip_tile: int | None = None, many: bool = True) -> batch.Report:
-    """Read → run → write every job of ``job_list`` on ``session`` (the body of :func:`process`)."""
-    ro, wo = read, write
-
-    def prepare(job):
-        shape = io.read_shape(job.input)
-        if shape is not None:
-            session.prepare(work, [shape[:2]])
-
-    def read_job(job):
-        io.check_write_options(job.output, wo.pixel_type, wo.compression)  # refused before any work
-        image = _read(job.input, ro, reporter, keep_half=not mip_tile, hash_source=bool(mip_tile))
-        if mip_tile and getattr(work, "constant_detect", False):
-            from pyramid_cli.workflows.mip import shrink_constant
-
-            small = shrink_constant(image.pixels, mip_tile)
-            if small is not None and small.shape != image.pixels.shape:
-                reporter.detail(f"{job.input}: constant colour, made from one {small.shape[1]}×{small.shape[0]} tile")
-                image = io.Image(small, image.spec)
-        if mip_tile and (getattr(work, "nchannels", None) or getattr(work, "monochrome_detect", False)):
-            image = _texture_channels(image, work, job.input, reporter)
-        work.check((image.pixels.shape[:2],), where=job.input)
-        return job, image
-
-    announced = []
-
-    def compute(job_image):
-        job, image = job_image
-        if mip_tile and getattr(work, "fill", False):  # mipmap --fill: pull-push before the MIP chain (issue 17)
-            from pyramid_cli.run.methods_files import fill_texture
-
-            image = fill_texture(image, session, work.border, where=job.input)
-        if not announced:
-            announced.append(True)
-            _announce_compiles(session, work, [image.pixels], reporter)
-        half = (not mip_tile and image.pixels.dtype == np.float16
-                and io.stores_half_unchanged(job.output, image.spec, pixel_type=wo.pixel_type))
-        outs = session.run(work, [image.pixels], np.float16 if half else np.float32)
-        reporter.detail(f"{io.describe_rules(image.spec)}; executor {session.ran}")
-        return [io.Image(px, image.spec) for px in (outs if mip_tile else outs[-1:])]
-
-    def write_job(job, images):
-        options = wo.for_inputs([job.input])
-        if mip_tile:
-            from pyramid_cli.run.stream import mip_metadata
-
-            # the source's SHA-1 hashed as it was read: the file is not read again
-            meta = mip_metadata(work, job.input, images[0].spec.pixel_hash)
-            io.write_levels(job.output, images, mode="mipmap", tile=mip_tile, meta=meta, **options)
-        else:
-            io.write_image(job.output, images[0], **options)
-        h, w = images[0].pixels.shape[:2]
-        return wrote_line(job.output, w, h, len(images) if mip_tile else None, session.ran)
-
-    def written(job, line):  # in job order, whichever write ended first
-        if not show_bar:
-            reporter.result(line)
-
-    show_bar = many and not reporter.quiet and reporter.progress is not None
-    run_options = {"keep_going": keep_going, "skip_existing": skip_existing, "workers": jobs, "written": written,
-                   # GL compiles and allocates while the first image decodes; so does the CPU executor for MIP maps
-                   # (loading its kernels, about 0.3 s of a cold process, beside the read and the source's hash)
-                   "prepare": prepare if session.on_gl or mip_tile else None}
-    if show_bar:
-        with reporter.progress(len(job_list)) as bar:
-            return batch.run(job_list, read_job, compute, write_job, progress=lambda job: bar.update(1),
-                             **run_options)
-    return batch.run(job_list, read_job, compute, write_job, **run_options)
-
-
 def level_path(pattern: str, level: int) -> str:
     """``pattern`` with ``{level}`` filled in (levels and bands written one file each)."""
     if "{level}" not in pattern:
@@ -325,9 +148,9 @@ def write_levels_files(input_path: str, pattern: str, work: Levels | Laplacian, 
                 for path in written:
                     reporter.result(f"wrote {path}")
                 return written
-    image = _read(input_path, ro, reporter)
+    image = read_input(input_path, ro, reporter)
     work.check((image.pixels.shape[:2],), where=input_path)
-    _announce_compiles(session, work, [image.pixels], reporter)
+    announce_compiles(session, work, [image.pixels], reporter)
     stack = session.run(work, [image.pixels])
     reporter.detail(f"{io.describe_rules(image.spec)}; executor {session.ran}")
     images = [io.Image(px, image.spec) for px in stack]
@@ -386,14 +209,14 @@ def collapse_files(inputs: list[str], output_path: str, session: Session, *, syn
     if len(paths) == 1:
         bands = io.read_parts(paths[0], colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan)
     else:
-        bands = [_read(p, ro, reporter) for p in sorted(paths, key=_level_key)]
+        bands = [read_input(p, ro, reporter) for p in sorted(paths, key=_level_key)]
     if len(bands) < 2:
         raise UsageError(f"collapse needs at least two levels, {paths[0]} holds {len(bands)}")
     io.check_pyramid(bands)
     synthesis = _as_recorded(bands[0], paths[0], "synthesis", synthesis, catalogue.DEFAULT_SYNTHESIS)
     border = _as_recorded(bands[0], paths[0], "border", border, "clamp")
     work = Collapse(bands=len(bands), synthesis=synthesis, border=border)
-    _announce_compiles(session, work, [b.pixels for b in bands], reporter)
+    announce_compiles(session, work, [b.pixels for b in bands], reporter)
     (out,) = session.run(work, [b.pixels for b in bands])
     io.write_image(output_path, io.Image(out, bands[0].spec), **wo.for_inputs(paths))
     h, w = out.shape[:2]
@@ -401,5 +224,4 @@ def collapse_files(inputs: list[str], output_path: str, session: Session, *, syn
     return output_path
 
 
-__all__ = ["ReadOptions", "WriteOptions", "Reporter", "process", "run_jobs", "wrote_line", "write_levels_files",
-           "collapse_files", "level_path"]
+__all__ = ["process", "write_levels_files", "collapse_files", "level_path"]

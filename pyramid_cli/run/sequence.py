@@ -46,7 +46,7 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
 from pyramid_cli.core.errors import InputError, UsageError
-from pyramid_cli.run.batch import Job, expand
+from pyramid_cli.run.joblist import Job, expand
 
 MAX_FRAMES = 1_000_000
 """The most frames one range or one sequence may hold (a typo such as ``1-10000000`` is refused, not expanded)."""
@@ -389,7 +389,7 @@ def plan_jobs(paths: list[str], output: str | None, frames: str | None = None) -
     """Jobs of inputs among which some are sequences: ``SEQ OUTSEQ``, or ``INPUTS... -o TEMPLATE``.
 
     Sequence inputs give :class:`FrameJob` values (missing frames marked, see
-    :func:`drop_missing`); globs and plain files give :class:`~pyramid_cli.run.batch.Job`.
+    :func:`drop_missing`); globs and plain files give :class:`~pyramid_cli.run.joblist.Job`.
 
     Raises
     ------

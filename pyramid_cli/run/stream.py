@@ -299,7 +299,7 @@ def stream_file(in_path: str, out_path: str | list[str], work, session, choice: 
     ``attributes``: metadata added to every output. Returns the :class:`Choice` it ran with."""
     from pyramid_cli import imageio as io
     from pyramid_cli.exec import tiles
-    from pyramid_cli.run.pipeline import ReadOptions, WriteOptions
+    from pyramid_cli.run.settings import ReadOptions, WriteOptions
 
     ro, wo = read or ReadOptions(), write or WriteOptions()
     executor = _executor(session)
@@ -359,7 +359,7 @@ STREAMABLE = ("apply", "blur")  # single-image jobs of one output (Work.label); 
 def _decide(in_path: str, work, session, memory: int | None, read, reporter):
     """(open stream, choice) when ``work`` on ``in_path`` streams, else None (it runs whole, as before)."""
     from pyramid_cli import imageio as io
-    from pyramid_cli.run.pipeline import ReadOptions
+    from pyramid_cli.run.settings import ReadOptions
 
     if session is None or session.executor is None:
         if memory is not None:
@@ -561,7 +561,8 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
     """
     from pyramid_cli import imageio as io
     from pyramid_cli.exec import tiles
-    from pyramid_cli.run.pipeline import ReadOptions, Reporter, WriteOptions
+    from pyramid_cli.run.report import Reporter
+    from pyramid_cli.run.settings import ReadOptions, WriteOptions
     from pyramid_cli.workflows.mip import PixelStats
 
     ro, wo, reporter = read or ReadOptions(), write or WriteOptions(), reporter or Reporter()

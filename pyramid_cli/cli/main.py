@@ -1,0 +1,65 @@
+"""The ``pyramid`` group: its help, its version, one line per error with the exit code of its kind, and the
+console script's entry point. The commands are added to it by :mod:`pyramid_cli.cli`."""
+
+from __future__ import annotations
+
+import click
+
+from pyramid_cli.core.errors import EXIT_CODES, PyramidError
+
+EXIT_CODE_HELP = "\b\nExit codes:\n" + "\n".join(f"  {code}  {text}" for code, text in EXIT_CODES.values())
+
+
+class Group(click.Group):
+    """The command group: a :class:`~pyramid_cli.core.errors.PyramidError` is one line and its exit code; Ctrl-C
+    and SIGTERM/SIGHUP are one line and 130/143/129."""
+
+    def invoke(self, ctx: click.Context):
+        try:
+            return super().invoke(ctx)
+        except PyramidError as e:
+            click.echo(f"pyramid: error: {e}", err=True)
+            ctx.exit(e.exit_code)
+        except KeyboardInterrupt as e:  # Ctrl-C, and SIGTERM/SIGHUP after signals.install()
+            from pyramid_cli.core.signals import describe, exit_code
+            click.echo(f"pyramid: {describe(e)}", err=True)
+            ctx.exit(exit_code(e))
+
+
+@click.group(cls=Group, epilog=EXIT_CODE_HELP,
+             context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
+@click.version_option(package_name="bilinear-pyramid", prog_name="pyramid")
+def main() -> None:
+    """Image pyramids from bilinear texture passes (Kraus & Strengert, GRAPP 2007).
+
+    \b
+    Expressions use the paper's notation or an ASCII spelling:
+      ⊗  *  (x)     convolution           h_Bartlett ⊗ g      bartlett * g
+      ⊗↓ *v (x)v    analysis (reduce)     h_quadratic ⊗↓ g    quadratic *v g
+      ⊗↓ᵐ *v^m      one step of stride 2ᵐ h_box ⊗↓² g         box *v^2 g
+      ⊗↑ *^ (x)^    synthesis (expand)    h_Doo-Sabin ⊗↑ g    doosabin *^ g
+      (h)ᵐ (h)^m    m repeated steps      (h_box^{4×4})² ⊗↓ g (box4)^2 *v g
+      box↘ box\\ box^se, box↖ box^nw; 1/4 [1 1; 1 1] is a written mask.
+    Chains are right-associative: 'box\\ *v bartlett' is box↘ ⊗↓ (bartlett ⊗ g).
+
+    \b
+    Filters: box box↖ bartlett gauss5 gauss7 quasi (⊗); box box4 quadratic
+    cubic (⊗↓); nearest midpoint doosabin cubic fourpoint (⊗↑).
+
+    \b
+    Example:
+      pyramid explain 'h_box^↘ ⊗↓ (h_Bartlett ⊗ g)'
+      pyramid apply 'quadratic *v g' in.exr half.exr
+      pyramid blur --levels 5 in.exr soft.exr
+    """
+
+
+def run() -> None:
+    """The console script's entry point (``pyramid``)."""
+    from pyramid_cli.core.signals import guard_streams, install
+    install()  # SIGTERM/SIGHUP clean up like Ctrl-C (exit 143/129); SIGXFSZ ignored
+    guard_streams()  # a reader closing stdout (| head) drops the lines, not the frames
+    main(prog_name="pyramid")
+
+
+__all__ = ["EXIT_CODE_HELP", "Group", "main", "run"]

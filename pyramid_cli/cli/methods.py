@@ -1,0 +1,116 @@
+"""The methods built on pyramids: ``fill`` holes by pull-push and ``blend`` two images along a mask."""
+
+from __future__ import annotations
+
+import json
+
+import click
+
+from pyramid_cli.cli.params import border_option, choice, io_options, mixed_lattice_option
+from pyramid_cli.cli.running import drop, make_reporter, open_session, read_write
+from pyramid_cli.core import catalogue
+from pyramid_cli.core.options import MAX_LEVELS
+
+
+@click.command()
+@click.argument("input_path", metavar="INPUT")
+@click.argument("output_path", metavar="OUTPUT")
+@click.option("--mask", type=click.Path(dir_okay=False), help="Weight image: 1 known, 0 a hole, between partly "
+              "known (one channel, one per channel, else its alpha channel; stored values, no sRGB decoding; NaN/Inf "
+              "kept with a warning as in an image, values outside 0 … 1 clipped with one). Implies --holes mask.")
+@click.option("--holes", type=choice(["alpha", "mask", "nan"]), default=None,
+              help="Where the weights come from: the alpha channel (default without --mask), --mask, or every "
+                   "pixel with a NaN/Inf is a hole.")
+@click.option("--levels", "-m", type=click.IntRange(0, MAX_LEVELS), default=None,
+              help="Pull steps (default: down to 1×1, so every hole is filled).")
+@click.option("--analysis", default=catalogue.DEFAULT_ANALYSIS, show_default=True,
+              help=f"The pull's filter: {', '.join(catalogue.ANALYSIS_FILTERS)}, or a ⊗↓ expression.")
+@click.option("--synthesis", default=catalogue.DEFAULT_SYNTHESIS, show_default=True,
+              help=f"The push's filter: {', '.join(catalogue.SYNTHESIS_FILTERS)}, or a ⊗↑ expression.")
+@click.option("--keep-alpha", is_flag=True, help="Keep the input's alpha and store the filled colours beside it "
+              "unassociated (straight), instead of an opaque image: a PNG keeps its cut-out with colour under it.")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object (pixels filled, levels, executor).")
+@mixed_lattice_option
+@border_option
+@io_options
+def fill(input_path, output_path, mask, holes, levels, analysis, synthesis, keep_alpha, as_json, allow_mixed_lattice,
+         border, **opts) -> None:
+    """Fill holes from the pixels around them by pull-push (Kraus, GRAPP 2009).
+
+    The known pixels are pulled down the analysis pyramid as premultiplied colours with
+    their weights, then every level is composited over the expanded coarser one: holes of
+    any size get a smooth fill, pixels of full weight stay bit for bit. The output is
+    opaque (alpha 1, as oiiotool --fillholes writes it) unless --keep-alpha. An image
+    without a known pixel is bad pixel data (exit 5). Filters
+    on two lattices fill from beside the holes and are warned about.
+
+    \b
+    Example:
+      pyramid fill bake.png bake_padded.png                 # holes where alpha < 1
+      pyramid fill --mask valid.png plate.exr patched.exr    # holes where the mask is 0
+      pyramid fill --holes nan depth.exr depth_filled.exr    # holes at NaN/Inf pixels
+      pyramid fill --analysis box --json in.exr out.exr
+      pyramid fill --keep-alpha decal.png decal_dilated.png    # colour under the cut-out
+    """
+    from pyramid_cli.run.methods_files import fill_file
+
+    reporter = make_reporter(opts)
+    if as_json:  # the JSON object is the result; warnings still go to stderr
+        reporter.out = drop
+    ro, wo = read_write(opts)
+    with open_session(opts, reporter) as session:
+        info = fill_file(input_path, output_path, session, mask=mask, holes=holes, levels=levels, analysis=analysis,
+                         synthesis=synthesis, keep_alpha=keep_alpha, border=border,
+                         allow_mixed_lattice=allow_mixed_lattice, read=ro, write=wo, reporter=reporter)
+    if as_json:
+        click.echo(json.dumps(info, ensure_ascii=False))
+
+
+@click.command()
+@click.argument("a_path", metavar="A")
+@click.argument("b_path", metavar="B")
+@click.argument("mask_path", metavar="MASK")
+@click.argument("output_path", metavar="OUTPUT")
+@click.option("--levels", "-m", type=click.IntRange(0, MAX_LEVELS), default=None,
+              help="Laplacian levels (default: as many as the size allows while the coarsest level keeps 16 "
+                   "pixels on its shorter side: 4 at 256×256, 7 at 3840×2160).")
+@click.option("--analysis", default=catalogue.DEFAULT_ANALYSIS, show_default=True,
+              help=f"{', '.join(catalogue.ANALYSIS_FILTERS)}, or a ⊗↓ expression.")
+@click.option("--synthesis", default=catalogue.DEFAULT_SYNTHESIS, show_default=True,
+              help=f"{', '.join(catalogue.SYNTHESIS_FILTERS)}, or a ⊗↑ expression.")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object (size, levels, executor).")
+@mixed_lattice_option
+@border_option
+@io_options
+def blend(a_path, b_path, mask_path, output_path, levels, analysis, synthesis, as_json, allow_mixed_lattice, border,
+          **opts) -> None:
+    """Join A and B along MASK without a seam (Burt & Adelson's multiresolution spline, 1983).
+
+    Each Laplacian band of A and B is blended with the same level of the mask's analysis
+    pyramid, and the bands are collapsed: fine detail meets over a narrow seam, coarse
+    shading over a wide one. MASK is 1 where A shows and 0 where B shows: one channel,
+    one per channel, else its alpha channel; stored values, no sRGB decoding; NaN/Inf
+    kept with a warning (as in an image; --nan), values outside 0 … 1 clipped with one. A, B and MASK have
+    one size. Filters on two lattices move the seam and are warned about.
+
+    \b
+    Example:
+      pyramid blend apple.png orange.png left_half.png orapple.png
+      pyramid blend --levels 5 plate.exr patch.exr matte.exr comp.exr
+      pyramid blend --analysis cubic --synthesis cubic --json a.exr b.exr m.png out.exr
+    """
+    from pyramid_cli.run.methods_files import blend_files
+
+    reporter = make_reporter(opts)
+    if as_json:  # the JSON object is the result; warnings still go to stderr
+        reporter.out = drop
+    ro, wo = read_write(opts)
+    with open_session(opts, reporter) as session:
+        info = blend_files(a_path, b_path, mask_path, output_path, session, levels=levels, analysis=analysis,
+                           synthesis=synthesis, border=border, allow_mixed_lattice=allow_mixed_lattice, read=ro,
+                           write=wo, reporter=reporter)
+    if as_json:
+        click.echo(json.dumps(info, ensure_ascii=False))
+
+
+__all__ = ['fill', 'blend']

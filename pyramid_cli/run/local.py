@@ -1,0 +1,116 @@
+"""The local runner: read → run → write a list of jobs on one session, in this process.
+
+:func:`pyramid_cli.run.pipeline.process` calls it for a batch on this machine, and each
+Dask worker for its chunk (:mod:`pyramid_cli.run.cluster`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pyramid_cli import imageio as io
+from pyramid_cli.exec.session import Session
+from pyramid_cli.jobs.work import Work
+from pyramid_cli.run import batch
+from pyramid_cli.run.inputs import read_input
+from pyramid_cli.run.report import Reporter, announce_compiles, wrote_line
+from pyramid_cli.run.settings import ReadOptions, WriteOptions
+
+
+def texture_channels(image: io.Image, work, path: str, reporter: Reporter) -> io.Image:
+    """maketx's ``--monochrome-detect`` and ``--nchannels`` on a texture's source
+    (:func:`pyramid_cli.workflows.mip.channel_plan`); ``-v`` says what changed."""
+    import dataclasses
+
+    from pyramid_cli.workflows.mip import apply_channels, channel_plan, is_monochrome
+
+    spec, px = image.spec, image.pixels
+    n = px.shape[2]
+    mono = work.monochrome_detect and n == 3 and spec.alpha_channel < 0 and is_monochrome(px)
+    change = channel_plan(n, list(spec.channel_names), spec.alpha_channel, work.nchannels, work.monochrome_detect,
+                          mono)
+    if change is None:
+        return image
+    kept, names, alpha = change
+    reporter.detail(f"{path}: {n} channel(s) → {len(names)} ({', '.join(names)})"
+                    + (": monochrome" if mono and work.nchannels is None else ""))
+    new = dataclasses.replace(spec, channel_names=names, alpha_channel=alpha,
+                              alpha_mode=spec.alpha_mode if alpha >= 0 else "none", channel_pixel_types=[])
+    return io.Image(apply_channels(px, kept, len(names)), new)
+
+
+def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: ReadOptions, write: WriteOptions,
+             reporter: Reporter, keep_going: bool = False, skip_existing: bool = False, jobs: int = 2,
+             mip_tile: int | None = None, many: bool = True) -> batch.Report:
+    """Read → run → write every job of ``job_list`` on this machine's ``session``, decoding and encoding in
+    ``jobs`` threads beside the work (:func:`pyramid_cli.run.batch.run`); a cluster's workers run their chunks
+    with it too. With ``mip_tile`` each output is one tiled MIP-mapped file."""
+    ro, wo = read, write
+
+    def prepare(job):
+        shape = io.read_shape(job.input)
+        if shape is not None:
+            session.prepare(work, [shape[:2]])
+
+    def read_job(job):
+        io.check_write_options(job.output, wo.pixel_type, wo.compression)  # refused before any work
+        image = read_input(job.input, ro, reporter, keep_half=not mip_tile, hash_source=bool(mip_tile))
+        if mip_tile and getattr(work, "constant_detect", False):
+            from pyramid_cli.workflows.mip import shrink_constant
+
+            small = shrink_constant(image.pixels, mip_tile)
+            if small is not None and small.shape != image.pixels.shape:
+                reporter.detail(f"{job.input}: constant colour, made from one {small.shape[1]}×{small.shape[0]} tile")
+                image = io.Image(small, image.spec)
+        if mip_tile and (getattr(work, "nchannels", None) or getattr(work, "monochrome_detect", False)):
+            image = texture_channels(image, work, job.input, reporter)
+        work.check((image.pixels.shape[:2],), where=job.input)
+        return job, image
+
+    announced = []
+
+    def compute(job_image):
+        job, image = job_image
+        if mip_tile and getattr(work, "fill", False):  # mipmap --fill: pull-push before the MIP chain (issue 17)
+            from pyramid_cli.run.methods_files import fill_texture
+
+            image = fill_texture(image, session, work.border, where=job.input)
+        if not announced:
+            announced.append(True)
+            announce_compiles(session, work, [image.pixels], reporter)
+        half = (not mip_tile and image.pixels.dtype == np.float16
+                and io.stores_half_unchanged(job.output, image.spec, pixel_type=wo.pixel_type))
+        outs = session.run(work, [image.pixels], np.float16 if half else np.float32)
+        reporter.detail(f"{io.describe_rules(image.spec)}; executor {session.ran}")
+        return [io.Image(px, image.spec) for px in (outs if mip_tile else outs[-1:])]
+
+    def write_job(job, images):
+        options = wo.for_inputs([job.input])
+        if mip_tile:
+            from pyramid_cli.run.stream import mip_metadata
+
+            # the source's SHA-1 hashed as it was read: the file is not read again
+            meta = mip_metadata(work, job.input, images[0].spec.pixel_hash)
+            io.write_levels(job.output, images, mode="mipmap", tile=mip_tile, meta=meta, **options)
+        else:
+            io.write_image(job.output, images[0], **options)
+        h, w = images[0].pixels.shape[:2]
+        return wrote_line(job.output, w, h, len(images) if mip_tile else None, session.ran)
+
+    def written(job, line):  # in job order, whichever write ended first
+        if not show_bar:
+            reporter.result(line)
+
+    show_bar = many and not reporter.quiet and reporter.progress is not None
+    run_options = {"keep_going": keep_going, "skip_existing": skip_existing, "workers": jobs, "written": written,
+                   # GL compiles and allocates while the first image decodes; so does the CPU executor for MIP maps
+                   # (loading its kernels, about 0.3 s of a cold process, beside the read and the source's hash)
+                   "prepare": prepare if session.on_gl or mip_tile else None}
+    if show_bar:
+        with reporter.progress(len(job_list)) as bar:
+            return batch.run(job_list, read_job, compute, write_job, progress=lambda job: bar.update(1),
+                             **run_options)
+    return batch.run(job_list, read_job, compute, write_job, **run_options)
+
+
+__all__ = ["run_jobs", "texture_channels"]
