@@ -110,6 +110,7 @@ def plot_powers(expr: Expr, path: str, powers: int = 4) -> None:
         raise UsageError("--plot needs matplotlib: pip install 'bilinear-pyramid[plot]'") from None
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
     from pyramid_cli.core.expr import Apply
 
     if not (isinstance(expr, Apply) and kind(expr) == "analysis"):
