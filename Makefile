@@ -50,10 +50,10 @@ bench: $(STAMP) check-gl
 	$(PY) bench/run.py
 
 # Re-measure the planner's cost model on this machine's GL (about a minute) and
-# check the README's fetch table against the new model.
+# check the docs' fetch table against the new model.
 calibrate: $(STAMP) check-gl
 	$(PY) bench/calibrate.py --write
-	$(PY) scripts/fetch_table.py --check || echo "README.md's fetch table changed: update it with $(PY) scripts/fetch_table.py"
+	$(PY) scripts/fetch_table.py --check || echo "docs/performance.md's fetch table changed: update it with $(PY) scripts/fetch_table.py"
 
 clean:
 	rm -rf $(VENV) $(OUT) build docs/api/generated *.egg-info

@@ -149,5 +149,21 @@ def _existing_module_of(target: str) -> str | None:
     return None
 
 
+def _plain_help(app, ctx, lines: list[str]) -> None:
+    """The commands' help is plain text for a terminal (``'in/*.exr'``): escape what reST would read as
+    markup, keeping sphinx-click's own line-block bars and directives."""
+    import re
+
+    for i, line in enumerate(lines):
+        if line.lstrip().startswith(".. "):
+            continue
+        bar = re.match(r"\s*\| ?", line)  # a line block's bar, from click's \b paragraphs
+        head, rest = (line[:bar.end()], line[bar.end():]) if bar else ("", line)
+        rest = re.sub(r"([*`|\\])", r"\\\1", rest)
+        lines[i] = head + re.sub(r"(\w)_(?!\w)", r"\1\\_", rest)  # `band_` is not a link
+
+
 def setup(app):
     app.connect("missing-reference", _resolve_reexports)
+    for what in ("description", "options", "arguments", "envvars", "epilog"):  # usage is a literal block
+        app.connect(f"sphinx-click-process-{what}", _plain_help)
