@@ -1,4 +1,5 @@
-"""Every example a user can copy runs: each command's ``--help`` Example block and the README's code blocks.
+"""Every example a user can copy runs: each command's ``--help`` Example block and the code blocks of the README
+and of the docs site's Markdown pages (``docs/**/*.md``).
 
 The examples are read from where users read them (the commands' help text and the
 Markdown files), run in a folder holding small images under every name they use,
@@ -50,7 +51,7 @@ SUBSTITUTE = {
 PRELUDE = textwrap.dedent("""\
     import numpy as np
     import pyramid_cli as pyr
-    from pyramid_cli import pyramids
+    from pyramid_cli.workflows import pyramids
     rng = np.random.default_rng(3)
     img = rng.random((48, 64, 4)).astype(np.float32)
     apple, orange = rng.random((48, 64, 3)).astype(np.float32), rng.random((48, 64, 3)).astype(np.float32)
@@ -369,7 +370,10 @@ def test_not_run_lines_still_exist():
 def test_every_block_is_run_or_named():
     """A fenced block in a language no test above runs is listed here with why."""
     not_examples = {"yaml": "CI configuration (GitHub Actions, GitLab) and the Kubernetes Job, run above",
-                    "": "a terminal session shown with its output", "python": "run above", "make": "run above"}
+                    "": "a terminal session shown with its output", "python": "run above", "make": "run above",
+                    "text": "an install recipe with a placeholder for the clone's address",
+                    **{d: "a MyST directive of the docs site (its structure, not an example)"
+                       for d in ("{toctree}", "{image}", "{eval-rst}")}}
     assert [b[0] for b in BLOCKS if b[1] not in ("sh", "bash", *not_examples)] == []
 
 
