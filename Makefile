@@ -1,18 +1,18 @@
-# Two commands set everything up on a fresh clone: `make demo` and `make test`.
+# Two commands set everything up on a fresh clone: `make demo` and `make test` (`make docs` builds the site).
 PYTHON ?= python3
 VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 OUT    := samples/out
 
-.PHONY: demo test lint bench calibrate check-gl clean
+.PHONY: demo test docs docs-pictures lint bench calibrate check-gl clean
 
 $(STAMP): pyproject.toml
 	@$(PYTHON) -c 'import sys; sys.exit(sys.version_info < (3, 10))' || \
 	  { echo "error: Python 3.10 or newer is needed (found $$($(PYTHON) --version))"; exit 1; }
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q -e '.[test]'
+	$(PY) -m pip install -q -e '.[test,docs,plot]'
 	@touch $@
 
 # Headless OpenGL needs Mesa's EGL and its software driver (llvmpipe).
@@ -23,25 +23,37 @@ check-gl:
 	 { echo "error: headless OpenGL (EGL) is missing. Install it with:"; \
 	   echo "  sudo apt-get install -y libegl1 libgl1 libgl1-mesa-dri libegl-mesa0"; exit 1; }
 
-demo: $(STAMP) check-gl
+# The demo runs on whatever executor `auto` finds (the CPU executor without EGL) and says which.
+demo: $(STAMP)
 	$(PY) -m pyramid_cli.demo $(OUT)
 
 test: $(STAMP) check-gl
 	$(PY) -m ruff check pyramid_cli tests samples scripts bench
+	$(MAKE) docs
 	$(PY) -m pytest
+
+# The Sphinx site: warnings are errors and every cross-reference must resolve (-n).
+DOCS_OUT := build/docs
+docs: $(STAMP)
+	$(PY) -m sphinx -q -W --keep-going -n -b html docs $(DOCS_OUT)
+	@echo "docs: $(DOCS_OUT)/index.html"
+
+# Redraw the committed pictures of the docs (docs/_static/*.png) with the package itself, on the CPU executor.
+docs-pictures: $(STAMP)
+	$(PY) docs/_scripts/pictures.py docs/_static
 
 lint: $(STAMP)
 	$(PY) -m ruff check pyramid_cli tests samples scripts bench
 
 bench: $(STAMP) check-gl
-	$(PY) -m pip install -q -e '.[test,bench]'
+	$(PY) -m pip install -q -e '.[test,docs,plot,bench]'
 	$(PY) bench/run.py
 
 # Re-measure the planner's cost model on this machine's GL (about a minute) and
-# check the README's fetch table against the new model.
+# check the docs' fetch table against the new model.
 calibrate: $(STAMP) check-gl
 	$(PY) bench/calibrate.py --write
-	$(PY) scripts/fetch_table.py --check || echo "README.md's fetch table changed: update it with $(PY) scripts/fetch_table.py"
+	$(PY) scripts/fetch_table.py --check || echo "docs/performance.md's fetch table changed: update it with $(PY) scripts/fetch_table.py"
 
 clean:
-	rm -rf $(VENV) $(OUT) build *.egg-info
+	rm -rf $(VENV) $(OUT) build docs/api/generated *.egg-info

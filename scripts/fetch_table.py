@@ -1,7 +1,7 @@
-"""Print the README's fetch-count table, generated from `pyramid plan --json`.
+"""Print the fetch-count table of docs/performance.md, generated from `pyramid plan --json`.
 
     python scripts/fetch_table.py            # markdown table on stdout
-    python scripts/fetch_table.py --check    # exit 1 if README.md's table differs
+    python scripts/fetch_table.py --check    # exit 1 if docs/performance.md's table differs
 """
 
 from __future__ import annotations
@@ -41,10 +41,10 @@ def main() -> int:
     if "--check" not in sys.argv:
         print(text)
         return 0
-    readme = open(os.path.join(os.path.dirname(__file__), "..", "README.md"), encoding="utf-8").read()
+    readme = open(os.path.join(os.path.dirname(__file__), "..", "docs", "performance.md"), encoding="utf-8").read()
     current = readme.split(BEGIN)[1].split(END)[0].strip()
     if current != text:
-        print("README.md's fetch table is out of date: run python scripts/fetch_table.py", file=sys.stderr)
+        print("docs/performance.md's fetch table is out of date: run python scripts/fetch_table.py", file=sys.stderr)
         return 1
     return 0
 

@@ -393,8 +393,8 @@ def _write_out(ctx: click.Context, pr: Any, opts: Any, out_path: str, absolute: 
                 io_raw.write_float(out_path, rgb, ["R", "G", "B"])
         else:
             io_raw.write_float(out_path, difference_image(pa, pb, scale, absolute=absolute), names)
-    except PyramidError as e:
-        _finish(ctx, EXIT_CODES["file"], e.message, as_json)
+    except PyramidError as e:  # usage: --heatmap without matplotlib
+        _finish(ctx, 2 if e.kind == "usage" else EXIT_CODES["file"], e.message, as_json)
 
 
 def _finish(ctx: click.Context, code: int, message: str, as_json: bool) -> None:

@@ -419,11 +419,18 @@ def heatmap(a: np.ndarray, b: np.ndarray, *, lo: float = 1e-8, hi: float = 1.0,
         Different sizes or channel counts.
     ValueError
         ``lo`` or ``hi`` not positive, or ``lo >= hi``.
+    UsageError
+        matplotlib is not installed (the ``plot`` extra).
     """
     if not (0.0 < lo < hi) or not math.isfinite(hi):
         raise ValueError(f"heatmap range must satisfy 0 < lo < hi < inf, got lo={lo}, hi={hi}")
-    import matplotlib
+    try:
+        import matplotlib
+    except ImportError:
+        from pyramid_cli.core.errors import UsageError
 
+        raise UsageError("--heatmap needs matplotlib for its colour map: pip install 'bilinear-pyramid[plot]'") \
+            from None
     a = _as_hwc(a, "A")
     b = _as_hwc(b, "B")
     _check_shapes(a, b)

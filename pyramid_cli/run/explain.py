@@ -102,12 +102,15 @@ def plot_powers(expr: Expr, path: str, powers: int = 4) -> None:
     from pyramid_cli.workflows.limits import check_kernel_cost
 
     check_kernel_cost(_power(expr, powers), f"({to_text(expr, 'ascii')})^{powers}")
-    import matplotlib
+    from pyramid_cli.core.errors import UsageError
 
+    try:
+        import matplotlib
+    except ImportError:
+        raise UsageError("--plot needs matplotlib: pip install 'bilinear-pyramid[plot]'") from None
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from pyramid_cli.core.errors import UsageError
     from pyramid_cli.core.expr import Apply
 
     if not (isinstance(expr, Apply) and kind(expr) == "analysis"):
