@@ -29,12 +29,14 @@ demo: $(STAMP)
 
 test: $(STAMP) check-gl
 	$(PY) -m ruff check pyramid_cli tests samples scripts bench
+	$(VENV)/bin/lint-imports
 	$(MAKE) docs
 	$(PY) -m pytest
 
 # The Sphinx site: warnings are errors and every cross-reference must resolve (-n).
 DOCS_OUT := build/docs
 docs: $(STAMP)
+	rm -rf docs/api/generated
 	$(PY) -m sphinx -q -W --keep-going -n -b html docs $(DOCS_OUT)
 	@echo "docs: $(DOCS_OUT)/index.html"
 

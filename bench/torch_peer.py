@@ -23,7 +23,7 @@ tensors of any device and floating dtype (float64, float32, float16):
   the same way (each synthesis back to its level's size).
 
 Each step reads the result of the one before it, as the reference does (a written operator
-is a boundary, DESIGN.md §1); nothing is fused. The pad is a full copy of the level, as in
+is a boundary, docs/design.md §1); nothing is fused. The pad is a full copy of the level, as in
 the usual PyTorch idiom; the peer is meant to be the straightforward PyTorch program, not a
 hand-tuned kernel.
 """
@@ -79,7 +79,7 @@ class ConvStep:
         return len(self.weights[0]), len(self.weights[0][0])
 
     def out_size(self, size: Size) -> Size:
-        """Size of the result: ⌈n/2ᵐ⌉ for ⊗↓ᵐ, 2n for ⊗↑, n for ⊗ (DESIGN.md §1)."""
+        """Size of the result: ⌈n/2ᵐ⌉ for ⊗↓ᵐ, 2n for ⊗↑, n for ⊗ (docs/design.md §1)."""
         if self.op is Op.DOWN:
             return (-(-size[0] // self.stride), -(-size[1] // self.stride))
         if self.op is Op.UP:

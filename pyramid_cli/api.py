@@ -184,7 +184,7 @@ def apply(expr: str | Expr, array, *, border: str = "clamp", backend: str = "aut
     array : array_like
         H×W or H×W×C pixels.
     border : {"clamp", "mirror", "wrap", "zero"}
-        How every written operator reads past its input's edges (DESIGN.md §1).
+        How every written operator reads past its input's edges (docs/design.md §1).
     backend : {"auto", "gl", "cpu", "reference"}
         Where it runs (ignored when ``session`` is given).
     session : Session, optional

@@ -50,7 +50,7 @@ def extended_chain(step_list, g: np.ndarray, out_shape: tuple[int, int]) -> np.n
     next step reads it (guard rows included), and only the original input clamps.
 
     This is the border meaning of an atomic named filter decomposed into steps
-    (DESIGN.md §1): the test oracle for the paper's decompositions at the borders.
+    (docs/design.md §1): the test oracle for the paper's decompositions at the borders.
     """
     h, w = g.shape[:2]
     cache: list[dict] = [dict() for _ in step_list]

@@ -1,7 +1,7 @@
-"""Border modes belong to the Plan (DESIGN.md §1): every executor runs clamp, mirror, wrap and zero.
+"""Border modes belong to the Plan (docs/design.md §1): every executor runs clamp, mirror, wrap and zero.
 
 The reference folds indices with :func:`pyramid_cli.core.border.fold`; the checker below folds
-them independently, by the definitions in DESIGN.md §1, so a wrong fold in both is caught.
+them independently, by the definitions in docs/design.md §1, so a wrong fold in both is caught.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ CHAIN_CASES = ["doosabin *^ (box4 *v g)", "box\\ *v bartlett", "(box4)^2 *v g", 
 
 
 def by_definition(i: int, n: int, border: str) -> int:
-    """DESIGN.md §1 spelled out: clamp … 1 1 | 1 … n | n n …; mirror … 2 1 | 1 … n | n n−1 …;
+    """docs/design.md §1 spelled out: clamp … 1 1 | 1 … n | n n …; mirror … 2 1 | 1 … n | n n−1 …;
     wrap … n−1 n | 1 … n | 1 2 …; zero: 0 (reads zero) outside."""
     if 1 <= i <= n:
         return i

@@ -1,6 +1,6 @@
 """The calibrated cost model (pyramid_cli/plan/cost.py): the committed constants, the size-dependent
 choice it drives, exactness on both sides of every flip, and why the planner never fuses
-written steps (DESIGN.md §1, §5)."""
+written steps (docs/design.md §1, §5)."""
 
 import datetime
 import json
@@ -245,7 +245,7 @@ def composed_pass_plan(text: str, size: tuple[int, int]) -> planner.Plan:
 
 @pytest.mark.parametrize("text", ["(box4)^2 *v g", "box4 *v (box4 *v (box4 *v g))", "quadratic *v (box4 *v g)"])
 def test_fusing_written_steps_is_wrong_at_the_border(text):
-    """Each written operator clamps at its own input's border (DESIGN.md §1), so the composed kernel
+    """Each written operator clamps at its own input's border (docs/design.md §1), so the composed kernel
     of two ⊗↓ steps, clamped once at the input, differs from the chain there: the planner fuses
     within a named filter (guard bands keep it exact) and never across written steps."""
     size = (97, 75)

@@ -496,7 +496,7 @@ def test_api_blend_fill_and_blur_warn_on_a_mixed_pair_and_the_warning_says_what_
         mixed = np.abs(pyr.fill(ramp, mask=known, analysis=MIXED[0], synthesis=MIXED[1], backend="cpu") - ramp)
     matched = np.abs(pyr.fill(ramp, mask=known, analysis=MIXED[0], synthesis="doosabin", backend="cpu") - ramp)
     assert 2 < mixed[known == 0].mean() / matched[known == 0].mean() < 3.5
-    with pytest.warns(MixedLatticeWarning, match=r"half a fine pixel per level \(DESIGN.md §4\), about 1\.5 px"):
+    with pytest.warns(MixedLatticeWarning, match=r"half a fine pixel per level \(docs/design.md §4\), about 1\.5 px"):
         pyr.blur(ramp, 2, analysis="box4", synthesis="midpoint", backend="cpu")
     with warnings.catch_warnings():
         warnings.simplefilter("error")

@@ -102,7 +102,7 @@ DECOMPOSITIONS = [
     ("box^nw * (midpoint *^ g)", "doosabin *^ g", "box\\ * (midpoint *^ g)"),
     ("box\\ * (doosabin *^ g)", "cubic *^ g", None),
     # §4.2 prints h_Bartlett ⊗↓ g ≡ h_box↘ ⊗↓ (h_box↘ ⊗ g) and mentions "an additional shift":
-    # the masks say it holds exactly only with alternating arrows (an erratum DESIGN.md §3 lacks).
+    # the masks say it holds exactly only with alternating arrows (an erratum docs/design.md §3 lacks).
     ("box\\ *v (box^nw * g)", "bartlett *v g", "box\\ *v (box\\ * g)"),
 ]
 

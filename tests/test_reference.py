@@ -97,7 +97,7 @@ def test_chains_agree_with_the_algebra_in_the_interior(text):
 
 
 def test_written_operators_clamp_in_between():
-    """bartlett ⊗ (bartlett ⊗ g) differs from gauss5 ⊗ g in the outermost pixels only (DESIGN.md §1)."""
+    """bartlett ⊗ (bartlett ⊗ g) differs from gauss5 ⊗ g in the outermost pixels only (docs/design.md §1)."""
     g = image((9, 9), None, 1)
     two = reference.run(parse("bartlett * (bartlett * g)"), g)
     one = reference.run(parse("gauss5"), g)

@@ -4,7 +4,7 @@ Command bodies only translate options; the policy lives in the jobs (:mod:`pyram
 runners (:mod:`pyramid_cli.run`), which the Python API calls too. Heavy modules (numpy, OpenImageIO, moderngl)
 are imported inside the commands so that ``pyramid --help`` stays fast.
 
-- :mod:`~pyramid_cli.cli.main`: the group, its errors and exit codes, the console script's ``run``
+- :mod:`~pyramid_cli.cli.group`: the group, its errors and exit codes, the console script's ``run``
 - :mod:`~pyramid_cli.cli.params`: option groups and parameter types the commands share
 - :mod:`~pyramid_cli.cli.running`: options to a reporter, a session and a pipeline run
 - :mod:`~pyramid_cli.cli.describe`: ``explain``, ``plan``
@@ -17,15 +17,13 @@ are imported inside the commands so that ``pyramid --help`` stays fast.
 
 from __future__ import annotations
 
-from pyramid_cli.cli.describe import explain, plan_command
-from pyramid_cli.cli.diff import diff
-from pyramid_cli.cli.farm import farm_template
-from pyramid_cli.cli.filters import apply, blur, collapse, levels
-from pyramid_cli.cli.main import main, run
-from pyramid_cli.cli.methods import blend, fill
-from pyramid_cli.cli.mip import mipmap
+from pyramid_cli.cli import describe, diff, farm, filters, methods, mip
+from pyramid_cli.cli.group import main, run
 
-for _command in (explain, plan_command, apply, blur, levels, collapse, mipmap, fill, blend, farm_template, diff):
+# The commands are reached through ``main``; binding them here by name would hide their modules
+# (``pyramid_cli.cli.diff`` is the module, ``diff.diff`` the command).
+for _command in (describe.explain, describe.plan_command, filters.apply, filters.blur, filters.levels,
+                 filters.collapse, mip.mipmap, methods.fill, methods.blend, farm.farm_template, diff.diff):
     main.add_command(_command)
 
 __all__ = ["main", "run"]

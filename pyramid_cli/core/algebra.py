@@ -9,7 +9,7 @@ with ``R = Sr·⌈r/Pr⌉`` (which is ``r`` for ⊗, ``2ᵐr`` for ⊗↓ᵐ and
 for ⊗↑, the paper's index formulas of §3, §4 and §5). It is found by running the
 chain symbolically on an unbounded image of unit impulses, so it holds in the
 interior; at the borders the written operators of a chain clamp in between
-(DESIGN.md §1), which :mod:`pyramid_cli.reference.filters` models.
+(docs/design.md §1), which :mod:`pyramid_cli.reference.filters` models.
 """
 
 from __future__ import annotations
@@ -226,7 +226,7 @@ def kernel(expr: Expr) -> Kernel:
 
 # ---------------------------------------------------------------- sizes
 def output_size(expr: Expr, size: tuple[int, int]) -> tuple[int, int]:
-    """(rows, cols) of the result for an input of ``size`` (DESIGN.md §1 sizes)."""
+    """(rows, cols) of the result for an input of ``size`` (docs/design.md §1 sizes)."""
     h, w = size
     for op, _, m in steps(expr):
         if op is Op.DOWN:
@@ -412,7 +412,7 @@ def lattice(k: Kernel) -> tuple[str, tuple[Fraction | None, Fraction | None]]:
     """Where output samples sit: ``pos(r) = ρ·r + o`` in input pixels, per axis.
 
     primal: o = 0 (coarse r at fine 2r); dual: o = (1 − ρ)/2 for ρ ≠ 1 (coarse r
-    at fine 2r − ½, DESIGN.md §4); otherwise shifted by o. Returns the name and
+    at fine 2r − ½, docs/design.md §4); otherwise shifted by o. Returns the name and
     (o_r, o_c).
     """
     names, offs = [], []

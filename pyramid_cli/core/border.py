@@ -1,4 +1,4 @@
-"""Border modes and their one name table (DESIGN.md §1: clamp is the default).
+"""Border modes and their one name table (docs/design.md §1: clamp is the default).
 
 Each mode maps a 1-based index, possibly outside ``1..n``, to a 1-based index
 inside, or to ``0`` meaning "zero outside" (the convention for masks treated as

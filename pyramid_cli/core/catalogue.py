@@ -7,7 +7,7 @@ business of :mod:`pyramid_cli.core.algebra`, and the tests check them against th
 matrices.
 
 Sections cite Kraus & Strengert, "Pyramid Filters Based on Bilinear
-Interpolation", GRAPP 2007, and the project's DESIGN.md §2.
+Interpolation", GRAPP 2007, and the project's docs/design.md §2.
 """
 
 from __future__ import annotations
@@ -97,7 +97,7 @@ _mask(NamedMask("box4", "h_box^{4×4}", "box4", matrix([[1] * 4] * 4, Fraction(1
 # §4.3
 _mask(NamedMask("quadratic", "h_quadratic", "quadratic", outer([1, 3, 3, 1], [1, 3, 3, 1], Fraction(1, 64)),
                 "§4.3", "analysis", {"down": 3}))
-# §4.3 (end): the 5×5 cubic B-spline analysis filter, DESIGN.md §2.
+# §4.3 (end): the 5×5 cubic B-spline analysis filter, docs/design.md §2.
 _mask(NamedMask("cubic", "h_cubic", "cubic", outer([1, 4, 6, 4, 1], [1, 4, 6, 4, 1], Fraction(1, 256)),
                 "§4.3", "analysis", {"down": 4}))
 
@@ -131,7 +131,7 @@ _synth(NamedSynthesis("cubic", "h_cubic", "cubic", {
     (0, 1): outer(_C0, _C1, Fraction(1, 64)),
     (0, 0): outer(_C0, _C0, Fraction(1, 64)),
 }, "§5.4", {"up": 2}))
-# §5.5 / DESIGN.md §2: tensor product of the four-point scheme on midpoint's
+# §5.5 / docs/design.md §2: tensor product of the four-point scheme on midpoint's
 # lattice; odd new index 2k-1 = (-g[k-2] + 9g[k-1] + 9g[k] - g[k+1]) / 16.
 _F1 = (0, -1, 9, 9, -1)
 _F0 = (0, 0, 16, 0, 0)

@@ -6,7 +6,7 @@ An expression denotes a linear operator applied to the input image ``g``:
 - :class:`Apply` is one written operator ``h ⊗ x``, ``h ⊗↓ᵐ x`` or ``h ⊗↑ x``,
   repeated ``power`` times (the paper's ``(h)ᵐ ⊗↓ g``, §4.1).
 
-Filters are :class:`Named` (a catalogue entry, atomic: DESIGN.md §1) or
+Filters are :class:`Named` (a catalogue entry, atomic: docs/design.md §1) or
 :class:`Literal` (a mask the user wrote).
 """
 

@@ -1,4 +1,4 @@
-"""The index geometry every stage shares (DESIGN.md §1), in one place.
+"""The index geometry every stage shares (docs/design.md §1), in one place.
 
 Output pixel ``r`` (1-based) of a step with period ``P`` and stride ``S`` reads
 around the source base index ``R = S·⌈r/P⌉`` (``r`` for ⊗, ``2ᵐr`` for ⊗↓ᵐ,

@@ -31,7 +31,7 @@ MAX_DIGITS = 12  # digits of a number in a written mask (weights stay exact and 
 
 _SUPDIGITS = "⁰¹²³⁴⁵⁶⁷⁸⁹"
 _ARROW_SE = {"↘", "\\", "se", "dr"}
-_ARROW_NW = {"↖", "↙", "nw", "ul"}  # the paper prints box↖ as ↙ (DESIGN.md §2)
+_ARROW_NW = {"↖", "↙", "nw", "ul"}  # the paper prints box↖ as ↙ (docs/design.md §2)
 
 _ALIASES = catalogue.ALIASES
 _NAME_OF = {alias: key for key, names in _ALIASES.items() for alias in names}

@@ -2,7 +2,7 @@
 
 Every output pixel of a plan depends on a bounded window of its inputs: the rectangles
 that :meth:`Pass.reads <pyramid_cli.plan.model.Pass.reads>` gives, which include the guard
-bands bounds inference found (DESIGN.md §1). The scheduler here is demand-driven in the
+bands bounds inference found (docs/design.md §1). The scheduler here is demand-driven in the
 manner of libvips: the outputs are cut into column strips, and within a strip every image
 of the plan (inputs, intermediates, every level of a pyramid) keeps only the band of rows
 that later passes still need. Asking an output for its next rows asks the pass that

@@ -1,4 +1,4 @@
-"""From expressions to render passes of bilinear texture taps (paper §3–§5, DESIGN.md §5).
+"""From expressions to render passes of bilinear texture taps (paper §3–§5, docs/design.md §5).
 
 Read in processing order: :mod:`.model` (the Plan every executor runs),
 :mod:`.recipes` (the paper's decompositions and their check against the masks),

@@ -1,4 +1,4 @@
-"""Bounds inference: the guard band each intermediate of a named filter stores (DESIGN.md §1, after Halide).
+"""Bounds inference: the guard band each intermediate of a named filter stores (docs/design.md §1, after Halide).
 
 A named filter is atomic: its decomposition must give the reference's numbers at
 the borders too, so every intermediate stores every pixel later passes of the same

@@ -19,7 +19,7 @@ pass's sources. Per-pixel work is spread over ``threads`` workers in tiles of
 fewer tiles than threads leaves workers idle: ``share = threads / min(threads,
 tiles)`` (1 with ``tile`` 0). Tiny pyramid levels are all overhead, big ones
 all fetches, so the cheaper of the paper's decomposition and a fused pass can
-change with the image size (DESIGN.md §5).
+change with the image size (docs/design.md §5).
 
 The constants live in ``cost_model.json`` beside this module (shipped as
 package data), with the GL renderer they were measured on, the date, the

@@ -37,7 +37,7 @@ def choose_recipe(op: Op, f, stride: int, size: tuple[int, int], strategy: str =
 
     The choice depends on the size: a tiny pyramid level is all per-pass overhead, so fewer
     passes win there, while at full resolution fewer fetches do. Both candidates compute the
-    same filter at every pixel (guard bands keep a named filter atomic, DESIGN.md §1).
+    same filter at every pixel (guard bands keep a named filter atomic, docs/design.md §1).
     ``strategy`` "paper" always takes the paper's decomposition, "fused" always one pass per
     filter (what a CPU executor wants: each pass streams its whole target through memory).
     """
@@ -61,7 +61,7 @@ def plan(expr: Expr, size: tuple[int, int], strategy: str = "cost", border: str 
 
     ``strategy`` "paper" keeps the paper's decompositions (its fetch counts);
     "cost" lets the cost model fuse a filter into one pass where that is cheaper.
-    ``border`` is how every written operator reads past its input's edges (DESIGN.md §1).
+    ``border`` is how every written operator reads past its input's edges (docs/design.md §1).
     """
     return plan_steps(steps(expr), tuple(size), text=_text(expr), paper=algebra.paper_fetches(expr),
                       strategy=strategy, border=border)

@@ -1,4 +1,4 @@
-"""The Plan: images and passes of bilinear taps, the contract every executor runs (DESIGN.md §5).
+"""The Plan: images and passes of bilinear taps, the contract every executor runs (docs/design.md §5).
 
 A :class:`Plan` is the contract between the planner and the executors (the
 numpy emulator in :mod:`pyramid_cli.exec.emulate` and the GL executor): a list of
@@ -14,9 +14,9 @@ a fraction ``α`` of ``t`` mixes ``(1 − α)·src[R − ⌊t⌋] + α·src[R �
 (hardware bilinear filtering). Reads clamp to the source texture's stored
 extent (logical grid plus guard), which is the paper's clamp at the borders of
 the input and of every written operator, while guard bands keep a named
-filter atomic (DESIGN.md §1). Every fractional offset is a multiple of ¼.
+filter atomic (docs/design.md §1). Every fractional offset is a multiple of ¼.
 
-Border modes (DESIGN.md §1: clamp, mirror, wrap, zero) belong to the plan:
+Border modes (docs/design.md §1: clamp, mirror, wrap, zero) belong to the plan:
 each :class:`Image` says how reads outside its stored extent resolve. A read
 at the fractional index ``x = i + α`` (``i = ⌊x⌋``) is
 ``(1 − α)·read(i) + α·read(i + 1)`` per axis, where ``read`` folds an integer
@@ -219,7 +219,7 @@ class PointwisePass:
 
 @dataclass
 class ResamplePass:
-    """Separable resampling of one axis by a banded table of exact weights (MIP levels, DESIGN.md §5).
+    """Separable resampling of one axis by a banded table of exact weights (MIP levels, docs/design.md §5).
 
     Output index ``j`` (0-based, along ``axis``: 0 rows, 1 columns) of the target is
     ``Σₖ weights[j][k] · src[starts[j] + k]`` along that axis, every other index unchanged;
@@ -302,7 +302,7 @@ class Plan:
 
     @property
     def fetches_per_output_pixel(self) -> float:
-        """Fetches weighted by each pass's stored size relative to the output (DESIGN.md §5)."""
+        """Fetches weighted by each pass's stored size relative to the output (docs/design.md §5)."""
         out = self.output.size[0] * self.output.size[1]
         return sum(p.fetches * self.images[p.target].stored[0] * self.images[p.target].stored[1] / out
                    for p in self.passes)

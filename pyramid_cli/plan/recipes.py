@@ -2,7 +2,7 @@
 
 A recipe is a list of :class:`Stage` s; :func:`recipe_kernel_matches` verifies one
 against the filter's own exact masks (interior, every phase), and
-:func:`checked_recipe` refuses to plan with one that does not match. DESIGN.md §3
+:func:`checked_recipe` refuses to plan with one that does not match. docs/design.md §3
 lists the paper's arrow errata these recipes correct.
 """
 

@@ -1,4 +1,4 @@
-"""Resampling weights for MIP levels that are not exactly half the level above (DESIGN.md §5).
+"""Resampling weights for MIP levels that are not exactly half the level above (docs/design.md §5).
 
 A texture lookup stretches every MIP level over the same domain [0, 1]: texel ``j`` of a
 level of ``m`` texels sits at ``(j + ½)/m``, and covers ``[j/m, (j+1)/m)``. Where a level
@@ -21,7 +21,7 @@ Derivation (one axis; the filters of the catalogue are separable):
    ``W[j, i] = ∫ K``. Every weight is rational, computed exactly.
 3. At ``s = 2`` the interval of input pixel ``i = 2j + 1 − d`` (0-based, i.e. ``2r − d``)
    is exactly ``[−d/2, (1 − d)/2)``: ``W[j, 2j + 1 − d] = w_d``, the paper's weights
-   (tested as Fractions). The lattice is the filter's own: cubic (primal lattice, DESIGN.md
+   (tested as Fractions). The lattice is the filter's own: cubic (primal lattice, docs/design.md
    §4) keeps its quarter-output-pixel offset at any ratio.
 4. Mean: ``Σ_j W[j, i] = (1/s)·∫_i Σ_j K(u − j)`` over input pixel i. When the even- and
    odd-indexed weights each sum to ½ (every filter of the catalogue) the kernel's unit-spaced

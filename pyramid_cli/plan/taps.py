@@ -1,4 +1,4 @@
-"""Tap fitting: a stage's weights as the fewest bilinear fetches at quarter-texel positions (DESIGN.md §5)."""
+"""Tap fitting: a stage's weights as the fewest bilinear fetches at quarter-texel positions (docs/design.md §5)."""
 
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """The oracle: the paper's index formulas in numpy, float64, written literally.
 
-DESIGN.md §1. For a mask ``h`` of ``n_i × n_j`` entries (1-based ``i, j``):
+docs/design.md §1. For a mask ``h`` of ``n_i × n_j`` entries (1-based ``i, j``):
 
 - ⊗  (§3):   ``f[r,c] = Σ h[i,j] g[r − ⌊i − n_i/2⌋, c − ⌊j − n_j/2⌋]``, size n;
 - ⊗↓ᵐ (§4): ``f[r,c] = Σ h[i,j] g[2ᵐr − ⌊i − n_i/2⌋, 2ᵐc − …]``, size ⌈n/2ᵐ⌉;

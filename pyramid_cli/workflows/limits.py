@@ -114,7 +114,7 @@ def check_kernel_cost(expr: Expr, text: str | None = None) -> None:
 
 # ---------------------------------------------------------------- images
 def step_sizes(expr_or_steps, size: tuple[int, int]) -> list[tuple[int, int]]:
-    """(rows, cols) of the input and after every written step (DESIGN.md §1 sizes)."""
+    """(rows, cols) of the input and after every written step (docs/design.md §1 sizes)."""
     stps = steps(expr_or_steps) if not isinstance(expr_or_steps, list) else expr_or_steps
     h, w = size
     out = [(h, w)]

@@ -167,7 +167,7 @@ def _lattice(text: str, op: Op) -> str:
 
 
 LATTICE_EFFECTS = {  # what a mixed pair costs each method; {shift}: ", about 7.5 px after 4 level(s)"
-    "blur": "the result shifts by half a fine pixel per level (DESIGN.md §4){shift}",
+    "blur": "the result shifts by half a fine pixel per level (docs/design.md §4){shift}",
     "blend": "each coarser band shifts by half a fine pixel, which moves the seam{shift}",
     "fill": "the push shifts each coarser level by half a fine pixel, so holes fill from beside where they are "
             "(2–3× the error of a pair on one lattice)",
@@ -175,7 +175,7 @@ LATTICE_EFFECTS = {  # what a mixed pair costs each method; {shift}: ", about 7.
 
 
 def lattice_mismatch(analysis: str, synthesis: str, levels: int | None = None, method: str = "blur") -> str | None:
-    """A warning when analysis and synthesis sit on different lattices (DESIGN.md §4), else None.
+    """A warning when analysis and synthesis sit on different lattices (docs/design.md §4), else None.
 
     Each synthesis step of such a pair lands half a pixel of its level off the analysis's grid, so after
     ``levels`` steps the result sits about (2ᵐ − 1)/2 input pixels off (7.5 at 4 levels; measured on an

@@ -1,5 +1,5 @@
 """The docs site builds with warnings as errors, every page loads in headless Chromium without a console error,
-and the CLI reference lists every command of ``pyramid_cli.cli.main``."""
+and the CLI reference lists every command of ``pyramid_cli.cli:main``."""
 
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
 """The compiled CPU executor: a :class:`~pyramid_cli.plan.model.Plan` as generated numba kernels.
 
 Where there is no GPU, the GL executor runs on Mesa's llvmpipe and pays for upload,
-read-back and power-of-two textures (DESIGN.md §6). This executor runs the same passes
+read-back and power-of-two textures (docs/design.md §6). This executor runs the same passes
 on the CPU without any of that: every pass of a plan becomes one numba function
 generated from the pass's taps (:mod:`pyramid_cli.exec.cpu.codegen`), so the paper's
 bilinear taps (§3–§5) are unrolled into the texel reads they stand for, compiled once
@@ -101,7 +101,7 @@ def _ceil_div(a: int, b: int) -> int:
 
 
 class CPUExecutor:
-    """Runs plans as generated numba kernels on the CPU (paper §3–§5 passes, DESIGN.md §5).
+    """Runs plans as generated numba kernels on the CPU (paper §3–§5 passes, docs/design.md §5).
 
     Parameters
     ----------

@@ -15,7 +15,7 @@ Coordinates (the contract of :mod:`pyramid_cli.exec.emulate`, which this must eq
   (logical size plus guard), so that the normalized coordinate ``(q + ½) / size`` of a
   quarter-texel position ``q`` is an exact binary fraction, and the filtering unit gets
   ``q`` and its fraction back without rounding (with non-power-of-two sizes the
-  coordinate carries an error of about size·2⁻²⁴ texel on llvmpipe, DESIGN.md §6);
+  coordinate carries an error of about size·2⁻²⁴ texel on llvmpipe, docs/design.md §6);
   nothing here depends on llvmpipe: any GPU converts such coordinates exactly;
 - the shader clamps each read position to the source's stored extent, which is the
   emulator's clamp. Bilinear reads at the clamped last position also touch the next
@@ -43,7 +43,7 @@ would be padded stream in bands for the same reason (:func:`pyramid_cli.run.stre
 which counts :meth:`GLExecutor.texture_bytes`).
 
 Memory is the cost of a cold run (page faults: about 1 s per GB on the 2-core machines
-of DESIGN.md §6), so uploads go through a reused band and read-backs straight into the
+of docs/design.md §6), so uploads go through a reused band and read-backs straight into the
 output array instead of full-size staging copies, and :meth:`GLExecutor.prepare` can compile the programs and
 allocate the textures of a plan while the image is still being decoded.
 """
@@ -68,7 +68,7 @@ from pyramid_cli.plan.shapes import PassShape, shape, sources
 PRECISIONS = {"float": "f4", "half": "f2"}  # intermediate and target texture formats
 READ_DTYPES = {np.dtype(np.float32): "f4", np.dtype(np.float16): "f2"}
 BAND_BYTES = 8 << 20  # upload staging: rows of RGBA32F per texture write
-MAX_TEXTURE_BYTES = 2 << 30  # llvmpipe fails to attach a texture of 2 GiB (8193², 12000×6000: DESIGN.md §6)
+MAX_TEXTURE_BYTES = 2 << 30  # llvmpipe fails to attach a texture of 2 GiB (8193², 12000×6000: docs/design.md §6)
 TILE_TEXELS = 1 << 24        # a tile's largest texture, about (256 MiB of RGBA32F), when a plan runs in tiles
 
 
