@@ -21,7 +21,7 @@ import click
 
 from pyramid_cli.core.options import ALPHA_MODES, COLORSPACES
 from pyramid_cli.diff.idiff import DEFAULT_FAIL, DEFAULT_WARN, EXIT_CODES
-from pyramid_cli.diff.idiff import format_value as _fmt  # every diff report formats numbers alike
+from pyramid_cli.diff.idiff import format_value
 
 _NONNEG = click.FloatRange(min=0.0)
 
@@ -107,21 +107,21 @@ def _report(r: Any, path_a: str, path_b: str, title: str | None = None) -> str:
     if r.max_x is None:
         row("max error", "0")
     else:
-        values = (", ".join(_fmt(v) for v in r.a_values) + " vs " + ", ".join(_fmt(v) for v in r.b_values))
-        row("max error", f"{_fmt(r.max_error)} @ (x={r.max_x}, y={r.max_y}, {r.max_channel_name})"
+        values = (", ".join(format_value(v) for v in r.a_values) + " vs " + ", ".join(format_value(v) for v in r.b_values))
+        row("max error", f"{format_value(r.max_error)} @ (x={r.max_x}, y={r.max_y}, {r.max_channel_name})"
                          f"  values {values}")
-    row("mean error", _fmt(r.mean_error))
-    row("RMS error", _fmt(r.rms_error))
+    row("mean error", format_value(r.mean_error))
+    row("RMS error", format_value(r.rms_error))
     row("PSNR", "inf dB (identical)" if math.isinf(r.psnr) else f"{r.psnr:.2f} dB")
     t = r.thresholds
-    row("over warn", f"{r.n_warn} pixels ({r.percent(r.n_warn):.3g}%) over {_fmt(t['warn'])}"
-                     + (f", relative {_fmt(t['warnrelative'])}" if t["warnrelative"] else ""))
-    row("over fail", f"{r.n_fail} pixels ({r.percent(r.n_fail):.3g}%) over {_fmt(t['fail'])}"
-                     + (f", relative {_fmt(t['failrelative'])}" if t["failrelative"] else ""))
+    row("over warn", f"{r.n_warn} pixels ({r.percent(r.n_warn):.3g}%) over {format_value(t['warn'])}"
+                     + (f", relative {format_value(t['warnrelative'])}" if t["warnrelative"] else ""))
+    row("over fail", f"{r.n_fail} pixels ({r.percent(r.n_fail):.3g}%) over {format_value(t['fail'])}"
+                     + (f", relative {format_value(t['failrelative'])}" if t["failrelative"] else ""))
     if math.isfinite(t["hardfail"]):
-        row("hardfail", f"{r.n_hardfail} pixels over {_fmt(t['hardfail'])}")
+        row("hardfail", f"{r.n_hardfail} pixels over {format_value(t['hardfail'])}")
     if math.isfinite(t["hardwarn"]):
-        row("hardwarn", f"{r.n_hardwarn} pixels over {_fmt(t['hardwarn'])}")
+        row("hardwarn", f"{r.n_hardwarn} pixels over {format_value(t['hardwarn'])}")
     if r.n_nonfinite:
         row("NaN/Inf", f"{r.n_nonfinite} pixels where NaN/Inf meets a different value")
     row("verdict", f"{r.verdict.upper()} (rule: {r.rule})")
@@ -375,7 +375,7 @@ def _write_out(ctx: click.Context, pr: Any, opts: Any, out_path: str, absolute: 
     from pyramid_cli.core.errors import PyramidError
     from pyramid_cli.diff.compare import difference_image
     from pyramid_cli.diff.compare import heatmap as make_heatmap
-    from pyramid_cli.diff.goldens import read_pixels as _read
+    from pyramid_cli.diff.goldens import read_pixels
     from pyramid_cli.imageio import raw as io_raw
 
     lv = pr.levels[0]
@@ -385,8 +385,8 @@ def _write_out(ctx: click.Context, pr: Any, opts: Any, out_path: str, absolute: 
     if out_if_differ and lv.result.max_error == 0.0:
         return
     try:
-        pa, names = _read(pr.path_a, opts, lv.subimage, lv.miplevel)
-        pb, _ = _read(pr.path_b, opts, lv.subimage, lv.miplevel)
+        pa, names = read_pixels(pr.path_a, opts, lv.subimage, lv.miplevel)
+        pb, _ = read_pixels(pr.path_b, opts, lv.subimage, lv.miplevel)
         if heatmap:
             rgb = make_heatmap(pa, pb)
             io_raw.write_display_png(out_path, rgb) if out_path.lower().endswith(".png") else \
