@@ -20,8 +20,7 @@ from typing import Any
 import click
 
 from pyramid_cli.core.options import ALPHA_MODES, COLORSPACES
-from pyramid_cli.diff.idiff import DEFAULT_FAIL, DEFAULT_WARN, EXIT_CODES
-from pyramid_cli.diff.idiff import format_value
+from pyramid_cli.diff.idiff import DEFAULT_FAIL, DEFAULT_WARN, EXIT_CODES, format_value
 
 _NONNEG = click.FloatRange(min=0.0)
 
