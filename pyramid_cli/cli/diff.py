@@ -106,7 +106,8 @@ def _report(r: Any, path_a: str, path_b: str, title: str | None = None) -> str:
     if r.max_x is None:
         row("max error", "0")
     else:
-        values = (", ".join(format_value(v) for v in r.a_values) + " vs " + ", ".join(format_value(v) for v in r.b_values))
+        values = (", ".join(format_value(v) for v in r.a_values) + " vs "
+                  + ", ".join(format_value(v) for v in r.b_values))
         row("max error", f"{format_value(r.max_error)} @ (x={r.max_x}, y={r.max_y}, {r.max_channel_name})"
                          f"  values {values}")
     row("mean error", format_value(r.mean_error))
