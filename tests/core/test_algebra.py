@@ -10,7 +10,7 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-from oracles import extended_chain, printed, printed_outer
+from helpers.oracles import extended_chain, printed, printed_outer
 from pyramid_cli.core import algebra, catalogue
 from pyramid_cli.core.parse import parse
 from pyramid_cli.reference import filters as reference

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cases import NAMED
+from helpers.cases import NAMED
 from pyramid_cli.core.border import Border, fold_index
 from pyramid_cli.core.parse import parse
 from pyramid_cli.exec import emulate

@@ -22,6 +22,7 @@ import OpenImageIO as oiio
 import pytest
 from click.testing import CliRunner
 
+from helpers.images import write
 from pyramid_cli.cli.diff import diff
 from pyramid_cli.diff import compare as D
 
@@ -30,29 +31,11 @@ from pyramid_cli.diff import compare as D
 
 
 def write_exr(path: Path, pixels, names=None) -> Path:
-    px = np.asarray(pixels, dtype=np.float32)
-    if px.ndim == 2:
-        px = px[..., None]
-    h, w, c = px.shape
-    spec = oiio.ImageSpec(w, h, c, "float")
-    if names:
-        spec.channelnames = tuple(names)
-    out = oiio.ImageOutput.create(str(path))
-    assert out is not None
-    assert out.open(str(path), spec)
-    assert out.write_image(np.ascontiguousarray(px))
-    assert out.close()
-    return path
+    return write(path, np.asarray(pixels, dtype=np.float32), names=names)
 
 
 def write_png8(path: Path, pixels) -> Path:
-    px = np.asarray(pixels, dtype=np.uint8)
-    h, w, c = px.shape
-    out = oiio.ImageOutput.create(str(path))
-    assert out.open(str(path), oiio.ImageSpec(w, h, c, "uint8"))
-    assert out.write_image(np.ascontiguousarray(px))
-    assert out.close()
-    return path
+    return write(path, np.asarray(pixels, dtype=np.uint8), "uint8")
 
 
 def read_oiio(path: Path, fmt: str = "float") -> tuple[np.ndarray, oiio.ImageSpec]:

@@ -15,22 +15,11 @@ import OpenImageIO as oiio
 import pytest
 from click.testing import CliRunner
 
+from helpers.cli import invoke
+from helpers.images import write
+from helpers.paths import DATA, SAMPLES
 from pyramid_cli.cli.diff import diff, idiff_argv
 from pyramid_cli.diff import goldens
-
-DATA = Path(__file__).parent / "data"
-SAMPLES = Path(__file__).parent.parent / "samples"
-
-
-def write(path: Path, px, fmt: str = "float") -> Path:
-    px = np.asarray(px, dtype=np.float32 if fmt in ("float", "half") else None)
-    h, w, c = px.shape
-    path.parent.mkdir(parents=True, exist_ok=True)
-    out = oiio.ImageOutput.create(str(path))
-    assert out.open(str(path), oiio.ImageSpec(w, h, c, fmt))
-    assert out.write_image(np.ascontiguousarray(px))
-    out.close()
-    return path
 
 
 def img(seed: int, h: int = 8, w: int = 8, c: int = 4) -> np.ndarray:
@@ -38,7 +27,7 @@ def img(seed: int, h: int = 8, w: int = 8, c: int = 4) -> np.ndarray:
 
 
 def run(*args) -> object:
-    return CliRunner().invoke(diff, [str(a) for a in args])
+    return invoke(*args, command=diff)
 
 
 def digest(folder: Path) -> dict[str, str]:

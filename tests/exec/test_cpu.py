@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 
 import pyramid_cli.exec.gl.shaders as generate
-from cases import CHAINS as WRITTEN
-from cases import GRID_CHANNELS, GRID_SIZES, NAMED, several_inputs_and_outputs, step
+from helpers.cases import CHAINS as WRITTEN
+from helpers.cases import GRID_CHANNELS, GRID_SIZES, NAMED, several_inputs_and_outputs, step
 from pyramid_cli.core.border import Border
 from pyramid_cli.core.errors import BackendError
 from pyramid_cli.core.geometry import mip_levels
@@ -30,6 +30,7 @@ from pyramid_cli.workflows import pyramids
 
 pytest.importorskip("numba")
 
+from helpers.paths import ROOT
 from pyramid_cli.exec import cpu  # noqa: E402
 
 CHAINS = NAMED + [c for c in WRITTEN if c not in NAMED] + ["box *v (midpoint *^ g)", "g"]
@@ -39,7 +40,6 @@ BORDERS = ["clamp", "mirror", "wrap", "zero"]
 BORDER_SIZES = [(1, 1), (1, 7), (7, 1), (5, 3), (17, 13), (40, 33), (90, 77)]  # the last: interior + strips
 BORDER_CHAINS = NAMED + ["doosabin *^ (box4 *v g)", "box\\ *v bartlett", "(box4)^2 *v g",
                          "1/16 [1 2 1; 2 4 2; 1 2 1] * g", "1/8 [1 2 1; 0 2 0; 1 0 1] *v g", "[1 -1] * g"]
-ROOT = Path(__file__).resolve().parent.parent
 
 
 @pytest.fixture(scope="module", autouse=True)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import pyramid_cli.exec.gl.shaders as generate
-from cases import GRID_CHANNELS, GRID_SIZES, several_inputs_and_outputs
+from helpers.cases import GRID_CHANNELS, GRID_SIZES, several_inputs_and_outputs
 from pyramid_cli.core.errors import BackendError, DataError
 from pyramid_cli.core.parse import parse
 from pyramid_cli.exec import emulate

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cases import CHAINS, NAMED, several_inputs_and_outputs
+from helpers.cases import CHAINS, NAMED, several_inputs_and_outputs
 from pyramid_cli.core.geometry import level_sizes
 from pyramid_cli.core.parse import parse
 from pyramid_cli.exec import tiles

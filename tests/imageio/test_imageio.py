@@ -16,6 +16,7 @@ import numpy as np
 import OpenImageIO as oiio
 import pytest
 
+from helpers.images import write as write_raw
 from pyramid_cli import imageio as pio
 from pyramid_cli.core.errors import DataError, InputError, OutputError, UsageError
 from pyramid_cli.imageio import atomic
@@ -34,24 +35,6 @@ def srgb_oetf(v: np.ndarray) -> np.ndarray:
     """sRGB encode, straight from IEC 61966-2-1."""
     v = np.asarray(v, dtype=np.float64)
     return np.where(v <= 0.0031308, v * 12.92, 1.055 * v ** (1 / 2.4) - 0.055)
-
-
-def write_raw(path: Path, pixels: np.ndarray, fmt: str, *, names=None, alpha=None,
-              **attrs) -> None:
-    """Write ``pixels`` exactly as given (no alpha or colour handling)."""
-    h, w, c = pixels.shape
-    spec = oiio.ImageSpec(w, h, c, fmt)
-    if names:
-        spec.channelnames = tuple(names)
-    if alpha is not None:
-        spec.alpha_channel = alpha
-    for key, value in attrs.items():
-        spec.attribute(key.replace("__", ":"), value)
-    out = oiio.ImageOutput.create(str(path))
-    assert out is not None, oiio.geterror()
-    assert out.open(str(path), spec), out.geterror()
-    assert out.write_image(pixels), out.geterror()
-    out.close()
 
 
 def read_raw(path: Path, fmt: str | None = None):

@@ -6,12 +6,12 @@ import datetime
 import json
 import sys
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from helpers.paths import ROOT
 from pyramid_cli import plan as planner
 from pyramid_cli.cli import main
 from pyramid_cli.core import algebra
@@ -21,7 +21,6 @@ from pyramid_cli.exec import emulate
 from pyramid_cli.plan import cost
 from pyramid_cli.reference import filters as reference
 
-ROOT = Path(__file__).resolve().parent.parent
 # Named filters the planner chooses for: the paper's decomposition has several passes.
 CHOICES = [(Op.CONV, "bartlett"), (Op.CONV, "gauss5"), (Op.CONV, "gauss7"), (Op.CONV, "quasi"),
            (Op.DOWN, "box4"), (Op.DOWN, "quadratic"), (Op.DOWN, "cubic"), (Op.DOWN, "bartlett"),

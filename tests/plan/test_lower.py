@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from cases import CHAINS, NAMED, SHAPES
+from helpers.cases import CHAINS, NAMED, SHAPES
+from helpers.paths import ROOT
 from pyramid_cli.cli import main
 from pyramid_cli.core import catalogue
 from pyramid_cli.core.expr import Named, Op
@@ -151,9 +152,8 @@ def test_plan_cli_report_and_bad_size():
 def test_readme_fetch_table_is_generated_and_current():
     import subprocess
     import sys
-    from pathlib import Path
 
-    script = Path(__file__).parent.parent / "scripts" / "fetch_table.py"
+    script = ROOT / "scripts" / "fetch_table.py"
     r = subprocess.run([sys.executable, str(script), "--check"], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
 

@@ -5,7 +5,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from oracles import apply_kernel
+from helpers.oracles import apply_kernel
 from pyramid_cli.core import algebra
 from pyramid_cli.core.border import Border
 from pyramid_cli.core.parse import parse

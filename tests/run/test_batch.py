@@ -6,9 +6,8 @@ import time
 import numpy as np
 import OpenImageIO as oiio
 import pytest
-from click.testing import CliRunner
 
-from pyramid_cli.cli import main
+from helpers.cli import invoke
 from pyramid_cli.core.errors import UsageError
 from pyramid_cli.run.batch import output_for, plan_jobs
 
@@ -29,10 +28,6 @@ def folder(tmp_path):
     for i in range(5):
         write_png(tmp_path / "in" / f"img{i}.png", i)
     return tmp_path
-
-
-def invoke(*args):
-    return CliRunner().invoke(main, [str(a) for a in args])
 
 
 def test_template_fields():

@@ -6,10 +6,9 @@ import os
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
-import pyramid_cli as pyr
-from pyramid_cli.cli import main
+from helpers.cli import invoke
+from helpers.images import write_sequence
 from pyramid_cli.core.errors import InputError, UsageError
 from pyramid_cli.run import sequence
 
@@ -258,17 +257,6 @@ def test_pair_frames(tmp_path):
 
 
 # --------------------------------------------------------------------------- the command line
-
-def write_sequence(folder, first, last, name="plate.{:04d}.exr", size=(8, 8)):
-    folder.mkdir(parents=True, exist_ok=True)
-    for f in range(first, last + 1):
-        pixels = np.random.default_rng(abs(f)).random((*size, 3)).astype(np.float32)
-        pyr.write_image(str(folder / name.format(f)), pixels)
-
-
-def invoke(*args):
-    return CliRunner().invoke(main, [str(a) for a in args])
-
 
 @pytest.mark.cli
 @pytest.mark.parametrize("command", [["blur", "--levels", "2"], ["apply", "box *v g"], ["mipmap"]])

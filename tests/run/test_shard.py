@@ -6,8 +6,8 @@ import os
 
 import pytest
 from click.testing import CliRunner
-from test_sequence import write_sequence
 
+from helpers.images import write_sequence
 from pyramid_cli.cli import main
 from pyramid_cli.core.errors import UsageError
 from pyramid_cli.run import sequence, shard

@@ -8,33 +8,16 @@ import subprocess
 import sys
 
 import numpy as np
-import OpenImageIO as oiio
 import pytest
 
+from helpers.cli import CLI, TIMEOUT, run_cli
+from helpers.images import noise, write
 from pyramid_cli import imageio as io
 from pyramid_cli.core.errors import DataError, UsageError
 from pyramid_cli.core.parse import parse
 from pyramid_cli.exec.session import Session
 from pyramid_cli.jobs.work import Blur, Filter
 from pyramid_cli.run import stream
-
-CLI = [sys.executable, "-m", "pyramid_cli.cli"]
-TIMEOUT = 300
-
-
-def write(path, pixels, pixel_type="half", tile=None, **attrs):
-    h, w, c = pixels.shape
-    spec = oiio.ImageSpec(w, h, c, pixel_type)
-    if tile:
-        spec.tile_width = spec.tile_height = tile
-    for k, v in attrs.items():
-        spec.attribute(k, v)
-    out = oiio.ImageOutput.create(str(path))
-    assert out.open(str(path), spec, "Create") and out.write_image(pixels) and out.close()
-
-
-def noise(h, w, c=4, seed=0):
-    return np.random.default_rng(seed).random((h, w, c)).astype(np.float32)
 
 
 # ------------------------------------------------------------------ io: bands in, bands out
@@ -188,22 +171,18 @@ def test_only_host_memory_textures_count(gl):
 
 
 # ------------------------------------------------------------------ the command line
-def run(*args, **kw):
-    return subprocess.run(CLI + [str(a) for a in args], capture_output=True, text=True, timeout=TIMEOUT, **kw)
-
-
 def test_cli_streams_when_told_and_says_so(tmp_path):
     pytest.importorskip("numba")
     src = tmp_path / "in.exr"
     write(src, noise(300, 200, seed=5))
-    r = run("blur", "--backend", "cpu", "--levels", "3", "--memory", "1M", "-v", src, tmp_path / "s.exr")
+    r = run_cli("blur", "--backend", "cpu", "--levels", "3", "--memory", "1M", "-v", src, tmp_path / "s.exr")
     assert r.returncode == 0, r.stderr
     assert "streams in bands of" in r.stderr and "streamed in bands" in r.stdout
-    r = run("blur", "--backend", "cpu", "--levels", "3", "-v", src, tmp_path / "w.exr")
+    r = run_cli("blur", "--backend", "cpu", "--levels", "3", "-v", src, tmp_path / "w.exr")
     assert r.returncode == 0 and "runs whole" in r.stderr, r.stderr
     a, b = (io.read_image(tmp_path / n, keep_half=True).pixels for n in ("s.exr", "w.exr"))
     assert np.array_equal(a, b)
-    r = run("blur", "--backend", "cpu", "--memory", "10K", src, tmp_path / "x.exr")
+    r = run_cli("blur", "--backend", "cpu", "--memory", "10K", src, tmp_path / "x.exr")
     assert r.returncode == 5 and "needs at least" in r.stderr and "Traceback" not in r.stderr
     assert not (tmp_path / "x.exr").exists()
 
@@ -215,7 +194,7 @@ def test_cli_gl_pads_the_bands_not_the_picture(tmp_path):
 
     src = tmp_path / "in.exr"
     write(src, noise(520, 520, seed=6))
-    r = run("blur", "--backend", "gl", "--levels", "3", "-v", src, tmp_path / "s.exr")
+    r = run_cli("blur", "--backend", "gl", "--levels", "3", "-v", src, tmp_path / "s.exr")
     assert r.returncode == 0 and "the bands are padded, not the picture" in r.stderr, r.stderr
     whole = api.blur(io.read_image(src).pixels, levels=3, backend="gl")
     assert np.array_equal(io.read_image(tmp_path / "s.exr", keep_half=True).pixels, whole.astype(np.float16))
@@ -315,7 +294,7 @@ def test_plan_says_how_gl_runs_a_size():
 @pytest.mark.slow
 def test_a_signal_during_a_streamed_write(tmp_path):
     """SIGTERM while bands are being written: exit 143 with the previous output kept, or the complete new file."""
-    from interrupt import interrupt_runs
+    from helpers.interrupt import interrupt_runs
 
     pytest.importorskip("numba")
     big = tmp_path / "big.exr"

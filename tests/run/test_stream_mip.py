@@ -3,33 +3,19 @@
 from __future__ import annotations
 
 import os
-import subprocess
-import sys
 
 import numpy as np
 import OpenImageIO as oiio
 import pytest
 
+from helpers.cli import CLI, run_cli
+from helpers.images import noise, write
 from pyramid_cli import imageio as io
 from pyramid_cli.core.errors import UsageError
 from pyramid_cli.exec.session import Session
 from pyramid_cli.run import batch, stream
 from pyramid_cli.run.pipeline import Reporter, process
 from pyramid_cli.workflows import mip
-
-CLI = [sys.executable, "-m", "pyramid_cli.cli"]
-TIMEOUT = 300
-
-
-def write(path, pixels, pixel_type="half"):
-    h, w, c = pixels.shape
-    spec = oiio.ImageSpec(w, h, c, pixel_type)
-    out = oiio.ImageOutput.create(str(path))
-    assert out.open(str(path), spec, "Create") and out.write_image(pixels) and out.close()
-
-
-def noise(h, w, c=4, seed=0):
-    return np.random.default_rng(seed).random((h, w, c)).astype(np.float32)
 
 
 def levels(path):
@@ -209,19 +195,15 @@ def test_pixel_stats_equal_the_whole_picture_functions():
 
 
 # ------------------------------------------------------------------ the command line
-def run(*args):
-    return subprocess.run(CLI + [str(a) for a in args], capture_output=True, text=True, timeout=TIMEOUT)
-
-
 def test_cli_mipmap_streams_when_told(tmp_path):
     pytest.importorskip("numba")
     src = tmp_path / "in.exr"
     write(src, noise(128, 128, seed=2))
-    r = run("mipmap", "--backend", "cpu", "--memory", "300K", "-v", src, tmp_path / "s.tx")
+    r = run_cli("mipmap", "--backend", "cpu", "--memory", "300K", "-v", src, tmp_path / "s.tx")
     assert r.returncode == 0 and "streamed in bands" in r.stdout and "streams in bands" in r.stderr, r.stderr
-    r = run("mipmap", "--backend", "cpu", "--memory", "4K", src, tmp_path / "x.tx")
+    r = run_cli("mipmap", "--backend", "cpu", "--memory", "4K", src, tmp_path / "x.tx")
     assert r.returncode == 5 and "needs at least" in r.stderr and "Traceback" not in r.stderr
-    r = run("mipmap", "--backend", "cpu", "--memory", "300K", "--fill", src, tmp_path / "x.tx")
+    r = run_cli("mipmap", "--backend", "cpu", "--memory", "300K", "--fill", src, tmp_path / "x.tx")
     assert r.returncode == 2 and "--fill" in r.stderr and "Traceback" not in r.stderr
     assert sorted(os.listdir(tmp_path)) == ["in.exr", "s.tx"]
 
@@ -234,10 +216,10 @@ def test_plan_says_what_a_streamed_mipmap_chooses(tmp_path, memory):
     pytest.importorskip("numba")
     src = tmp_path / "in.exr"
     write(src, noise(128, 128, 4, seed=2), "float")  # RGBA float: what plan --memory assumes
-    r = run("mipmap", "--backend", "cpu", "--memory", memory, "-v", src, tmp_path / "s.tx")
+    r = run_cli("mipmap", "--backend", "cpu", "--memory", memory, "-v", src, tmp_path / "s.tx")
     said = [line.split(f"{src}: ", 1)[1] for line in r.stderr.splitlines() if "streams in bands" in line]
     assert r.returncode == 0 and len(said) == 1, r.stderr
-    p = run("plan", "--mipmap", "down", "quadratic *v g", "--size", "128x128", "--memory", memory)
+    p = run_cli("plan", "--mipmap", "down", "quadratic *v g", "--size", "128x128", "--memory", memory)
     assert p.returncode == 0 and p.stdout.splitlines()[-1] == f"memory: {said[0]}", (p.stdout, said)
     if memory == "300K":
         assert "temporary file" in coarser(said[0]) and not level0(said[0]), said
@@ -250,7 +232,7 @@ def test_plan_says_what_a_streamed_mipmap_chooses(tmp_path, memory):
 def test_a_signal_during_a_streamed_mipmap(tmp_path, memory):
     """SIGTERM during a streamed (and spilled) mipmap: exit 143 with the previous output kept, or the complete
     new file; no temporary (output or spilled levels) is left."""
-    from interrupt import interrupt_runs
+    from helpers.interrupt import interrupt_runs
 
     pytest.importorskip("numba")
     big = tmp_path / "big.exr"
@@ -301,8 +283,8 @@ def test_streamed_mipmap_on_gl_is_the_whole_runs_file(tmp_path, gl):
     levels): the same file as its whole run."""
     src = tmp_path / "in.exr"
     write(src, noise(128, 128, seed=8))
-    r = run("mipmap", "--backend", "gl", "--memory", "380K", src, tmp_path / "s.exr")
+    r = run_cli("mipmap", "--backend", "gl", "--memory", "380K", src, tmp_path / "s.exr")
     assert r.returncode == 0 and "streamed in bands" in r.stdout, r.stderr
-    r = run("mipmap", "--backend", "gl", src, tmp_path / "w.exr")
+    r = run_cli("mipmap", "--backend", "gl", src, tmp_path / "w.exr")
     assert r.returncode == 0, r.stderr
     assert_same_file(tmp_path / "s.exr", tmp_path / "w.exr")

@@ -11,14 +11,8 @@ import OpenImageIO as oiio
 import pytest
 from click.testing import CliRunner
 
+from helpers.images import write
 from pyramid_cli.cli import main
-
-
-def write(path, px, pixel_type="float"):
-    out = oiio.ImageOutput.create(str(path))
-    out.open(str(path), oiio.ImageSpec(px.shape[1], px.shape[0], px.shape[2], pixel_type))
-    out.write_image(px if pixel_type == "uint8" else px.astype(np.float32))
-    out.close()
 
 
 @pytest.fixture(scope="module")

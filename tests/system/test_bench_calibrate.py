@@ -4,14 +4,13 @@ import importlib.util
 import json
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
+from helpers.paths import ROOT
 from pyramid_cli.plan import cost
 
-ROOT = Path(__file__).resolve().parent.parent
 _spec = importlib.util.spec_from_file_location("bench_calibrate", ROOT / "bench" / "calibrate.py")
 calibrate = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(calibrate)

@@ -10,15 +10,12 @@ import OpenImageIO as oiio
 import pytest
 from click.testing import CliRunner
 
+from helpers.cli import invoke
 from pyramid_cli.cli import main
 from pyramid_cli.core.parse import parse
 from pyramid_cli.reference import filters as reference
 
 pytestmark = pytest.mark.cli
-
-
-def invoke(*args):
-    return CliRunner().invoke(main, list(args))
 
 
 @pytest.mark.parametrize("command", [[], ["explain"], ["plan"], ["apply"]])

@@ -19,10 +19,10 @@ from types import SimpleNamespace
 
 import pytest
 from click.testing import CliRunner
-from dask_processes import DaskProcesses
-from test_sequence import write_sequence
 
 import pyramid_cli as pyr
+from helpers.dask_processes import DaskProcesses
+from helpers.images import write_sequence
 from pyramid_cli.cli import main
 from pyramid_cli.core.errors import UsageError
 from pyramid_cli.run import cluster

@@ -22,26 +22,15 @@ import numpy as np
 import OpenImageIO as oiio
 import pytest
 
+from helpers.cli import CLI
+from helpers.images import write
 from pyramid_cli import imageio as pio
 from pyramid_cli.core.errors import InputError, OutputError
 from pyramid_cli.imageio.atomic import atomic_path, atomic_paths
 
 pytestmark = [pytest.mark.cli, pytest.mark.slow]  # real processes, signals and full disks: seconds each
 
-CLI = [sys.executable, "-m", "pyramid_cli.cli"]
 TIMEOUT = 60  # a hang fails the test instead of the whole run
-
-
-def write(path, px, pixel_type="float", tile=0, parts=None):
-    path = str(path)
-    spec = oiio.ImageSpec(px.shape[1], px.shape[0], px.shape[2], pixel_type)
-    if tile:
-        spec.tile_width = spec.tile_height = tile
-    out = oiio.ImageOutput.create(path)
-    assert out.open(path, spec)
-    data = px if pixel_type in ("uint8", "uint16") else px.astype(np.float32)
-    assert out.write_image(data)
-    assert out.close()
 
 
 def noise(h, w, c=3, seed=0):
@@ -245,7 +234,7 @@ def test_a_signal_mid_batch_cleans_up(src, tmp_path, sig, code):
 
 @pytest.mark.slow
 def test_a_signal_during_one_big_write(tmp_path):
-    from interrupt import interrupt_runs
+    from helpers.interrupt import interrupt_runs
 
     big = tmp_path / "big.exr"
     write(big, noise(1024, 1024, seed=7), "float")

@@ -7,26 +7,18 @@ import subprocess
 import sys
 
 import numpy as np
-import OpenImageIO as oiio
 import pytest
 from click.testing import CliRunner
 
-from cases import NAMED
+from helpers.cases import NAMED
+from helpers.images import write
+from helpers.paths import ROOT
 from pyramid_cli.cli import main
 from pyramid_cli.core.parse import parse
 from pyramid_cli.reference import filters as reference
 from pyramid_cli.workflows.pyramids import blur_reference
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-
 pytestmark = pytest.mark.cli
-
-
-def write(path, px):
-    out = oiio.ImageOutput.create(str(path))
-    out.open(str(path), oiio.ImageSpec(px.shape[1], px.shape[0], px.shape[2], "float"))
-    out.write_image(np.ascontiguousarray(px, dtype=np.float32))
-    out.close()
 
 
 @pytest.fixture(scope="module")

@@ -24,6 +24,7 @@ import OpenImageIO as oiio
 import pytest
 from click.testing import CliRunner
 
+from helpers.images import write
 from pyramid_cli.cli.diff import diff
 
 
@@ -41,21 +42,6 @@ pytestmark = [pytest.mark.cli, pytest.mark.slow,
 
 # ---------------------------------------------------------------------------
 # Writers
-
-
-def write(path: Path, px, fmt: str = "float", names=None) -> Path:
-    px = np.asarray(px)
-    if px.ndim == 2:
-        px = px[..., None]
-    h, w, c = px.shape
-    spec = oiio.ImageSpec(w, h, c, fmt)
-    if names:
-        spec.channelnames = tuple(names)
-    out = oiio.ImageOutput.create(str(path))
-    assert out.open(str(path), spec), out.geterror()
-    assert out.write_image(np.ascontiguousarray(px)), out.geterror()
-    out.close()
-    return path
 
 
 def write_parts(path: Path, parts: list[np.ndarray]) -> Path:

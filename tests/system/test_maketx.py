@@ -17,6 +17,8 @@ import OpenImageIO as oiio
 import pytest
 from click.testing import CliRunner
 
+from helpers.images import write
+from helpers.paths import ROOT
 from pyramid_cli import imageio as pio
 from pyramid_cli.cli import main
 from pyramid_cli.workflows.mip import hash_extra, mip_sizes, parse_wrap, pixel_sha1
@@ -24,14 +26,6 @@ from pyramid_cli.workflows.mip import hash_extra, mip_sizes, parse_wrap, pixel_s
 BIN = Path(sys.executable).parent
 MAKETX, OIIOTOOL = str(BIN / "maketx"), str(BIN / "oiiotool")
 CPU = ["--backend", "cpu"]
-
-
-def write(path: Path, pixels: np.ndarray, pixel_type: str = "float") -> None:
-    spec = oiio.ImageSpec(pixels.shape[1], pixels.shape[0], pixels.shape[2], pixel_type)
-    out = oiio.ImageOutput.create(str(path))
-    assert out.open(str(path), spec)
-    assert out.write_image(pixels)
-    out.close()
 
 
 def levels_of(path: Path, pixel_type: str = "float") -> list[np.ndarray]:
@@ -302,7 +296,7 @@ def test_a_description_keeps_its_words_and_loses_stale_hashes(tmp_path):
 
 def test_bench_maketx_runs_and_reports(tmp_path):
     out = tmp_path / "bench.json"
-    bench = Path(__file__).resolve().parent.parent / "bench" / "maketx.py"
+    bench = ROOT / "bench" / "maketx.py"
     p = subprocess.run([sys.executable, str(bench), "--size", "64", "--reps", "1", "--backend", "cpu",
                         "--json", str(out)], capture_output=True, text=True, timeout=300)
     assert p.returncode == 0, p.stderr[-2000:]

@@ -19,17 +19,11 @@ import OpenImageIO as oiio
 import pytest
 from click.testing import CliRunner
 
+from helpers.images import write
 from pyramid_cli.cli import main
 from pyramid_cli.workflows.mip import mip_sizes
 
 CPU = ["--backend", "cpu"]
-
-
-def write(path: Path, pixels: np.ndarray) -> None:
-    spec = oiio.ImageSpec(pixels.shape[1], pixels.shape[0], pixels.shape[2], "float")
-    out = oiio.ImageOutput.create(str(path))
-    assert out.open(str(path), spec) and out.write_image(pixels)
-    out.close()
 
 
 def make(tmp_path: Path, pixels: np.ndarray, *args: str, name: str = "tex") -> str:

@@ -9,19 +9,18 @@ from __future__ import annotations
 import importlib.util
 import sys
 from fractions import Fraction
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 torch = pytest.importorskip("torch")
 
+from helpers.paths import ROOT  # noqa: E402
 from pyramid_cli.core.expr import Named, Op  # noqa: E402
 from pyramid_cli.core.parse import parse  # noqa: E402
 from pyramid_cli.reference import filters as reference  # noqa: E402
 from pyramid_cli.workflows import pyramids  # noqa: E402
 
-ROOT = Path(__file__).resolve().parent.parent
 _spec = importlib.util.spec_from_file_location("bench_torch_peer", ROOT / "bench" / "torch_peer.py")
 tp = importlib.util.module_from_spec(_spec)
 sys.modules[_spec.name] = tp  # dataclasses look their module up there

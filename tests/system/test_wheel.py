@@ -3,14 +3,13 @@
 from __future__ import annotations
 
 import os
-import pathlib
 import subprocess
 import sys
 import zipfile
 
 import pytest
 
-ROOT = pathlib.Path(__file__).resolve().parents[1]
+from helpers.paths import ROOT
 
 
 @pytest.mark.slow

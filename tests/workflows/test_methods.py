@@ -13,7 +13,9 @@ import numpy as np
 import pytest
 
 import pyramid_cli as pyr
-from cases import GRID_SIZES
+from helpers.cases import GRID_SIZES
+from helpers.cli import invoke
+from helpers.paths import ROOT
 from pyramid_cli.core.errors import DataError
 from pyramid_cli.exec import emulate
 from pyramid_cli.jobs.work import Blend, Fill
@@ -280,14 +282,6 @@ def test_apple_orange_has_no_seam():
 
 
 # ------------------------------------------------------------------ the command line
-def _invoke(*args):
-    from click.testing import CliRunner
-
-    from pyramid_cli.cli import main
-
-    return CliRunner().invoke(main, [str(a) for a in args])
-
-
 @pytest.fixture(scope="module")
 def files(tmp_path_factory):
     from pyramid_cli.demo import apple_orange
@@ -308,13 +302,13 @@ def files(tmp_path_factory):
 
 @pytest.mark.parametrize("command", ["fill", "blend"])
 def test_help_has_examples(command):
-    r = _invoke(command, "--help")
+    r = invoke(command, "--help")
     assert r.exit_code == 0 and "Example" in r.output
 
 
 def test_cli_fill_alpha_equals_the_api_and_is_opaque(files, tmp_path):
     out = tmp_path / "filled.exr"
-    r = _invoke("fill", files / "holes.exr", out, "--json", "--backend", "cpu")
+    r = invoke("fill", files / "holes.exr", out, "--json", "--backend", "cpu")
     assert r.exit_code == 0, r.output
     info = json.loads(r.output)
     assert info["empty"] == 20 * 40 and info["partial"] == 1 and info["levels"] == 6
@@ -327,13 +321,13 @@ def test_cli_fill_alpha_equals_the_api_and_is_opaque(files, tmp_path):
 
 
 def test_cli_fill_mask_and_nan(files, tmp_path):
-    r = _invoke("fill", "--mask", files / "m.exr", files / "a.exr", tmp_path / "m.exr", "-q")
+    r = invoke("fill", "--mask", files / "m.exr", files / "a.exr", tmp_path / "m.exr", "-q")
     assert r.exit_code == 0 and r.output == ""
     a = pyr.read_image(files / "a.exr").pixels
     m = pyr.read_image(files / "m.exr").pixels[..., 0]
     np.testing.assert_allclose(pyr.read_image(tmp_path / "m.exr").pixels, pyr.fill(a, mask=m, backend="reference"),
                                rtol=0, atol=1e-5)
-    r = _invoke("fill", "--holes", "nan", files / "nan.exr", tmp_path / "n.exr")
+    r = invoke("fill", "--holes", "nan", files / "nan.exr", tmp_path / "n.exr")
     assert r.exit_code == 0, r.output
     assert np.all(np.isfinite(pyr.read_image(tmp_path / "n.exr").pixels))
 
@@ -346,14 +340,14 @@ def test_cli_fill_mask_and_nan(files, tmp_path):
     (["blend", "{d}/a.exr", "{d}/holes.exr", "{d}/m.exr", "{o}"], 3, "channel"),
 ])
 def test_cli_errors_are_one_line_with_their_exit_code(files, tmp_path, args, code, message):
-    r = _invoke(*[a.format(d=files, o=tmp_path / "x.exr") for a in args])
+    r = invoke(*[a.format(d=files, o=tmp_path / "x.exr") for a in args])
     assert r.exit_code == code, r.output
     assert message in r.output and "Traceback" not in r.output
     assert not (tmp_path / "x.exr").exists()
 
 
 def test_cli_blend_equals_the_api(files, tmp_path):
-    r = _invoke("blend", files / "a.exr", files / "b.exr", files / "m.exr", tmp_path / "o.exr", "--levels", "3",
+    r = invoke("blend", files / "a.exr", files / "b.exr", files / "m.exr", tmp_path / "o.exr", "--levels", "3",
                 "--json")
     assert r.exit_code == 0, r.output
     assert json.loads(r.output)["levels"] == 3
@@ -399,7 +393,7 @@ def test_mipmap_fill_keeps_known_texels_and_levels_off_the_hole_colour(tmp_path)
     src = tmp_path / "bake.png"
     px = _uv_islands(src)
     for name, extra in [("plain.tx", []), ("filled.tx", ["--fill"])]:
-        r = _invoke("mipmap", *extra, src, tmp_path / name, "--tile", "16", "-q", "--backend", "cpu")
+        r = invoke("mipmap", *extra, src, tmp_path / name, "--tile", "16", "-q", "--backend", "cpu")
         assert r.exit_code == 0, r.output
     plain, filled = _levels_of(tmp_path / "plain.tx"), _levels_of(tmp_path / "filled.tx")
     assert len(plain) == len(filled) > 5
@@ -418,7 +412,7 @@ def test_mipmap_fill_keeps_known_texels_and_levels_off_the_hole_colour(tmp_path)
 
 
 def test_mipmap_fill_needs_an_alpha_channel(files, tmp_path):
-    r = _invoke("mipmap", "--fill", files / "a.exr", tmp_path / "a.tx.exr")
+    r = invoke("mipmap", "--fill", files / "a.exr", tmp_path / "a.tx.exr")
     assert r.exit_code == 2 and "alpha" in r.output
 
 
@@ -438,7 +432,7 @@ def test_cli_keep_alpha_png_keeps_the_cut_out_with_colour_under_it(tmp_path):
     src = tmp_path / "decal.png"
     px = _uv_islands(src)
     for name, extra in [("opaque.png", []), ("kept.png", ["--keep-alpha"])]:
-        r = _invoke("fill", *extra, src, tmp_path / name, "-q", "--backend", "cpu")
+        r = invoke("fill", *extra, src, tmp_path / name, "-q", "--backend", "cpu")
         assert r.exit_code == 0, r.output
 
     def codes(path):  # the stored codes, as they are (OpenImageIO would associate alpha on read)
@@ -522,16 +516,16 @@ def test_cli_fill_blend_and_blur_warn_on_a_mixed_pair_unless_allowed(files, tmp_
     inputs = {"fill": ["--mask", files / "m.exr", files / "a.exr"], "blur": [files / "a.exr"],
               "blend": [files / "a.exr", files / "b.exr", files / "m.exr"]}[command]
     mixed = ["--analysis", MIXED[0], "--synthesis", MIXED[1], "--backend", "cpu"]
-    r = _invoke(command, *mixed, *inputs, tmp_path / "o.exr")
+    r = invoke(command, *mixed, *inputs, tmp_path / "o.exr")
     assert r.exit_code == 0, r.output
     assert r.stderr.startswith(f"pyramid: warning: analysis {MIXED[0]} sits on the dual lattice and synthesis "
                                f"{MIXED[1]} on the primal one: "), r.stderr
     assert r.stderr.count("\n") == 1 and (tmp_path / "o.exr").exists()
     for extra in (["--allow-mixed-lattice"], ["-q"]):
-        r = _invoke(command, *mixed, *extra, *inputs, tmp_path / "o.exr")
+        r = invoke(command, *mixed, *extra, *inputs, tmp_path / "o.exr")
         assert r.exit_code == 0 and "warning" not in r.output, r.output
     if command != "blur":  # --json prints the result on stdout and still warns on stderr
-        r = _invoke(command, *mixed, "--json", *inputs, tmp_path / "o.exr")
+        r = invoke(command, *mixed, "--json", *inputs, tmp_path / "o.exr")
         assert r.exit_code == 0 and json.loads(r.stdout)["synthesis"] == MIXED[1]
         assert r.stderr.startswith("pyramid: warning: analysis") and r.stderr.count("\n") == 1, r.stderr
 
@@ -541,8 +535,8 @@ def test_blend_help_and_readme_show_pairs_on_one_lattice():
 
     from pyramid_cli.workflows.pyramids import lattice_mismatch
 
-    readme = (Path(__file__).parents[1] / "README.md").read_text()
-    text = _invoke("blend", "--help").output + _invoke("fill", "--help").output + readme
+    readme = (ROOT / "README.md").read_text()
+    text = invoke("blend", "--help").output + invoke("fill", "--help").output + readme
     pairs = re.findall(r"pyramid (?:blend|fill|blur) [^\n]*--analysis (\S+) --synthesis (\S+)", text)
     assert ("cubic", "cubic") in pairs
     assert [p for p in pairs if lattice_mismatch(*p)] == []
@@ -562,15 +556,15 @@ def test_a_nan_in_a_mask_is_treated_as_in_an_image(files, tmp_path, command):
     bad = _mask_file(tmp_path / "nan_mask.exr", m)
     args = (["fill", "--mask", bad, files / "a.exr"] if command == "fill"
             else ["blend", files / "a.exr", files / "b.exr", bad])
-    r = _invoke(*args, tmp_path / "o.exr", "--backend", "cpu")
+    r = invoke(*args, tmp_path / "o.exr", "--backend", "cpu")
     assert r.exit_code == 0, r.output
     assert r.stderr == (f"pyramid: warning: {bad}: 4 NaN/Inf value(s) kept in the mask; they spread through the "
                         "filter (--nan zero or --nan fail to change that)\n")
     assert np.isnan(pyr.read_image(tmp_path / "o.exr").pixels).any()
-    r = _invoke(*args, tmp_path / "o.exr", "--backend", "cpu", "--nan", "zero")
+    r = invoke(*args, tmp_path / "o.exr", "--backend", "cpu", "--nan", "zero")
     assert r.exit_code == 0 and r.stderr == "", r.output
     assert np.all(np.isfinite(pyr.read_image(tmp_path / "o.exr").pixels))
-    r = _invoke(*args, tmp_path / "o2.exr", "--backend", "cpu", "--nan", "fail")
+    r = invoke(*args, tmp_path / "o2.exr", "--backend", "cpu", "--nan", "fail")
     assert r.exit_code == 5 and str(bad) in r.stderr and not (tmp_path / "o2.exr").exists(), r.output
 
 
@@ -595,7 +589,7 @@ def test_mask_values_outside_0_1_are_clipped_with_a_warning_that_counts_them(fil
     for mask, name in [(over, "o1.exr"), (clipped, "o2.exr")]:
         args = (["fill", "--mask", mask, files / "a.exr"] if command == "fill"
                 else ["blend", files / "a.exr", files / "b.exr", mask])
-        r = _invoke(*args, tmp_path / name, "--backend", "cpu")
+        r = invoke(*args, tmp_path / name, "--backend", "cpu")
         assert r.exit_code == 0, r.output
         outs.append((r.stderr, pyr.read_image(tmp_path / name).pixels))
     assert outs[0][0] == (f"pyramid: warning: {over}: 8 mask value(s) outside [0, 1] (from -0.5 to 1.25) clipped "
@@ -614,12 +608,12 @@ def test_mask_channels_one_or_the_images_or_an_alpha_else_refused_naming_both(fi
     rg = _mask_file(tmp_path / "rg.exr", np.stack([m, noise], axis=2), ["R", "G"])
     ya = _mask_file(tmp_path / "ya.exr", np.stack([noise, m], axis=2))  # Y, A: the alpha is the mask
     for args in (["blend", files / "a.exr", files / "b.exr", rg], ["fill", "--mask", rg, files / "a.exr"]):
-        r = _invoke(*args, tmp_path / "o.exr", "--backend", "cpu")
+        r = invoke(*args, tmp_path / "o.exr", "--backend", "cpu")
         assert r.exit_code == 3, r.output
         assert r.output == (f"pyramid: error: {rg}: the mask has 2 channels (R, G) and no alpha, the image 3: give "
                             "one channel, one per channel, or an alpha channel\n")
         assert not (tmp_path / "o.exr").exists()
-    r = _invoke("blend", files / "a.exr", files / "b.exr", ya, tmp_path / "ya_out.exr", "--backend", "cpu")
+    r = invoke("blend", files / "a.exr", files / "b.exr", ya, tmp_path / "ya_out.exr", "--backend", "cpu")
     assert r.exit_code == 0, r.output
     assert r.stderr == f"pyramid: warning: {ya}: 2 channels for an image of 3: its alpha channel A is the mask\n"
     a, b = pyr.read_image(files / "a.exr").pixels, pyr.read_image(files / "b.exr").pixels
