@@ -9,11 +9,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from helpers.cases import NAMED
 from pyramid_cli.core.border import Border, fold_index
 from pyramid_cli.core.parse import parse
-from pyramid_cli.exec import emulate
-from pyramid_cli.plan import check, plan
 from pyramid_cli.reference import filters as reference
 
 BORDERS = ["clamp", "mirror", "wrap", "zero"]
@@ -53,30 +50,3 @@ def test_reference_reads_the_border_by_definition(border):
                 for d, w in ((-1, 0.25), (0, 0.5), (1, 0.25))) for c in range(1, n + 1)]
     got = reference.run(parse("1/4 [1 2 1] * g"), g, Border(border))
     np.testing.assert_allclose(got[0], want, rtol=0, atol=1e-12)
-
-
-@pytest.mark.parametrize("strategy", ["paper", "cost"])
-@pytest.mark.parametrize("border", BORDERS)
-@pytest.mark.parametrize("text", NAMED + CHAIN_CASES)
-def test_emulated_plan_equals_reference_for_every_border(text, border, strategy):
-    rng = np.random.default_rng(len(text))
-    expr = parse(text)
-    for size in SIZES:
-        image = rng.standard_normal(size + (3,))
-        p = plan(expr, size, strategy, border)
-        check(p)
-        assert p.border == border and p.images[0].border == border
-        np.testing.assert_allclose(emulate.run(p, image), reference.run(expr, image, Border(border)),
-                                   rtol=0, atol=1e-9)
-
-
-@pytest.mark.gl
-@pytest.mark.parametrize("border", ["mirror", "wrap", "zero"])
-@pytest.mark.parametrize("text", NAMED + CHAIN_CASES)
-def test_gl_runs_every_border_and_equals_reference(gl, text, border):
-    rng = np.random.default_rng(len(text) + len(border))
-    expr = parse(text)
-    for size in SIZES:
-        image = rng.standard_normal(size + (3,)).astype(np.float32)
-        p = plan(expr, size, "cost", border)
-        np.testing.assert_allclose(gl.run(p, image), reference.run(expr, image, Border(border)), rtol=0, atol=1e-5)

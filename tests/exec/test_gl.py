@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import pyramid_cli.exec.gl.shaders as generate
-from helpers.cases import GRID_CHANNELS, GRID_SIZES, several_inputs_and_outputs
+from helpers.cases import GRID_CHANNELS, GRID_SIZES
 from pyramid_cli.core.errors import BackendError, DataError
 from pyramid_cli.core.parse import parse
 from pyramid_cli.exec import emulate
@@ -35,38 +35,6 @@ def planned(text: str, size: tuple[int, int], strategy: str = "cost"):
 def random_image(size, channels, seed):
     rng = np.random.default_rng(seed)
     return rng.random(size if channels is None else size + (channels,)).astype(np.float32)
-
-
-@gl_mark
-@pytest.mark.parametrize("size", SIZES, ids=lambda s: f"{s[0]}x{s[1]}")
-@pytest.mark.parametrize("text", CHAINS)
-def test_gl_equals_reference(gl, text, size):
-    seed = CHAINS.index(text) * len(SIZES) + SIZES.index(size)
-    channels = CHANNELS[seed % len(CHANNELS)]
-    image = random_image(size, channels, seed)
-    expr, p = planned(text, size)
-    out = gl.run(p, image)
-    assert out.dtype == np.float32 and out.shape == (p.output.size + image.shape[2:])
-    np.testing.assert_allclose(out, reference.run(expr, image), rtol=0, atol=1e-5)
-    np.testing.assert_allclose(out, emulate.run(p, image), rtol=0, atol=1e-5)
-
-
-
-@gl_mark
-@pytest.mark.parametrize("channels", [None, 4, 6])
-def test_several_inputs_and_outputs(gl, channels):
-    """A Laplacian-style job: two inputs, intermediate levels read back (and reused), the input itself read back."""
-    size = (17, 13)
-    p = several_inputs_and_outputs(size)
-    images = [random_image(size, channels, 20), random_image(size, channels, 21)]
-    outs = gl.run_outputs(p, images)
-    expected = emulate.run_outputs(p, images)
-    assert [o.shape for o in outs] == [e.shape for e in expected]
-    for o, e in zip(outs, expected, strict=True):
-        assert o.dtype == np.float32
-        np.testing.assert_allclose(o, e, rtol=0, atol=1e-5)
-    np.testing.assert_array_equal(outs[0], images[0])
-    np.testing.assert_allclose(gl.run(p, images), expected[-1], rtol=0, atol=1e-5)
 
 
 @gl_mark
@@ -293,22 +261,6 @@ def test_affine_passes_skip_the_phase_arithmetic():
         assert not any("#define AFFINE" in src for src in sources(text)), text
     (ds,) = sources("doosabin")
     assert "#define SLOPE vec2(0.5, 0.5)" in ds and "acc += linear0(base + vec2(0.25, 0.25));" in ds
-
-
-@gl_mark
-@pytest.mark.parametrize("channels", [None, 1, 3, 4, 6])
-@pytest.mark.parametrize("text", ["doosabin *^ (box4 *v g)", "fourpoint", "quadratic"])
-def test_half_inputs_and_outputs_match_float_exactly(gl, text, channels):
-    """Half in: converted exactly on upload. Half out: glReadPixels rounds like numpy (nearest even)."""
-    size = (37, 23)
-    image = random_image(size, channels, seed=11).astype(np.float16)
-    expr, p = planned(text, size)
-    as_float = gl.run(p, image.astype(np.float32))
-    np.testing.assert_allclose(as_float, reference.run(expr, image.astype(np.float32)), rtol=0, atol=1e-5)
-    np.testing.assert_array_equal(gl.run(p, image), as_float)
-    (half,) = gl.run_outputs(p, [image], dtype=np.float16)
-    assert half.dtype == np.float16 and half.shape == as_float.shape
-    np.testing.assert_array_equal(half.view(np.uint16), as_float.astype(np.float16).view(np.uint16))
 
 
 @gl_mark

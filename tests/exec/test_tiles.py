@@ -117,18 +117,6 @@ def test_reads_of_a_pass_include_the_guard_band():
 
 
 # ------------------------------------------------------------------ the compiled CPU executor
-@pytest.fixture(scope="module")
-def cpu_ex(tmp_path_factory):
-    pytest.importorskip("numba")
-    import os
-
-    from pyramid_cli.exec import cpu
-
-    os.environ.setdefault("PYRAMID_CACHE_DIR", str(tmp_path_factory.getbasetemp() / "kernels"))
-    with cpu.CPUExecutor(threads=2) as ex:
-        yield ex
-
-
 # The fast tier compiles a few kernel shapes (one per kind of pass: polyphase reduce, convolution, expand,
 # a chain); the slow tier every named filter and chain.
 CPU_FAST = {"box4 *v g", "gauss5", "doosabin", "fourpoint *^ (cubic *v g)"}
@@ -136,35 +124,35 @@ CPU_FAST = {"box4 *v g", "gauss5", "doosabin", "fourpoint *^ (cubic *v g)"}
 
 @pytest.mark.parametrize("text", [t if t in CPU_FAST else pytest.param(t, marks=pytest.mark.slow)
                                   for t in NAMED + CHAINS])
-def test_cpu_tiled_equals_untiled_every_filter(cpu_ex, text):
-    run_grid(cpu_ex, np.float32, [text], [(1, 1), (4, 3), (100, 100)], ["clamp"])
+def test_cpu_tiled_equals_untiled_every_filter(cpu_executor, text):
+    run_grid(cpu_executor, np.float32, [text], [(1, 1), (4, 3), (100, 100)], ["clamp"])
 
 
 @pytest.mark.parametrize("border", BORDERS[1:])
-def test_cpu_tiled_equals_untiled_every_border(cpu_ex, border):
-    run_grid(cpu_ex, np.float32, ["gauss5", "bartlett * (bartlett * g)", "doosabin *^ (box4 *v g)", "box *v^2 g"],
+def test_cpu_tiled_equals_untiled_every_border(cpu_executor, border):
+    run_grid(cpu_executor, np.float32, ["gauss5", "bartlett * (bartlett * g)", "doosabin *^ (box4 *v g)", "box *v^2 g"],
              [(1, 1), (4, 3)], [border])
 
 
 @pytest.mark.parametrize("name", list(works()))
-def test_cpu_tiled_pyramids(cpu_ex, name):
+def test_cpu_tiled_pyramids(cpu_executor, name):
     work, sizes = works()[name]
     p = work.plan(sizes)
     inputs = [image(s, 4, seed=k) for k, s in enumerate(sizes)]
     for tile in TILES:
-        assert_same_tiled(cpu_ex, p, inputs, tile)
+        assert_same_tiled(cpu_executor, p, inputs, tile)
 
 
-def test_cpu_tiled_half_inputs_and_outputs(cpu_ex):
+def test_cpu_tiled_half_inputs_and_outputs(cpu_executor):
     """Half inputs are read as half in every window; half outputs round like the untiled run's."""
     p = Blur(levels=2).plan((SIZE,))
     x = image(SIZE, 4, dtype=np.float16)
-    want = cpu_ex.run_outputs(p, [x], np.float16)[0]
-    got = tiles.run_arrays(cpu_ex, p, [x], band=5, width=4, dtype=np.float16)[0]
+    want = cpu_executor.run_outputs(p, [x], np.float16)[0]
+    got = tiles.run_arrays(cpu_executor, p, [x], band=5, width=4, dtype=np.float16)[0]
     assert got.dtype == np.float16 and np.array_equal(want, got)
 
 
-def test_cpu_tiles_into_a_memmap(cpu_ex, tmp_path):
+def test_cpu_tiles_into_a_memmap(cpu_executor, tmp_path):
     """Arrays larger than RAM: a memory-mapped input read band by band, the result written into a memmap."""
     size = (40, 24)
     src = np.lib.format.open_memmap(tmp_path / "in.npy", "w+", np.float32, size + (3,))
@@ -173,9 +161,9 @@ def test_cpu_tiles_into_a_memmap(cpu_ex, tmp_path):
     src = np.load(tmp_path / "in.npy", mmap_mode="r")
     dst = np.lib.format.open_memmap(tmp_path / "out.npy", "w+", np.float32, size + (3,))
     p = Blur(levels=3).plan((size,))
-    tiles.run_arrays(cpu_ex, p, [src], band=8, out=[dst])
+    tiles.run_arrays(cpu_executor, p, [src], band=8, out=[dst])
     dst.flush()
-    assert np.array_equal(np.load(tmp_path / "out.npy"), cpu_ex.run(p, np.asarray(src)))
+    assert np.array_equal(np.load(tmp_path / "out.npy"), cpu_executor.run(p, np.asarray(src)))
 
 
 # ------------------------------------------------------------------ GL
@@ -284,7 +272,7 @@ def test_api_memmap_in_memmap_outs_for_every_level(tmp_path, fn):
 
 
 @pytest.mark.parametrize("kind", ["fill", "blend"])
-def test_pointwise_plans_tile(kind, cpu_ex):
+def test_pointwise_plans_tile(kind, cpu_executor):
     """Plans with PointwisePass (issue 17's fill and blend, several levels) tile to the untiled pixels."""
     from pyramid_cli.jobs.work import Blend, Fill
 
@@ -300,7 +288,7 @@ def test_pointwise_plans_tile(kind, cpu_ex):
     assert tiles.tileable(p)
     for tile in [(1, 1), (4, 3), (100, 100)]:
         assert_same_tiled(EMU, p, [a.astype(np.float64) for a in inputs], tile, np.float64)
-        assert_same_tiled(cpu_ex, p, inputs, tile)
+        assert_same_tiled(cpu_executor, p, inputs, tile)
 
 
 def mip_plans():
@@ -313,7 +301,7 @@ def mip_plans():
 
 
 @pytest.mark.parametrize("tile", [(1, 1), (3, 2), (100, 100)])
-def test_mip_plans_with_resample_passes_tile(tile, cpu_ex):
+def test_mip_plans_with_resample_passes_tile(tile, cpu_executor):
     """Tiled MIP plans (ResamplePass: sliced tables over windows placed by a guard band) equal untiled."""
     from pyramid_cli.plan import ResamplePass
 
@@ -321,7 +309,7 @@ def test_mip_plans_with_resample_passes_tile(tile, cpu_ex):
         assert tiles.tileable(p)
         assert any(isinstance(ps, ResamplePass) for ps in p.passes)
         assert_same_tiled(EMU, p, image(size).astype(np.float64), tile, np.float64)
-        assert_same_tiled(cpu_ex, p, image(size), tile)
+        assert_same_tiled(cpu_executor, p, image(size), tile)
 
 
 @gl_mark

@@ -8,7 +8,7 @@ import numpy as np
 import OpenImageIO as oiio
 
 
-def write(path, pixels, pixel_type: str = "float", *, tile: int = 0, names=None, alpha=None, **attrs) -> Path:
+def write(path, pixels, pixel_type: str = "float", tile: int = 0, *, names=None, alpha=None, **attrs) -> Path:
     """Write ``pixels`` (H×W×C, or H×W for one channel) to ``path`` as ``pixel_type``, with no colour or alpha rules.
 
     Parameters

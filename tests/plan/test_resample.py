@@ -167,15 +167,6 @@ def test_emulator_equals_reference(size, border, key):
     _check(emulate.run_outputs, size, border, key, 3, 1e-12)
 
 
-@pytest.fixture(scope="module")
-def cpu_executor():
-    pytest.importorskip("numba")
-    from pyramid_cli.exec.cpu import CPUExecutor
-
-    with CPUExecutor(threads=2) as ex:
-        yield ex
-
-
 @pytest.mark.parametrize("size, border, key", list(_cases(SIZES)))
 @pytest.mark.parametrize("channels", [None, 4])
 def test_cpu_equals_reference(cpu_executor, size, border, key, channels):

@@ -174,7 +174,7 @@ def test_only_host_memory_textures_count(gl):
 def test_cli_streams_when_told_and_says_so(tmp_path):
     pytest.importorskip("numba")
     src = tmp_path / "in.exr"
-    write(src, noise(300, 200, seed=5))
+    write(src, noise(300, 200, seed=5), "half")
     r = run_cli("blur", "--backend", "cpu", "--levels", "3", "--memory", "1M", "-v", src, tmp_path / "s.exr")
     assert r.returncode == 0, r.stderr
     assert "streams in bands of" in r.stderr and "streamed in bands" in r.stdout
@@ -193,7 +193,7 @@ def test_cli_gl_pads_the_bands_not_the_picture(tmp_path):
     from pyramid_cli import api
 
     src = tmp_path / "in.exr"
-    write(src, noise(520, 520, seed=6))
+    write(src, noise(520, 520, seed=6), "half")
     r = run_cli("blur", "--backend", "gl", "--levels", "3", "-v", src, tmp_path / "s.exr")
     assert r.returncode == 0 and "the bands are padded, not the picture" in r.stderr, r.stderr
     whole = api.blur(io.read_image(src).pixels, levels=3, backend="gl")
@@ -246,7 +246,7 @@ def test_levels_stream_every_level(tmp_path, session, laplacian, budget):
     from pyramid_cli.run.pipeline import Reporter, write_levels_files
 
     src = tmp_path / "in.exr"
-    write(src, noise(150, 97, seed=4))
+    write(src, noise(150, 97, seed=4), "half")
     work = Laplacian(levels=3) if laplacian else Levels(levels=3)
     said = []
     rep = Reporter(verbose=True, out=said.append, err=said.append)

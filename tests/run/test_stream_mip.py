@@ -161,7 +161,7 @@ def test_a_constant_picture_streamed_shrinks_as_whole(tmp_path, session, budget,
 
 def test_what_cannot_stream_is_refused_with_memory_and_runs_whole_without(tmp_path, session):
     src = tmp_path / "in.exr"
-    write(src, noise(64, 64, seed=1))
+    write(src, noise(64, 64, seed=1), "half")
     with pytest.raises(UsageError, match="--resize.*whole picture"):
         mipmap(session, src, tmp_path / "r.exr", 10 << 10, resize=True)
     with pytest.raises(UsageError, match="--memory streams one input"):
@@ -198,7 +198,7 @@ def test_pixel_stats_equal_the_whole_picture_functions():
 def test_cli_mipmap_streams_when_told(tmp_path):
     pytest.importorskip("numba")
     src = tmp_path / "in.exr"
-    write(src, noise(128, 128, seed=2))
+    write(src, noise(128, 128, seed=2), "half")
     r = run_cli("mipmap", "--backend", "cpu", "--memory", "300K", "-v", src, tmp_path / "s.tx")
     assert r.returncode == 0 and "streamed in bands" in r.stdout and "streams in bands" in r.stderr, r.stderr
     r = run_cli("mipmap", "--backend", "cpu", "--memory", "4K", src, tmp_path / "x.tx")
@@ -282,7 +282,7 @@ def test_streamed_mipmap_on_gl_is_the_whole_runs_file(tmp_path, gl):
     """The GL executor streams too (its textures the windows' size, counted in the budget; 380K spills the coarser
     levels): the same file as its whole run."""
     src = tmp_path / "in.exr"
-    write(src, noise(128, 128, seed=8))
+    write(src, noise(128, 128, seed=8), "half")
     r = run_cli("mipmap", "--backend", "gl", "--memory", "380K", src, tmp_path / "s.exr")
     assert r.returncode == 0 and "streamed in bands" in r.stdout, r.stderr
     r = run_cli("mipmap", "--backend", "gl", src, tmp_path / "w.exr")

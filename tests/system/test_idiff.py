@@ -121,8 +121,8 @@ class Case:
 
 def files(a_px, b_px, fmt_a="float", fmt_b=None, ext_a="exr", ext_b=None, names=None):
     def make(d: Path) -> tuple[str, str]:
-        pa = write(d / f"a.{ext_a}", a_px, fmt_a, names)
-        pb = write(d / f"b.{ext_b or ext_a}", b_px, fmt_b or fmt_a, names)
+        pa = write(d / f"a.{ext_a}", a_px, fmt_a, names=names)
+        pb = write(d / f"b.{ext_b or ext_a}", b_px, fmt_b or fmt_a, names=names)
         return str(pa), str(pb)
     return make
 

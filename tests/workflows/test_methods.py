@@ -4,10 +4,7 @@ from the papers' equations (Kraus 2009; Burt & Adelson 1983), and the properties
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 import warnings
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -29,39 +26,7 @@ FILTERS = [("box4", "doosabin"), ("box", "doosabin"), ("quadratic", "cubic"), ("
 ATOL = 1e-5  # float32 against float64, as every executor test
 
 
-# ------------------------------------------------------------------ executors
-@pytest.fixture(scope="module")
-def cpu_ex():
-    pytest.importorskip("numba")
-    from pyramid_cli.exec import cpu
-
-    saved = os.environ.get(cpu.CACHE_ENV)
-    os.environ[cpu.CACHE_ENV] = str(Path(tempfile.gettempdir()) / f"pyramid-cpu-test-cache-{os.getuid()}")
-    with cpu.CPUExecutor(threads=2) as ex:
-        yield ex
-    if saved is None:
-        os.environ.pop(cpu.CACHE_ENV, None)
-    else:
-        os.environ[cpu.CACHE_ENV] = saved
-
-
-class _Emulator:
-    strategy = "cost"
-
-    @staticmethod
-    def run_outputs(plan, images):
-        return emulate.run_outputs(plan, images)
-
-
-@pytest.fixture(params=["emulate", "cpu", "gl"])
-def executor(request):
-    if request.param == "emulate":
-        return _Emulator()
-    if request.param == "cpu":
-        return request.getfixturevalue("cpu_ex")
-    return request.getfixturevalue("gl")
-
-
+# ------------------------------------------------------------------ executors (the shared `executor` fixture)
 def _fill_case(size, channels, seed, density=0.3):
     rng = np.random.default_rng(seed)
     shape = size if channels is None else size + (channels,)
