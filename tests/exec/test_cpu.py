@@ -263,7 +263,8 @@ def test_importing_the_planner_does_not_import_numba():
 CHILD = r"""
 import json, sys
 import numpy as np
-from pyramid_cli import cpu, pyramids
+from pyramid_cli.exec import cpu
+from pyramid_cli.workflows import pyramids
 p = pyramids.blur_plan((40, 50), 3)
 with cpu.CPUExecutor(threads=2) as ex:
     out = ex.run(p, np.ones((40, 50, 4), np.float32))
