@@ -19,6 +19,7 @@ import pytest
 import pyramid_cli.exec.gl.shaders as generate
 from helpers.cases import CHAINS as WRITTEN
 from helpers.cases import GRID_CHANNELS, GRID_SIZES, NAMED, step
+from helpers.marks import slow_beyond
 from pyramid_cli.core.border import Border
 from pyramid_cli.core.errors import BackendError
 from pyramid_cli.core.geometry import mip_levels
@@ -89,7 +90,7 @@ def test_every_channel_count(ex, channels):
         np.testing.assert_allclose(ex.run(p, image), reference.run(expr, image), rtol=0, atol=1e-5, err_msg=text)
 
 
-@pytest.mark.parametrize("threads", [1, 3])
+@pytest.mark.parametrize("threads", slow_beyond([1, 3]))
 def test_threads_split_rows_without_changing_a_bit(threads):
     """Large enough for the interior to run in bands on the worker threads: identical to one thread."""
     size = (601, 517)  # over cpu.SMALL output floats: the interior runs in bands on the workers
@@ -323,6 +324,7 @@ def test_an_unwritable_cache_folder_falls_back(tmp_path):
     assert list(cpu._fallback_cache().glob("k_*.py"))
 
 
+@pytest.mark.slow
 def test_a_cache_that_cannot_be_written_costs_the_cache_not_the_run(tmp_path):
     """A file-size limit (a full disk) hit while numba saves a fresh kernel: the run still succeeds."""
     import resource

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from helpers.cases import CHAINS, NAMED, several_inputs_and_outputs
+from helpers.marks import slow_beyond
 from pyramid_cli.core.geometry import level_sizes
 from pyramid_cli.core.parse import parse
 from pyramid_cli.exec import tiles
@@ -52,11 +53,12 @@ def run_grid(executor, dtype, texts, tiles_, borders):
 EMU = tiles.Emulator()
 
 
-@pytest.mark.parametrize("text", NAMED + CHAINS)
+@pytest.mark.parametrize("text", slow_beyond(NAMED + CHAINS, 2))
 def test_emulator_tiled_equals_untiled_every_filter(text):
     run_grid(EMU, np.float64, [text], TILES, ["clamp"])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("border", BORDERS[1:])
 def test_emulator_tiled_equals_untiled_every_border(border):
     run_grid(EMU, np.float64, ["gauss5", "bartlett * (bartlett * g)", "doosabin *^ (box4 *v g)", "box *v^2 g",
@@ -64,7 +66,7 @@ def test_emulator_tiled_equals_untiled_every_border(border):
 
 
 @pytest.mark.parametrize("name", list(works()))
-@pytest.mark.parametrize("border", ["clamp", "mirror", "wrap"])
+@pytest.mark.parametrize("border", slow_beyond(["clamp", "mirror", "wrap"]))
 def test_emulator_tiled_pyramids(name, border):
     work, sizes = works()[name]
     work = type(work)(**{**work.__dict__, "border": border})
@@ -128,7 +130,7 @@ def test_cpu_tiled_equals_untiled_every_filter(cpu_executor, text):
     run_grid(cpu_executor, np.float32, [text], [(1, 1), (4, 3), (100, 100)], ["clamp"])
 
 
-@pytest.mark.parametrize("border", BORDERS[1:])
+@pytest.mark.parametrize("border", slow_beyond(BORDERS[1:]))
 def test_cpu_tiled_equals_untiled_every_border(cpu_executor, border):
     run_grid(cpu_executor, np.float32, ["gauss5", "bartlett * (bartlett * g)", "doosabin *^ (box4 *v g)", "box *v^2 g"],
              [(1, 1), (4, 3)], [border])
@@ -170,21 +172,25 @@ def test_cpu_tiles_into_a_memmap(cpu_executor, tmp_path):
 gl_mark = pytest.mark.gl
 
 
+GL_TILED = ["gauss5", "box4 *v g", "doosabin", "fourpoint", "bartlett * (bartlett * g)",
+            "(doosabin)^2 *^ ((box4)^2 *v g)",
+            "box *v^2 g"]
+
+
 @gl_mark
-@pytest.mark.parametrize("text", ["gauss5", "box4 *v g", "doosabin", "fourpoint", "bartlett * (bartlett * g)",
-                                  "(doosabin)^2 *^ ((box4)^2 *v g)", "box *v^2 g"])
+@pytest.mark.parametrize("text", slow_beyond(GL_TILED, 2))
 def test_gl_tiled_equals_untiled(gl, text):
     run_grid(gl, np.float32, [text], [(1, 1), (4, 3), (100, 100)], ["clamp"])
 
 
 @gl_mark
-@pytest.mark.parametrize("border", BORDERS[1:])
+@pytest.mark.parametrize("border", slow_beyond(BORDERS[1:]))
 def test_gl_tiled_equals_untiled_every_border(gl, border):
     run_grid(gl, np.float32, ["bartlett * (bartlett * g)", "doosabin *^ (box4 *v g)"], [(1, 1), (4, 3)], [border])
 
 
 @gl_mark
-@pytest.mark.parametrize("name", list(works()))
+@pytest.mark.parametrize("name", slow_beyond(list(works()), 2))
 def test_gl_tiled_pyramids(gl, name):
     work, sizes = works()[name]
     p = work.plan(sizes)
@@ -271,7 +277,7 @@ def test_api_memmap_in_memmap_outs_for_every_level(tmp_path, fn):
         call(mm, out=[dst[0], np.empty((3, 3), np.float32), *dst[2:]])
 
 
-@pytest.mark.parametrize("kind", ["fill", "blend"])
+@pytest.mark.parametrize("kind", slow_beyond(["fill", "blend"]))
 def test_pointwise_plans_tile(kind, cpu_executor):
     """Plans with PointwisePass (issue 17's fill and blend, several levels) tile to the untiled pixels."""
     from pyramid_cli.jobs.work import Blend, Fill
@@ -320,6 +326,7 @@ def test_gl_mip_plans_with_resample_passes_tile(gl):
 
 
 @gl_mark
+@pytest.mark.slow
 def test_gl_mip_strip_beyond_the_texture_limit_is_refused(gl):
     """A MIP chain wider than GL's limit cannot run in column strips (its coarse levels read the whole
     width of the level above): GL refuses it with a DataError (exit 5; auto runs it on the CPU) instead

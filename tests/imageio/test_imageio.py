@@ -827,6 +827,7 @@ def _srgb8_by_formula(x: np.ndarray) -> np.ndarray:
     return np.clip(np.floor(v + 0.5), 0, 255).astype(np.uint8)
 
 
+@pytest.mark.slow
 def test_srgb8_table_equals_the_float64_formula_everywhere_it_matters():
     thresholds, _ = pio._srgb8_tables()
     t = thresholds.view(np.uint32)

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from helpers.marks import slow_beyond
 from helpers.paths import ROOT
 from pyramid_cli import plan as planner
 from pyramid_cli.cli import main
@@ -206,7 +207,8 @@ def sides(op: Op, key: str) -> list[tuple[int, int]]:
     return out
 
 
-@pytest.mark.parametrize("op, key", CHOICES, ids=lambda x: x.value if isinstance(x, Op) else x)
+@pytest.mark.parametrize("op, key", slow_beyond(CHOICES, 2, unpack=True),
+                         ids=lambda x: x.value if isinstance(x, Op) else x)
 def test_chosen_plans_equal_the_reference_on_both_sides_of_the_flip(op, key):
     expr = parse(TEXT[op].format(key))
     rng = np.random.default_rng(len(key))

@@ -16,6 +16,7 @@ import pytest
 from click.testing import CliRunner
 
 import pyramid_cli as pyr
+from helpers.marks import slow_beyond
 from pyramid_cli.cli import main
 from pyramid_cli.core import catalogue
 from pyramid_cli.exec import emulate
@@ -83,7 +84,7 @@ def test_what_the_border_does_to_the_mean(key, n):
     assert all(c <= target for c in column_sums(as_1d(key), n, m, "zero")[reach:n - reach] or [target])
 
 
-@pytest.mark.parametrize("key", catalogue.ANALYSIS_FILTERS)
+@pytest.mark.parametrize("key", slow_beyond(catalogue.ANALYSIS_FILTERS, 2))
 @pytest.mark.parametrize("border", BORDERS)
 def test_the_reference_matrix_equals_the_exact_table(key, border):
     """The two derivations (float64 integral of the kernel, exact Fractions) agree everywhere."""

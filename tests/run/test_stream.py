@@ -171,6 +171,7 @@ def test_only_host_memory_textures_count(gl):
 
 
 # ------------------------------------------------------------------ the command line
+@pytest.mark.slow
 def test_cli_streams_when_told_and_says_so(tmp_path):
     pytest.importorskip("numba")
     src = tmp_path / "in.exr"

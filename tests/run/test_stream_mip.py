@@ -10,6 +10,7 @@ import pytest
 
 from helpers.cli import CLI, run_cli
 from helpers.images import noise, write
+from helpers.marks import slow_beyond
 from pyramid_cli import imageio as io
 from pyramid_cli.core.errors import UsageError
 from pyramid_cli.exec.session import Session
@@ -195,6 +196,7 @@ def test_pixel_stats_equal_the_whole_picture_functions():
 
 
 # ------------------------------------------------------------------ the command line
+@pytest.mark.slow
 def test_cli_mipmap_streams_when_told(tmp_path):
     pytest.importorskip("numba")
     src = tmp_path / "in.exr"
@@ -208,7 +210,7 @@ def test_cli_mipmap_streams_when_told(tmp_path):
     assert sorted(os.listdir(tmp_path)) == ["in.exr", "s.tx"]
 
 
-@pytest.mark.parametrize("memory", ["300K", "600K"])
+@pytest.mark.parametrize("memory", slow_beyond(["300K", "600K"]))
 def test_plan_says_what_a_streamed_mipmap_chooses(tmp_path, memory):
     """``pyramid plan --mipmap --memory`` and ``pyramid mipmap -v --memory`` choose the same band, the same place
     for the coarser levels and the same number of reads (300K: twice, the levels spilled; 600K: once, level 0

@@ -11,6 +11,7 @@ import pytest
 from click.testing import CliRunner
 
 from helpers.cli import invoke
+from helpers.marks import slow_beyond
 from pyramid_cli.cli import main
 from pyramid_cli.core.parse import parse
 from pyramid_cli.reference import filters as reference
@@ -288,7 +289,7 @@ def _console(*args: str) -> list[str]:
     return [sys.executable, "-m", "pyramid_cli.cli", *args]
 
 
-@pytest.mark.parametrize("broken", [False, True], ids=["all-good", "one-bad"])
+@pytest.mark.parametrize("broken", slow_beyond([False, True]), ids=["all-good", "one-bad"])
 def test_a_reader_closing_stdout_loses_no_frame_and_changes_no_exit_code(tmp_path, broken):
     """`pyramid blur 'in/*.png' -o … | head -1`: the reader goes after one line, and the run goes on (issue 22)."""
     import pyramid_cli as pyr

@@ -176,6 +176,7 @@ def listener():
     ("{tmp}/garbled.json", "not a Dask scheduler file (not JSON)"),
     ("local:0", "expected local:N with N ≥ 1"),
 ])
+@pytest.mark.slow
 def test_addresses_refused_in_one_line(tmp_path, listener, address, says, monkeypatch):
     pytest.importorskip("distributed")
     monkeypatch.delenv("DASK_DISTRIBUTED__COMM__TLS__CA_FILE", raising=False)

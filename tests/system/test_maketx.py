@@ -294,6 +294,7 @@ def test_a_description_keeps_its_words_and_loses_stale_hashes(tmp_path):
     assert a["oiio:SHA-1"] == pio.source_sha1(src, hash_extra("clamp", "quadratic"))
 
 
+@pytest.mark.slow
 def test_bench_maketx_runs_and_reports(tmp_path):
     out = tmp_path / "bench.json"
     bench = ROOT / "bench" / "maketx.py"

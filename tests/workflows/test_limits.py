@@ -4,6 +4,7 @@ import math
 
 import pytest
 
+from helpers.marks import slow_beyond
 from pyramid_cli.core.errors import DataError, ExpressionError, UsageError
 from pyramid_cli.core.parse import parse
 from pyramid_cli.workflows import limits
@@ -32,8 +33,8 @@ def test_the_bound_holds_for_small_kernels():
         assert sum(len(w) for w in k.phases.values()) <= entries
 
 
-@pytest.mark.parametrize("analysis, synthesis", [("box4", "doosabin"), ("quadratic", "cubic"), ("box", "nearest"),
-                                                 ("cubic", "fourpoint")])
+@pytest.mark.parametrize("analysis, synthesis", slow_beyond(
+    [("box4", "doosabin"), ("quadratic", "cubic"), ("box", "nearest"), ("cubic", "fourpoint")], unpack=True))
 def test_levels_sigma_equals_the_kernel_evaluation(analysis, synthesis):
     for m in range(1, 6):
         assert math.isclose(limits.levels_sigma(m, analysis, synthesis), impulse_sigma(m, analysis, synthesis),

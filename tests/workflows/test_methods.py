@@ -12,6 +12,7 @@ import pytest
 import pyramid_cli as pyr
 from helpers.cases import GRID_SIZES
 from helpers.cli import invoke
+from helpers.marks import slow_beyond
 from helpers.paths import ROOT
 from pyramid_cli.core.errors import DataError
 from pyramid_cli.exec import emulate
@@ -44,7 +45,7 @@ def _run(executor, work, images):
     return out
 
 
-@pytest.mark.parametrize("size", GRID_SIZES, ids=lambda s: f"{s[0]}x{s[1]}")
+@pytest.mark.parametrize("size", slow_beyond(GRID_SIZES, 5), ids=lambda s: f"{s[0]}x{s[1]}")
 def test_fill_every_executor_equals_the_reference(executor, size):
     for i, channels in enumerate([None, 3, 4]):
         colour, weight = _fill_case(size, channels, seed=size[0] * 31 + size[1] + i)
@@ -56,7 +57,7 @@ def test_fill_every_executor_equals_the_reference(executor, size):
 
 
 @pytest.mark.parametrize("border", BORDERS)
-@pytest.mark.parametrize("filters", FILTERS, ids=lambda f: f"{f[0]}-{f[1]}")
+@pytest.mark.parametrize("filters", slow_beyond(FILTERS, 2), ids=lambda f: f"{f[0]}-{f[1]}")
 def test_fill_every_border_and_filter_equals_the_reference(executor, border, filters):
     analysis, synthesis = filters
     for size in [(1, 7), (7, 1), (5, 3), (40, 33)]:
@@ -66,7 +67,7 @@ def test_fill_every_border_and_filter_equals_the_reference(executor, border, fil
                                    rtol=0, atol=ATOL, err_msg=f"{size} {border} {filters}")
 
 
-@pytest.mark.parametrize("size", GRID_SIZES, ids=lambda s: f"{s[0]}x{s[1]}")
+@pytest.mark.parametrize("size", slow_beyond(GRID_SIZES, 5), ids=lambda s: f"{s[0]}x{s[1]}")
 def test_blend_every_executor_equals_the_reference(executor, size):
     rng = np.random.default_rng(size[0] * 7 + size[1])
     for channels, levels in [(None, None), (3, 1), (4, 2)]:
