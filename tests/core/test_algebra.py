@@ -10,6 +10,7 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
+from helpers.marks import slow_beyond
 from helpers.oracles import extended_chain, printed, printed_outer
 from pyramid_cli.core import algebra, catalogue
 from pyramid_cli.core.parse import parse
@@ -115,7 +116,7 @@ def test_decomposition_interior(chain, atomic, misprint):
 
 
 @pytest.mark.parametrize("chain, atomic, misprint", DECOMPOSITIONS)
-@pytest.mark.parametrize("shape", [(1, 1), (2, 3), (5, 4), (7, 9)])
+@pytest.mark.parametrize("shape", slow_beyond([(1, 1), (2, 3), (5, 4), (7, 9)], 2))
 def test_decomposition_at_borders_with_guard_rows(chain, atomic, misprint, shape):
     """With every intermediate computed where the next step reads it (row 0 of
     box↖ ⊗↓ g kept, §4.2), the decomposition equals the atomic filter at every pixel."""

@@ -90,7 +90,8 @@ def test_every_channel_count(ex, channels):
         np.testing.assert_allclose(ex.run(p, image), reference.run(expr, image), rtol=0, atol=1e-5, err_msg=text)
 
 
-@pytest.mark.parametrize("threads", slow_beyond([1, 3]))
+@pytest.mark.slow
+@pytest.mark.parametrize("threads", [1, 3])
 def test_threads_split_rows_without_changing_a_bit(threads):
     """Large enough for the interior to run in bands on the worker threads: identical to one thread."""
     size = (601, 517)  # over cpu.SMALL output floats: the interior runs in bands on the workers
@@ -288,7 +289,7 @@ def test_a_second_process_compiles_nothing(tmp_path):
     assert runs[1] == {"compiles": 0, "cache_loads": shapes, "value": pytest.approx(1.0, abs=1e-6)}
 
 
-@pytest.mark.parametrize("border", BORDERS)
+@pytest.mark.parametrize("border", slow_beyond(BORDERS))
 def test_cpu_plans_fuse_each_step_and_equal_reference(ex, border):
     """The "fused" strategy (the CPU executor's): one pass per written step, the same numbers at every pixel."""
     from pyramid_cli.core.expr import steps

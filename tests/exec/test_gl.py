@@ -7,6 +7,7 @@ import pytest
 
 import pyramid_cli.exec.gl.shaders as generate
 from helpers.cases import GRID_CHANNELS, GRID_SIZES
+from helpers.marks import slow_beyond
 from pyramid_cli.core.errors import BackendError, DataError
 from pyramid_cli.core.parse import parse
 from pyramid_cli.exec import emulate
@@ -70,7 +71,7 @@ def test_more_than_four_channels_run_in_groups(gl):
 
 
 @gl_mark
-@pytest.mark.parametrize("text", ["cubic *^ g", "fourpoint", "box *v g", "gauss5"])
+@pytest.mark.parametrize("text", slow_beyond(["cubic *^ g", "fourpoint", "box *v g", "gauss5"], 1))
 def test_quarter_taps_are_exact_at_non_power_of_two_sizes(gl, text):
     """Normalized coordinates of non-power-of-two textures would be off by ~width·2⁻²⁴ texel (≈6e-5 here)."""
     size = (600, 1001)

@@ -65,7 +65,7 @@ def test_emulator_tiled_equals_untiled_every_border(border):
                                "fourpoint"], [(1, 1), (4, 3)], [border])
 
 
-@pytest.mark.parametrize("name", list(works()))
+@pytest.mark.parametrize("name", slow_beyond(list(works()), 3))
 @pytest.mark.parametrize("border", slow_beyond(["clamp", "mirror", "wrap"]))
 def test_emulator_tiled_pyramids(name, border):
     work, sizes = works()[name]
@@ -130,13 +130,14 @@ def test_cpu_tiled_equals_untiled_every_filter(cpu_executor, text):
     run_grid(cpu_executor, np.float32, [text], [(1, 1), (4, 3), (100, 100)], ["clamp"])
 
 
-@pytest.mark.parametrize("border", slow_beyond(BORDERS[1:]))
+@pytest.mark.slow
+@pytest.mark.parametrize("border", BORDERS[1:])
 def test_cpu_tiled_equals_untiled_every_border(cpu_executor, border):
     run_grid(cpu_executor, np.float32, ["gauss5", "bartlett * (bartlett * g)", "doosabin *^ (box4 *v g)", "box *v^2 g"],
              [(1, 1), (4, 3)], [border])
 
 
-@pytest.mark.parametrize("name", list(works()))
+@pytest.mark.parametrize("name", slow_beyond(list(works()), 2))
 def test_cpu_tiled_pyramids(cpu_executor, name):
     work, sizes = works()[name]
     p = work.plan(sizes)
@@ -184,7 +185,8 @@ def test_gl_tiled_equals_untiled(gl, text):
 
 
 @gl_mark
-@pytest.mark.parametrize("border", slow_beyond(BORDERS[1:]))
+@pytest.mark.slow
+@pytest.mark.parametrize("border", BORDERS[1:])
 def test_gl_tiled_equals_untiled_every_border(gl, border):
     run_grid(gl, np.float32, ["bartlett * (bartlett * g)", "doosabin *^ (box4 *v g)"], [(1, 1), (4, 3)], [border])
 
@@ -200,6 +202,7 @@ def test_gl_tiled_pyramids(gl, name):
 
 
 @gl_mark
+@pytest.mark.slow
 def test_gl_strip_beyond_the_texture_limit(gl):
     """A 20000×64 strip is wider than llvmpipe's 16384: GL runs it in tiles and matches the reference."""
     from pyramid_cli.workflows import pyramids
@@ -277,7 +280,8 @@ def test_api_memmap_in_memmap_outs_for_every_level(tmp_path, fn):
         call(mm, out=[dst[0], np.empty((3, 3), np.float32), *dst[2:]])
 
 
-@pytest.mark.parametrize("kind", slow_beyond(["fill", "blend"]))
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", ["fill", "blend"])
 def test_pointwise_plans_tile(kind, cpu_executor):
     """Plans with PointwisePass (issue 17's fill and blend, several levels) tile to the untiled pixels."""
     from pyramid_cli.jobs.work import Blend, Fill
@@ -306,6 +310,7 @@ def mip_plans():
             yield mip_plan(size, border=border, resize=resize), size
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("tile", [(1, 1), (3, 2), (100, 100)])
 def test_mip_plans_with_resample_passes_tile(tile, cpu_executor):
     """Tiled MIP plans (ResamplePass: sliced tables over windows placed by a guard band) equal untiled."""
@@ -319,6 +324,7 @@ def test_mip_plans_with_resample_passes_tile(tile, cpu_executor):
 
 
 @gl_mark
+@pytest.mark.slow
 def test_gl_mip_plans_with_resample_passes_tile(gl):
     for p, size in mip_plans():
         for tile in [(1, 1), (4, 3)]:

@@ -207,7 +207,7 @@ def sides(op: Op, key: str) -> list[tuple[int, int]]:
     return out
 
 
-@pytest.mark.parametrize("op, key", slow_beyond(CHOICES, 2, unpack=True),
+@pytest.mark.parametrize("op, key", slow_beyond(CHOICES, 1, unpack=True),
                          ids=lambda x: x.value if isinstance(x, Op) else x)
 def test_chosen_plans_equal_the_reference_on_both_sides_of_the_flip(op, key):
     expr = parse(TEXT[op].format(key))

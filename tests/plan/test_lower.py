@@ -8,6 +8,7 @@ import pytest
 from click.testing import CliRunner
 
 from helpers.cases import CHAINS, NAMED, SHAPES
+from helpers.marks import slow_beyond
 from helpers.paths import ROOT
 from pyramid_cli.cli import main
 from pyramid_cli.core import catalogue
@@ -18,8 +19,8 @@ from pyramid_cli.plan import check, cost, estimate_seconds, plan, recipe, recipe
 from pyramid_cli.reference import filters as reference
 
 
-@pytest.mark.parametrize("strategy", ["cost", "paper"])
-@pytest.mark.parametrize("text", NAMED + CHAINS)
+@pytest.mark.parametrize("strategy", slow_beyond(["cost", "paper"]))
+@pytest.mark.parametrize("text", slow_beyond(NAMED + CHAINS, 12))
 def test_emulated_plan_equals_reference_everywhere(text, strategy):
     expr = parse(text)
     rng = np.random.default_rng(abs(hash(text)) % 2 ** 32)
@@ -33,7 +34,7 @@ def test_emulated_plan_equals_reference_everywhere(text, strategy):
         np.testing.assert_allclose(got, want, rtol=0, atol=1e-12, err_msg=f"{text} at {shape}")
 
 
-@pytest.mark.parametrize("text", NAMED + CHAINS)
+@pytest.mark.parametrize("text", slow_beyond(NAMED + CHAINS, 12))
 def test_every_tap_sits_on_a_quarter_texel(text):
     """GPU filtering quantises bilinear weights to 8 bits: quarter positions are exact."""
     p = plan(parse(text), (33, 21))
@@ -51,7 +52,7 @@ PAPER = {"box * g": 1, "box^nw * g": 1, "bartlett": 2, "gauss5": 4, "gauss7": 6,
          "fourpoint": 4.5, "nearest": 1}
 
 
-@pytest.mark.parametrize("size", [(1, 1), (16, 16), (256, 256), (1080, 1920)])
+@pytest.mark.parametrize("size", slow_beyond([(1, 1), (16, 16), (256, 256), (1080, 1920)], 2))
 @pytest.mark.parametrize("text, count", PAPER.items())
 def test_fetches_match_or_beat_the_paper(text, count, size):
     p = plan(parse(text), size, "paper")

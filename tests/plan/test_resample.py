@@ -84,7 +84,7 @@ def test_what_the_border_does_to_the_mean(key, n):
     assert all(c <= target for c in column_sums(as_1d(key), n, m, "zero")[reach:n - reach] or [target])
 
 
-@pytest.mark.parametrize("key", slow_beyond(catalogue.ANALYSIS_FILTERS, 2))
+@pytest.mark.parametrize("key", slow_beyond(catalogue.ANALYSIS_FILTERS, 1))
 @pytest.mark.parametrize("border", BORDERS)
 def test_the_reference_matrix_equals_the_exact_table(key, border):
     """The two derivations (float64 integral of the kernel, exact Fractions) agree everywhere."""
@@ -163,18 +163,19 @@ def _check(run, size, border, key, channels, atol):
         np.testing.assert_allclose(g, r, rtol=0, atol=atol, err_msg=f"{size} {border} {key} level {k + 1}")
 
 
-@pytest.mark.parametrize("size, border, key", list(_cases(SIZES, catalogue.ANALYSIS_FILTERS)))
+@pytest.mark.parametrize("size, border, key", slow_beyond(list(_cases(SIZES, catalogue.ANALYSIS_FILTERS)), 16,
+                                                          unpack=True))
 def test_emulator_equals_reference(size, border, key):
     _check(emulate.run_outputs, size, border, key, 3, 1e-12)
 
 
-@pytest.mark.parametrize("size, border, key", list(_cases(SIZES)))
+@pytest.mark.parametrize("size, border, key", slow_beyond(list(_cases(SIZES)), 8, unpack=True))
 @pytest.mark.parametrize("channels", [None, 4])
 def test_cpu_equals_reference(cpu_executor, size, border, key, channels):
     _check(cpu_executor.run_outputs, size, border, key, channels, 2e-6)
 
 
-@pytest.mark.parametrize("size, border, key", list(_cases(SIZES[:3])))
+@pytest.mark.parametrize("size, border, key", slow_beyond(list(_cases(SIZES[:3])), 8, unpack=True))
 def test_gl_equals_reference(gl, size, border, key):
     _check(gl.run_outputs, size, border, key, 6, 2e-6)
 

@@ -5,6 +5,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from helpers.marks import slow_beyond
 from helpers.oracles import apply_kernel
 from pyramid_cli.core import algebra
 from pyramid_cli.core.border import Border
@@ -79,7 +80,7 @@ CHAINS = ["bartlett * (bartlett * g)", "(box4)^2 *v g", "doosabin *^ (box4 *v g)
           "box *v (midpoint *^ g)"]
 
 
-@pytest.mark.parametrize("text", CHAINS)
+@pytest.mark.parametrize("text", slow_beyond(CHAINS, 3))
 def test_chains_agree_with_the_algebra_in_the_interior(text):
     expr = parse(text)
     g = image((37, 41), None, 5)

@@ -8,6 +8,7 @@ import pytest
 from click.testing import CliRunner
 
 from helpers.images import write_sequence
+from helpers.marks import slow_beyond
 from pyramid_cli.cli import main
 from pyramid_cli.core.errors import UsageError
 from pyramid_cli.run import sequence, shard
@@ -217,7 +218,7 @@ def run_array(envs, spec, extra, jobs):
     return errors
 
 
-@pytest.mark.parametrize("scheduler", sorted(SIMULATED))
+@pytest.mark.parametrize("scheduler", slow_beyond(sorted(SIMULATED), 3))
 @pytest.mark.parametrize("way", ["nothing", "auto/N", "auto/RANGE", "ARRAY", "COUNT", "auto/N+ARRAY"])
 def test_every_scheduler_does_every_job_once_or_every_task_refuses(scheduler, way):
     simulated = 0

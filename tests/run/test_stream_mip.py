@@ -10,7 +10,6 @@ import pytest
 
 from helpers.cli import CLI, run_cli
 from helpers.images import noise, write
-from helpers.marks import slow_beyond
 from pyramid_cli import imageio as io
 from pyramid_cli.core.errors import UsageError
 from pyramid_cli.exec.session import Session
@@ -210,7 +209,8 @@ def test_cli_mipmap_streams_when_told(tmp_path):
     assert sorted(os.listdir(tmp_path)) == ["in.exr", "s.tx"]
 
 
-@pytest.mark.parametrize("memory", slow_beyond(["300K", "600K"]))
+@pytest.mark.slow
+@pytest.mark.parametrize("memory", ["300K", "600K"])
 def test_plan_says_what_a_streamed_mipmap_chooses(tmp_path, memory):
     """``pyramid plan --mipmap --memory`` and ``pyramid mipmap -v --memory`` choose the same band, the same place
     for the coarser levels and the same number of reads (300K: twice, the levels spilled; 600K: once, level 0
@@ -280,6 +280,7 @@ def test_the_spill_file_round_trips(tmp_path):
 
 
 @pytest.mark.gl
+@pytest.mark.slow
 def test_streamed_mipmap_on_gl_is_the_whole_runs_file(tmp_path, gl):
     """The GL executor streams too (its textures the windows' size, counted in the budget; 380K spills the coarser
     levels): the same file as its whole run."""

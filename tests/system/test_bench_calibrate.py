@@ -42,6 +42,7 @@ def test_fit_recovers_the_constants_and_the_tiling():
     assert np.abs(calibrate.residuals(x, t, np.array(model.constants))).max() < 1e-9
 
 
+@pytest.mark.slow
 def test_fit_merges_equal_fetch_costs_and_keeps_constants_non_negative():
     truth = cost.CostModel(pass_s=5e-5, shader_tap_s=0.0, pixel_s=4e-9, fetch_linear_s=2e-9,
                            fetch_nearest_s=2.05e-9, source_pixel_s=0.0)

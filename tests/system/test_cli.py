@@ -11,7 +11,6 @@ import pytest
 from click.testing import CliRunner
 
 from helpers.cli import invoke
-from helpers.marks import slow_beyond
 from pyramid_cli.cli import main
 from pyramid_cli.core.parse import parse
 from pyramid_cli.reference import filters as reference
@@ -68,6 +67,7 @@ def test_explain_report_prints_the_kernel_like_the_paper():
     assert "= 1/4 [1 2 1]ᵀ · 1/4 [1 2 1]" in r.output
 
 
+@pytest.mark.slow
 def test_explain_plot_writes_a_png(tmp_path):
     out = tmp_path / "box4.png"
     r = invoke("explain", "--plot", str(out), "box4 *v g")
@@ -176,6 +176,7 @@ def test_srgb_gradient_blur_matches_linear_light_not_gamma_space(tmp_path):
     assert np.abs(got - gamma).max() > 20 / 255
 
 
+@pytest.mark.slow
 def test_without_egl_auto_falls_back_with_a_warning_and_gl_exits_6(tmp_path):
     src = tmp_path / "in.exr"
     write_exr(src, np.random.default_rng(3).random((9, 7, 3)))
@@ -289,7 +290,8 @@ def _console(*args: str) -> list[str]:
     return [sys.executable, "-m", "pyramid_cli.cli", *args]
 
 
-@pytest.mark.parametrize("broken", slow_beyond([False, True]), ids=["all-good", "one-bad"])
+@pytest.mark.slow
+@pytest.mark.parametrize("broken", [False, True], ids=["all-good", "one-bad"])
 def test_a_reader_closing_stdout_loses_no_frame_and_changes_no_exit_code(tmp_path, broken):
     """`pyramid blur 'in/*.png' -o … | head -1`: the reader goes after one line, and the run goes on (issue 22)."""
     import pyramid_cli as pyr

@@ -134,6 +134,7 @@ def test_chunk_and_cluster_timeout_without_cluster_are_refused(tmp_path):
 
 # ------------------------------------------------------------------ addresses
 @pytest.mark.cli
+@pytest.mark.slow
 def test_refused_connection_is_one_line_within_seconds(tmp_path):
     """The issue asks for under 2 s on localhost; 5 s here leaves room for a loaded 2-core machine (Dask itself
     retried for 20 s)."""

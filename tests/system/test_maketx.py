@@ -18,6 +18,7 @@ import pytest
 from click.testing import CliRunner
 
 from helpers.images import write
+from helpers.marks import slow_beyond, slow_unless
 from helpers.paths import ROOT
 from pyramid_cli import imageio as pio
 from pyramid_cli.cli import main
@@ -256,6 +257,7 @@ def test_exr_output_stays_half(tmp_path, png8):
     inp.close()
 
 
+@pytest.mark.slow
 def test_a_full_disk_writing_a_tx_exits_4_and_leaves_nothing(tmp_path):
     import resource
 
@@ -335,7 +337,7 @@ def maketx_sizes(path: Path) -> list[tuple[int, int]]:
     return [x.shape[:2] for x in levels_of(path)]
 
 
-@pytest.mark.parametrize("shape", [(37, 50), (64, 48), (1, 9), (5, 3)])
+@pytest.mark.parametrize("shape", slow_unless([(37, 50), (64, 48), (1, 9), (5, 3)], [(5, 3)]))
 @pytest.mark.parametrize("analysis", ["box", "quadratic"])
 def test_default_sizes_are_maketx_and_every_level_keeps_the_mean(tmp_path, shape, analysis):
     src, ours, theirs = tmp_path / "in.exr", tmp_path / "ours.exr", tmp_path / "theirs.exr"
@@ -413,7 +415,7 @@ def write_half(path: Path, pixels: np.ndarray) -> None:
     write(path, pixels.astype(np.float16), "half")
 
 
-@pytest.mark.parametrize("shape", [(64, 32, 4), (16, 16, 3)])
+@pytest.mark.parametrize("shape", slow_beyond([(16, 16, 3), (64, 32, 4)]))
 @pytest.mark.parametrize("backend", ["cpu", "gl"])
 def test_box_on_even_sizes_is_bit_identical_to_maketx_box(tmp_path, shape, backend):
     """Half sources: a sum of four halves is exact in float32, so the order of the additions cannot
@@ -436,7 +438,7 @@ def test_box_on_even_sizes_is_bit_identical_to_maketx_box(tmp_path, shape, backe
         assert np.array_equal(x.view(np.uint16), y.view(np.uint16)), f"level {k}"
 
 
-@pytest.mark.parametrize("shape", [(777, 1001), (3, 5), (1, 7), (7, 1), (2, 3),
+@pytest.mark.parametrize("shape", [pytest.param((777, 1001), marks=pytest.mark.slow), (3, 5), (1, 7), (7, 1), (2, 3),
                                    pytest.param((1080, 1920), marks=pytest.mark.slow)])
 def test_level_count_and_sizes_are_maketxs(tmp_path, shape):
     src, ours, theirs = tmp_path / "in.exr", tmp_path / "ours.tx", tmp_path / "theirs.tx"
@@ -458,7 +460,8 @@ def test_average_color_and_the_1x1_level_equal_maketxs_for_box_on_even_sizes(tmp
     np.testing.assert_allclose(levels_of(ours)[-1], levels_of(theirs)[-1], rtol=1e-6)
 
 
-@pytest.mark.parametrize("pixel_type, rows", [("uint8", 40), ("uint16", 300), ("half", 520), ("float", 257)])
+@pytest.mark.parametrize("pixel_type, rows",
+                         slow_beyond([("uint8", 40), ("uint16", 300), ("half", 520), ("float", 257)], unpack=True))
 def test_sha1_is_hashed_from_the_pixels_in_memory_as_maketx_hashes_the_file(tmp_path, monkeypatch, pixel_type,
                                                                              rows):
     """The source is read once: its stored values are hashed before any conversion (integers as OpenImageIO

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from helpers.marks import slow_beyond
 from pyramid_cli.cli import main
 from pyramid_cli.core.catalogue import ANALYSIS_FILTERS as ANALYSIS
 from pyramid_cli.core.catalogue import SYNTHESIS_FILTERS as SYNTHESIS
@@ -34,7 +35,7 @@ def test_library_blur_reference_matches():
 
 
 @pytest.mark.parametrize("analysis", ANALYSIS)
-@pytest.mark.parametrize("synthesis", SYNTHESIS)
+@pytest.mark.parametrize("synthesis", slow_beyond(SYNTHESIS, 2))
 def test_blur_plan_equals_reference_levels(analysis, synthesis):
     rng = np.random.default_rng(11)
     for shape, levels in [((1, 1), 1), ((5, 3), 2), ((17, 13), 3), ((64, 64), 4), ((33, 70), 5)]:
