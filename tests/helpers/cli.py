@@ -25,3 +25,18 @@ def invoke(*args, command=None) -> Result:
 def run_cli(*args, timeout: float = TIMEOUT, **kw) -> subprocess.CompletedProcess:
     """Run ``pyramid ARGS…`` in a subprocess, its output captured as text."""
     return subprocess.run(CLI + [str(a) for a in args], capture_output=True, text=True, timeout=timeout, **kw)
+
+
+def peak_rss(args) -> int:
+    """Peak resident set of one child process running ``args``, in bytes (ru_maxrss of the waited-for child,
+    Linux: KiB).
+
+    Run through a fresh Python so that RUSAGE_CHILDREN covers exactly that child."""
+    code = ("import resource, subprocess, sys; r = subprocess.run(sys.argv[1:], capture_output=True, text=True); "
+            "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss, r.returncode); "
+            "sys.stderr.write(r.stderr)")
+    r = subprocess.run([sys.executable, "-c", code] + [str(a) for a in args], capture_output=True, text=True,
+                       timeout=TIMEOUT)
+    kib, rc = r.stdout.split()
+    assert rc == "0", r.stderr
+    return int(kib) * 1024

@@ -4,13 +4,11 @@ from __future__ import annotations
 
 import os
 import resource
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 
-from helpers.cli import CLI, TIMEOUT, run_cli
+from helpers.cli import CLI, peak_rss, run_cli
 from helpers.images import noise, write
 from pyramid_cli import imageio as io
 from pyramid_cli.core.errors import DataError, UsageError
@@ -201,20 +199,6 @@ def test_cli_gl_pads_the_bands_not_the_picture(tmp_path):
     assert np.array_equal(io.read_image(tmp_path / "s.exr", keep_half=True).pixels, whole.astype(np.float16))
 
 
-def _peak_rss(args) -> int:
-    """Peak resident set of one child process, in bytes (ru_maxrss of the waited-for child, Linux: KiB).
-
-    Run through a fresh Python so that RUSAGE_CHILDREN covers exactly that child."""
-    code = ("import resource, subprocess, sys; r = subprocess.run(sys.argv[1:], capture_output=True, text=True); "
-            "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss, r.returncode); "
-            "sys.stderr.write(r.stderr)")
-    r = subprocess.run([sys.executable, "-c", code] + [str(a) for a in args], capture_output=True, text=True,
-                       timeout=TIMEOUT)
-    kib, rc = r.stdout.split()
-    assert rc == "0", r.stderr
-    return int(kib) * 1024
-
-
 @pytest.mark.slow
 def test_streaming_stays_within_the_memory_given(tmp_path):
     """A file whose decoded pixels are several times --memory streams within it (a bound, not a timing):
@@ -227,9 +211,9 @@ def test_streaming_stays_within_the_memory_given(tmp_path):
     write(tiny, noise(16, 16, seed=2), "half")
     assert 1536 * 1536 * 4 * 4 > 2 * budget
     cmd = CLI + ["blur", "--backend", "cpu", "--levels", "5", "--memory", str(budget)]
-    base = _peak_rss(cmd + [tiny, tmp_path / "t.exr"])
-    streamed = _peak_rss(cmd + [big, tmp_path / "s.exr"])
-    whole = _peak_rss(CLI + ["blur", "--backend", "cpu", "--levels", "5", big, tmp_path / "w.exr"])
+    base = peak_rss(cmd + [tiny, tmp_path / "t.exr"])
+    streamed = peak_rss(cmd + [big, tmp_path / "s.exr"])
+    whole = peak_rss(CLI + ["blur", "--backend", "cpu", "--levels", "5", big, tmp_path / "w.exr"])
     assert streamed - base < 2 * budget, (base, streamed, whole)
     assert whole - base > 3 * budget, (base, streamed, whole)  # the bound could fail
     a, b = (io.read_image(tmp_path / n, keep_half=True).pixels for n in ("s.exr", "w.exr"))

@@ -8,7 +8,7 @@ import numpy as np
 import OpenImageIO as oiio
 import pytest
 
-from helpers.cli import CLI, run_cli
+from helpers.cli import CLI, peak_rss, run_cli
 from helpers.images import noise, write
 from pyramid_cli import imageio as io
 from pyramid_cli.core.errors import UsageError
@@ -249,7 +249,6 @@ def test_a_signal_during_a_streamed_mipmap(tmp_path, memory):
 def test_streamed_mipmap_stays_within_the_memory_given(tmp_path):
     """A picture several times --memory makes its MIP file within it (peak RSS over a tiny image's, a bound
     with a generous margin, not a timing); the whole run takes many times more; the files are the same."""
-    from test_stream import _peak_rss
 
     pytest.importorskip("numba")
     budget = 16 << 20
@@ -257,9 +256,9 @@ def test_streamed_mipmap_stays_within_the_memory_given(tmp_path):
     write(big, noise(2048, 2048, seed=1), "half")       # 32 MiB half, 64 MiB as float32
     write(tiny, noise(16, 16, seed=2), "half")
     cmd = CLI + ["mipmap", "--backend", "cpu", "--memory", str(budget)]
-    base = _peak_rss(cmd + [tiny, tmp_path / "t.exr"])
-    streamed = _peak_rss(cmd + [big, tmp_path / "s.exr"])
-    whole = _peak_rss(CLI + ["mipmap", "--backend", "cpu", big, tmp_path / "w.exr"])
+    base = peak_rss(cmd + [tiny, tmp_path / "t.exr"])
+    streamed = peak_rss(cmd + [big, tmp_path / "s.exr"])
+    whole = peak_rss(CLI + ["mipmap", "--backend", "cpu", big, tmp_path / "w.exr"])
     assert streamed - base < 2 * budget, (base, streamed, whole)
     assert whole - base > 3 * budget, (base, streamed, whole)
     assert_same_file(tmp_path / "s.exr", tmp_path / "w.exr")
