@@ -258,7 +258,7 @@ def run_script(tmp_path, body: str):
     lines = "\n".join("    " + line for line in body.strip().splitlines())
     script.write_text(f"""
 import gc, os, signal, sys, time
-from pyramid_cli import signals
+from pyramid_cli.core import signals
 signals.install()
 
 def busy(s):
