@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import pyramid_cli as pyr
+from helpers.marks import slow_beyond
 from pyramid_cli import api
 from pyramid_cli.core.border import Border
 from pyramid_cli.core.errors import PyramidError
@@ -58,7 +59,7 @@ def cases(a):
 
 @pytest.mark.gl
 @pytest.mark.parametrize("channels", CHANNELS)
-@pytest.mark.parametrize("size", SIZES, ids=lambda s: f"{s[0]}x{s[1]}")
+@pytest.mark.parametrize("size", slow_beyond(SIZES, 3), ids=lambda s: f"{s[0]}x{s[1]}")
 def test_every_function_equals_the_reference_on_every_backend(sessions, size, channels):
     a = image(size, channels, seed=size[0] * 7 + channels)
     for name, call, want in cases(a):
