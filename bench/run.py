@@ -1007,7 +1007,7 @@ def scenario_gpu(args, libs: dict, report: dict) -> None:
     plan = blur_plan((rows, cols), 5, "box4", "doosabin")
     notes.append("the same job everywhere: 5 × box4 ⊗↓ then 5 × Doo-Sabin ⊗↑ back to the input size; the torch peer "
                  "(bench/torch_peer.py) takes its weights from the project's masks and equals the numpy reference "
-                 "(tests/test_torch_peer.py); each torch contender ends with a device synchronize")
+                 "(tests/system/test_torch_peer.py); each torch contender ends with a device synchronize")
     notes.append("GL device = the passes back to back (ctx.finish() before the first and after the last); "
                  "'finish after each pass' is the filter scenario's per-pass split, sync cost included")
     img32 = gradient_noise(rows, cols, 4)

@@ -1,7 +1,7 @@
 """The PyTorch peer: pyramid's written operators as ``torch.nn.functional.conv2d`` passes.
 
 Used by ``bench/run.py --only gpu`` as the GPU peer of the GL executor, and by
-``tests/test_torch_peer.py``, which checks it against the numpy reference at every pixel.
+``tests/system/test_torch_peer.py``, which checks it against the numpy reference at every pixel.
 
 It computes the same thing as :mod:`pyramid_cli.reference.filters` with the clamp border, on NCHW
 tensors of any device and floating dtype (float64, float32, float16):

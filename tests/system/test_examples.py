@@ -25,11 +25,12 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from helpers.paths import ROOT
 from pyramid_cli.cli import main
 
 pytestmark = [pytest.mark.cli, pytest.mark.slow]
 
-ROOT = Path(__file__).resolve().parents[1]
+
 BIN = Path(sys.executable).parent
 DOCUMENTS = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
 
