@@ -4,8 +4,8 @@ Domain-true resampling against the float64 reference: tests/plan/test_resample.p
 checked by maketx and OpenImageIO's TextureSystem: tests/system/test_maketx.py, tests/system/test_texture_system.py.
 """
 
-from pyramid_cli.core.geometry import mip_levels
-from pyramid_cli.workflows.mip import mip_sizes, parse_wrap
+from pyramid_cli.core.geometry import mip_levels, mip_sizes
+from pyramid_cli.workflows.mip import parse_wrap
 
 
 def test_levels_halve_down_to_one_pixel_like_maketx():
