@@ -1,0 +1,64 @@
+"""The ``pyramid`` group (pyramid_cli.cli.group): its help and version, one line per error with its exit code,
+and the console script's entry point."""
+
+import os
+import subprocess
+import sys
+
+import pytest
+
+from helpers.cli import CLI, invoke
+from pyramid_cli.cli.group import EXIT_CODE_HELP
+from pyramid_cli.core.errors import EXIT_CODES
+
+pytestmark = pytest.mark.cli
+
+
+@pytest.mark.parametrize("command", [[], ["explain"], ["plan"], ["apply"]])
+def test_every_command_has_help_with_an_example(command):
+    r = invoke(*command, "--help")
+    assert r.exit_code == 0
+    assert "Example" in r.output
+
+
+def test_console_script_and_help_do_not_import_heavy_modules():
+    code = ("import sys; from pyramid_cli.cli import main\n"
+            "try:\n    main(['--help'], standalone_mode=False)\nexcept SystemExit:\n    pass\n"
+            "heavy = [m for m in ('numpy', 'OpenImageIO', 'moderngl', 'matplotlib') if m in sys.modules]\n"
+            "print('HEAVY=' + ','.join(heavy))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env={**os.environ})
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip().splitlines()[-1] == "HEAVY="
+
+
+@pytest.mark.parametrize("args", [["explain", "box4 *v g"], ["plan", "box4 *v g", "--size", "64x64"],
+                                  ["farm-template", "--frames", "1-9", "--", "blur", "/sh/a.####.exr",
+                                   "-o", "/sh/b.####.exr"]],
+                         ids=lambda a: a[0])
+def test_printing_commands_exit_0_quietly_when_stdout_is_closed(args):
+    proc = subprocess.Popen(CLI + args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc.stdout.close()  # closed before the command prints
+    try:
+        code = proc.wait(timeout=60)
+    finally:
+        proc.kill()
+    assert (code, proc.stderr.read()) == (0, "")
+
+
+def test_version_names_the_program():
+    r = invoke("--version")
+    assert r.exit_code == 0 and r.output.startswith("pyramid, version ")
+
+
+def test_help_lists_every_exit_code():
+    r = invoke("--help")
+    assert r.exit_code == 0
+    assert EXIT_CODE_HELP.startswith("\b\nExit codes:\n")
+    for code, text in EXIT_CODES.values():
+        assert f"  {code}  {text.split()[0]}" in r.output
+
+
+def test_a_pyramid_error_is_one_line_and_its_kind_exit_code():
+    r = invoke("plan", "gauss7", "--size", "8x8", "--backend", "cpu")  # a UsageError raised inside the command
+    assert r.exit_code == EXIT_CODES["usage"][0] == 2
+    assert r.output == "pyramid: error: --backend says whose memory --memory estimates: give --memory too\n"
