@@ -82,21 +82,3 @@ def test_auto_prefers_the_compiled_cpu_executor_over_a_software_gl(gl_executor):
             assert s.on_gl  # a hardware GPU keeps GL
         else:
             assert s.name.startswith("cpu (numba") and "software renderer" in s.why
-
-
-def test_every_executor_follows_the_executor_protocol():
-    """The session, the tile scheduler and the streaming runner use only what exec.base.Executor names."""
-    from pyramid_cli.exec.base import Executor
-    from pyramid_cli.exec.emulate import Emulator
-    from pyramid_cli.exec.gl import GLExecutor
-
-    executors = [Emulator(), GLExecutor()]  # GLExecutor makes no context until it runs
-    with Session("cpu") as s:
-        executors.append(s.executor)
-        for ex in executors:
-            assert isinstance(ex, Executor), ex
-            assert ex.backend in ("gl", "cpu") and ex.strategy in ("cost", "fused")
-        assert s.executor.max_texture_size is None and not s.executor.host_textures
-        assert s.executor.texture_bytes((5, 5)) == 0
-    emulated = Emulator().run_outputs(Blur(levels=1).plan([(5, 4)]), [np.ones((5, 4))], np.float32)
-    assert emulated[0].dtype == np.float32 and Emulator.work_dtype == np.float64

@@ -1,4 +1,5 @@
-"""The GL executor against the float64 oracle (``reference``) and the plan's living definition (``emulate``)."""
+"""The GL executor (``pyramid_cli.exec.gl.executor``) against the float64 oracle (``reference``) and the plan's
+living definition (``emulate``)."""
 
 from functools import cache
 
@@ -6,24 +7,12 @@ import numpy as np
 import pytest
 
 import pyramid_cli.exec.gl.shaders as generate
-from helpers.cases import GRID_CHANNELS, GRID_SIZES
 from helpers.marks import slow_beyond
-from pyramid_cli.core.errors import BackendError, DataError
+from pyramid_cli.core.errors import DataError
 from pyramid_cli.core.parse import parse
 from pyramid_cli.exec import emulate
 from pyramid_cli.plan import plan
 from pyramid_cli.reference import filters as reference
-
-CHAINS = [
-    "box *v g", "box^nw *v g", "box4 *v g", "quadratic *v g", "cubic *v g", "bartlett *v g",
-    "gauss5 *v g", "box * g", "box^nw * g", "bartlett", "gauss5", "gauss7", "quasi", "nearest",
-    "midpoint", "doosabin", "cubic *^ g", "fourpoint", "box\\ *v bartlett", "bartlett * (bartlett * g)",
-    "(box4)^3 *v g", "doosabin *^ (box4 *v g)", "box\\ * (doosabin *^ g)", "quasi * g", "box *v^2 g",
-    "1/8 [1 2 1; 0 2 0; 1 0 1] *v g", "[1 -1] * g", "(doosabin)^2 *^ ((box4)^2 *v g)",
-    "fourpoint *^ (cubic *v g)", "box *v (midpoint *^ g)",
-]
-SIZES = GRID_SIZES
-CHANNELS = GRID_CHANNELS
 
 gl_mark = pytest.mark.gl
 
@@ -169,51 +158,12 @@ def test_too_large_for_one_texture_runs_in_tiles(gl):
     np.testing.assert_allclose(gl.run(up, x), emulate.run(up, x), rtol=0, atol=1e-6)
 
 
-@gl_mark
-def test_compile_error_shows_numbered_source(gl, monkeypatch):
-    monkeypatch.setattr(generate, "fragment_source", lambda s: "#version 330 core\nvoid main() { oops; }\n")
-    _, p = planned("1/3 [1 1 1] * g", (4, 4))
-    with pytest.raises(generate.ShaderCompileError) as info:
-        gl.run(p, np.zeros((4, 4), dtype=np.float32))
-    assert "fragment shader failed to compile" in str(info.value)
-    assert "2: void main() { oops; }" in str(info.value)
-
-
-# ---------------------------------------------------------------- without GL
-def test_no_context_is_a_backend_error_naming_the_fix(monkeypatch):
-    import moderngl
-
-    from pyramid_cli.exec import gl as glmod
-
-    def refuse(*args, **kwargs):
-        raise Exception("libEGL.so.1: cannot open shared object file")
-
-    monkeypatch.setattr(moderngl, "create_standalone_context", refuse)
-    ok, why = glmod.available()
-    assert not ok and "libEGL.so.1" in why and "apt-get install -y libegl1" in why and "--backend cpu" in why
-    assert "\n" not in why
-    with pytest.raises(BackendError, match="--backend cpu"):
-        glmod.GLExecutor().run(planned("g", (1, 1))[1], np.zeros((1, 1), dtype=np.float32))
-
-
 def test_texture_sizes_are_powers_of_two():
     from pyramid_cli.exec.gl import texture_size
 
     assert texture_size((1, 1)) == (1, 1)
     assert texture_size((2160, 3840)) == (4096, 4096)
     assert texture_size((129, 64)) == (256, 64)
-
-
-def test_generated_source_is_canonical_per_shape():
-    _, a = planned("gauss7", (9, 9), "paper")  # the paper's passes: the cost model fuses tiny images
-    _, b = planned("bartlett", (40, 3), "paper")
-    sources = {generate.fragment_source(generate.shape(ps)) for ps in a.passes + b.passes}
-    assert len(sources) == 2
-    text = generate.fragment_source(generate.shape(planned("fourpoint", (3, 3), "paper")[1].passes[0]))
-    assert text.startswith("#version 330 core\n")
-    assert "#define PERIOD ivec2(1, 2)" in text and "if (phase == ivec2(0, 1))" in text
-    assert "acc += -0.0625 * nearest0(R - ivec2(0, -1));" in text
-    assert "acc += 1.125 * linear0(Rf - vec2(0.0, 0.5));" in text
 
 
 @gl_mark
@@ -227,41 +177,6 @@ def test_stale_pool_contents_never_leak(gl, text, channels):
     image = random_image((5, 6), channels, seed=9)
     out = gl.run(p, image)
     np.testing.assert_allclose(out, reference.run(expr, image), rtol=0, atol=1e-5)
-
-
-@pytest.mark.parametrize("text", CHAINS)
-def test_affine_taps_read_where_the_phase_formula_reads(text):
-    """Where the generator drops the phase arithmetic, every phase's reads must be r·S/P + c."""
-    from fractions import Fraction
-
-    _, p = planned(text, (17, 13))
-    for ps in p.passes:
-        s = generate.shape(ps)
-        affine = generate.affine_taps(s)
-        if affine is None:
-            continue
-        table = dict(s.phases)
-        for r in range(-3, 9):
-            for c in range(-3, 9):
-                taps = table[(r % s.period[0], c % s.period[1])]
-                base = (s.stride[0] * -(-r // s.period[0]), s.stride[1] * -(-c // s.period[1]))
-                indexed = [(t.slot, (base[0] - t.offset[0], base[1] - t.offset[1]), t.weight) for t in taps]
-                slope = (Fraction(s.stride[0], s.period[0]), Fraction(s.stride[1], s.period[1]))
-                direct = [(t.slot, (r * slope[0] + t.offset[0], c * slope[1] + t.offset[1]), t.weight)
-                          for t in affine]
-                assert indexed == direct
-
-
-def test_affine_passes_skip_the_phase_arithmetic():
-    def sources(text):
-        return [generate.fragment_source(generate.shape(ps)) for ps in planned(text, (9, 9))[1].passes]
-
-    for text in ["doosabin", "box4 *v g", "quadratic", "gauss7"]:
-        assert all("#define AFFINE" in src for src in sources(text)), text
-    for text in ["fourpoint", "nearest", "midpoint"]:  # phases read at different offsets from r·S/P
-        assert not any("#define AFFINE" in src for src in sources(text)), text
-    (ds,) = sources("doosabin")
-    assert "#define SLOPE vec2(0.5, 0.5)" in ds and "acc += linear0(base + vec2(0.25, 0.25));" in ds
 
 
 @gl_mark

@@ -1,0 +1,51 @@
+"""The generated numba kernel source (``pyramid_cli.exec.cpu.codegen``): one canonical text per pass shape,
+taps expanded into texel terms, separable weights factored."""
+
+from __future__ import annotations
+
+from fractions import Fraction
+
+import pytest
+
+import pyramid_cli.plan.shapes as generate
+from pyramid_cli.core.parse import parse
+from pyramid_cli.plan import check, plan
+
+pytest.importorskip("numba")
+
+from pyramid_cli.exec import cpu  # noqa: E402
+
+
+def _planned(text, size, strategy="cost", border="clamp"):
+    expr = parse(text)
+    p = plan(expr, size, strategy, border)
+    check(p)
+    return expr, p
+
+
+def test_kernel_source_is_canonical_and_unrolled():
+    _, a = _planned("gauss7", (9, 9), "paper")
+    _, b = _planned("bartlett", (40, 3), "paper")
+    texts = {cpu.kernel_source(generate.shape(ps), (False,)) for ps in a.passes + b.passes}
+    assert len(texts) == 2
+    _, ds = _planned("doosabin", (8, 8))
+    text = cpu.kernel_source(generate.shape(ds.passes[0]), (False,))
+    assert "cache=True" in text and "v0_3 = t0[" in text and "if C == 4:" in text  # RGBA unrolled
+    assert "np.float32(0.25)" in text and "np.float32(0.75)" in text  # one vertical (¼, ¾) sum per row phase
+    assert "lut[" not in text and "lut[" in cpu.kernel_source(generate.shape(ds.passes[0]), (True,))
+
+
+def test_phase_terms_expand_taps_exactly():
+    """A tap at a quarter position becomes its four texels, with the bilinear weights, summed per texel."""
+    _, p = _planned("doosabin", (8, 8))
+    for _, taps in generate.shape(p.passes[0]).phases:
+        terms = cpu.phase_terms(taps)
+        assert sum(t.weight for t in terms) == 1 and len(terms) == 4
+        assert sorted(t.weight for t in terms) == [Fraction(1, 16), Fraction(3, 16), Fraction(3, 16), Fraction(9, 16)]
+
+
+def test_factor_splits_only_separable_weights():
+    u, (v,) = cpu.factor([{(0, 0): Fraction(1, 4), (0, 1): Fraction(1, 4), (1, 0): Fraction(1, 4),
+                           (1, 1): Fraction(1, 4)}])
+    assert u == {0: Fraction(1, 2), 1: Fraction(1, 2)} and v == {0: Fraction(1, 2), 1: Fraction(1, 2)}
+    assert cpu.factor([{(0, 0): Fraction(1), (1, 1): Fraction(1)}]) is None
