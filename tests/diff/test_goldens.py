@@ -1,4 +1,6 @@
-"""``pyramid diff`` on folders and globs, ``--update``, JUnit and HTML reports, FLIP, idiff spellings."""
+"""``pyramid diff`` on folders and globs, ``--update``, FLIP, idiff spellings (pyramid_cli.diff.goldens).
+
+The reports: tests/diff/test_junit.py, tests/diff/test_html.py; the ``tree`` fixture: tests/diff/conftest.py."""
 
 from __future__ import annotations
 
@@ -6,8 +8,6 @@ import hashlib
 import json
 import os
 import shutil
-import subprocess
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -16,14 +16,11 @@ import pytest
 from click.testing import CliRunner
 
 from helpers.cli import invoke
+from helpers.golden_tree import img
 from helpers.images import write
-from helpers.paths import DATA, SAMPLES
+from helpers.paths import SAMPLES
 from pyramid_cli.cli.diff import diff, idiff_argv
 from pyramid_cli.diff import goldens
-
-
-def img(seed: int, h: int = 8, w: int = 8, c: int = 4) -> np.ndarray:
-    return np.random.default_rng(seed).random((h, w, c)).astype(np.float32)
 
 
 def run(*args) -> object:
@@ -33,25 +30,6 @@ def run(*args) -> object:
 def digest(folder: Path) -> dict[str, str]:
     return {str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
             for p in sorted(folder.rglob("*")) if p.is_file()}
-
-
-@pytest.fixture
-def tree(tmp_path: Path) -> tuple[Path, Path]:
-    """out/ and golden/: a passing pair, a failing pair, a missing golden, an extra golden,
-    a pair passing through an alternative reference, a warning-free match in a subfolder."""
-    out, gold = tmp_path / "out", tmp_path / "golden"
-    write(out / "pass.exr", img(1))
-    write(gold / "pass.exr", img(1))
-    bad = img(2)
-    write(out / "fail.exr", bad + 0.25)
-    write(gold / "fail.exr", bad)
-    write(out / "new.exr", img(3))                  # no golden: missing
-    write(gold / "gone.exr", img(4))                # no output: extra
-    write(out / "sub" / "alt.exr", img(5) + 0.5)
-    write(gold / "sub" / "alt.exr", img(5))         # fails...
-    write(gold / "sub" / "alt-gpu.exr", img(5) + 0.5)  # ...but this accepted alternative matches
-    (gold / "notes.txt").write_text("not an image: never compared, never touched\n")
-    return out, gold
 
 
 def test_folders_one_verdict_with_a_line_each(tree):
@@ -308,100 +286,6 @@ def test_eight_bit_advice_one_code_passes_two_fail(tmp_path):
 
 
 # ---------------------------------------------------------------------------
-# JUnit
-
-
-def test_junit_validates_and_has_one_testcase_per_pair(tree, tmp_path):
-    xmlschema = pytest.importorskip("xmlschema")
-    out, gold = tree
-    report = tmp_path / "r" / "junit.xml"
-    report.parent.mkdir()
-    assert run("--junit", report, out, gold).exit_code == 2
-    schema = xmlschema.XMLSchema(str(DATA / "junit-10.xsd"))
-    schema.validate(str(report))
-    import xml.etree.ElementTree as ET
-
-    root = ET.parse(report).getroot()
-    cases = {tc.get("name"): tc for tc in root.iter("testcase")}
-    assert set(cases) == {"pass.exr", "fail.exr", "new.exr", "gone.exr", os.path.join("sub", "alt.exr")}
-    fail = cases["fail.exr"].find("failure")
-    assert fail is not None and fail.get("type") == "failure" and "max error" in fail.text
-    assert "RMS error" in fail.text and "PSNR" in fail.text
-    assert cases["new.exr"].find("failure").get("type") == "missing"
-    assert cases["pass.exr"].find("failure") is None
-    suite = root.find("testsuite")
-    assert (suite.get("tests"), suite.get("failures"), suite.get("errors")) == ("5", "3", "0")
-
-
-def test_junit_error_for_unreadable_file(tmp_path):
-    xmlschema = pytest.importorskip("xmlschema")
-    a = write(tmp_path / "a.exr", img(1))
-    (tmp_path / "b.exr").write_bytes(b"broken")
-    report = tmp_path / "j.xml"
-    assert run("--junit", report, a, tmp_path / "b.exr").exit_code == 4
-    xmlschema.XMLSchema(str(DATA / "junit-10.xsd")).validate(str(report))
-    assert "<error" in report.read_text()
-
-
-# ---------------------------------------------------------------------------
-# HTML
-
-
-def test_html_report_self_contained_failures_first(tree, tmp_path):
-    out, gold = tree
-    rep = tmp_path / "rep"
-    assert run("--html", rep, out, gold).exit_code == 2
-    text = (rep / "index.html").read_text()
-    assert "http://" not in text and "https://" not in text      # no network
-    order = [text.index(f"</span> {n}</h2>") for n in ("fail.exr", "new.exr", "gone.exr", "pass.exr")]
-    assert order[:1] == [min(order)] and order[-1] == max(order)   # failures first, passes last
-    assert "class='flip'" in text and "data-b=" in text
-    for src in set(__import__("re").findall(r"src='(img/[^']+)'", text)):
-        assert (rep / src).is_file()
-    assert "|A-B| colour" in text and "|A-B| alpha" in text
-    assert "RMS" in text and "PSNR" in text
-
-
-def _chromium() -> str | None:
-    return shutil.which("chromium") or shutil.which("chromium-browser")
-
-
-CHROMIUM_FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
-                  "--disable-component-update", "--disable-sync", "--no-first-run"]
-
-
-@pytest.mark.cli
-@pytest.mark.slow
-@pytest.mark.skipif(_chromium() is None, reason="chromium is not on PATH (apt-get install -y chromium)")
-def test_html_report_in_headless_chromium(tree, tmp_path):
-    out, gold = tree
-    rep = tmp_path / "rep"
-    assert run("--html", rep, out, gold).exit_code == 2
-    url = (rep / "index.html").as_uri()
-    with tempfile.TemporaryDirectory() as profile:
-        dom = subprocess.run([_chromium(), *CHROMIUM_FLAGS, f"--user-data-dir={profile}",
-                              "--enable-logging=stderr", "--v=0", "--virtual-time-budget=2000", "--dump-dom", url],
-                             capture_output=True, text=True, timeout=60)
-    assert "<section class=\"pair failure\"" in dom.stdout, dom.stderr[-2000:]
-    assert "Uncaught" not in dom.stderr and "CONSOLE" not in dom.stderr, dom.stderr[-2000:]
-    assert "data-showing=\"A\"" in dom.stdout
-    with tempfile.TemporaryDirectory() as profile:   # the script runs: #B flips every picture to B
-        dom_b = subprocess.run([_chromium(), *CHROMIUM_FLAGS, f"--user-data-dir={profile}",
-                                "--virtual-time-budget=2000", "--dump-dom", url + "#B"],
-                               capture_output=True, text=True, timeout=60)
-    assert "data-showing=\"B\"" in dom_b.stdout and "data-showing=\"A\"" not in dom_b.stdout
-    assert "B (reference) \u2014 click to flip" in dom_b.stdout
-    shot = tmp_path / "shot.png"
-    with tempfile.TemporaryDirectory() as profile:
-        subprocess.run([_chromium(), *CHROMIUM_FLAGS, f"--user-data-dir={profile}", f"--screenshot={shot}",
-                        "--window-size=1200,900", url], capture_output=True, timeout=60)
-    inp = oiio.ImageInput.open(str(shot))
-    px = inp.read_image("uint8")
-    inp.close()
-    assert px.shape[:2] == (900, 1200) and px.std() > 5   # something was drawn
-
-
-# ---------------------------------------------------------------------------
 # FLIP
 
 
@@ -439,7 +323,6 @@ def test_flip_missing_names_the_install_command(tmp_path, monkeypatch):
 
 def test_two_frame_sequences_pair_by_frame_number(tmp_path):
     """render.####.exr against golden/plate.%04d.exr: names differ, frames pair (fileseq's conventions)."""
-    import OpenImageIO as oiio
 
     from pyramid_cli.cli import main
 

@@ -1,0 +1,53 @@
+"""A band of rows at a time (pyramid_cli.imageio.bands): streams read and write what the whole-image calls
+read and write. Streaming whole commands: tests/run/test_stream.py."""
+
+import numpy as np
+import pytest
+
+from helpers.images import write as write_raw
+from pyramid_cli import imageio as pio
+from pyramid_cli.core.errors import OutputError
+from pyramid_cli.imageio import bands
+
+
+def test_a_stream_reads_the_bands_read_image_reads(tmp_path):
+    src = np.random.default_rng(1).integers(0, 256, (11, 5, 4)).astype(np.uint8)
+    path = write_raw(tmp_path / "in.png", src, "uint8", alpha=3, oiio__UnassociatedAlpha=1)
+    whole = pio.read_image(path)
+    with bands.open_stream(path) as stream:
+        assert stream.shape == (11, 5, 4) and stream.dtype == np.float32
+        assert stream.info.alpha_mode == whole.spec.alpha_mode == "straight"
+        parts = [stream.read(y, min(y + 4, 11)) for y in range(0, 11, 4)]
+    np.testing.assert_array_equal(np.concatenate(parts), whole.pixels)
+
+
+def test_a_stream_writer_writes_the_file_write_image_writes(tmp_path):
+    px = np.random.default_rng(2).random((10, 6, 3)).astype(np.float32)
+    info = pio.info_for_array("x.png", 3)
+    pio.write_image(tmp_path / "whole.png", pio.Image(px, info), dither=True)
+    with bands.stream_writer(tmp_path / "bands.png", info, px.shape, dither=True) as writer:
+        for y in range(0, 10, 3):
+            writer.write(y, px[y:y + 3])
+    a, b = pio.read_image(tmp_path / "whole.png"), pio.read_image(tmp_path / "bands.png")
+    np.testing.assert_array_equal(a.pixels, b.pixels)
+
+
+def test_rows_go_in_order_and_a_short_write_leaves_nothing(tmp_path):
+    info = pio.info_for_array("x.exr", 1)
+    with pytest.raises(ValueError, match="row 0 expected"), \
+            bands.stream_writer(tmp_path / "a.exr", info, (4, 4, 1)) as writer:
+        writer.write(2, np.zeros((2, 4, 1), np.float32))
+    with pytest.raises(ValueError, match="2 of 4 rows"), \
+            bands.stream_writer(tmp_path / "a.exr", info, (4, 4, 1)) as writer:
+        writer.write(0, np.zeros((2, 4, 1), np.float32))
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_formats_encoded_whole_do_not_stream(tmp_path):
+    assert bands.streams_to("a.exr") and bands.streams_to("a.png")
+    assert not bands.streams_to("a.jpg") and not bands.streams_to("a.unknown")
+    with pytest.raises(OutputError, match="band by band"), \
+            bands.stream_writer(tmp_path / "a.jpg", pio.info_for_array("a.jpg", 3), (2, 2, 3)):
+        pass
+    assert bands.band_quantum(1, False) == 1 and bands.band_quantum(1, True) == 8
+    assert bands.band_quantum(64, True) == 64 and bands.band_quantum(12, True) == 24
