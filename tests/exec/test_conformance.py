@@ -3,7 +3,7 @@
 One suite for all executors: each test takes the ``executor`` fixture (tests/conftest.py), which runs it once
 per executor (the plan emulator in float64, the compiled CPU executor, GL; GL tests carry the ``gl`` mark).
 A new executor joins every test here by one entry in ``conftest.EXECUTORS``. What only one executor does
-(kernel caches, shader text, texture limits, threads) is tested in its own file (test_cpu.py, test_gl.py).
+(kernel caches, shader text, texture limits, threads) is tested in its own file (tests/exec/cpu/, tests/exec/gl/).
 
 The fast tier runs the grid on three sizes and the borders on a few filters with one strategy; the rest is
 ``slow``.
