@@ -24,7 +24,7 @@ from pyramid_cli.exec import emulate
 from pyramid_cli.jobs.texture import TextureLevels
 from pyramid_cli.plan import Pass, ResamplePass, check
 from pyramid_cli.plan.resample import axis_table, column_sums, dense
-from pyramid_cli.reference.mip import mip_reference, resample_matrix
+from pyramid_cli.reference.mip import mip_reference
 from pyramid_cli.workflows.pyramids import mip_axis_weights, mip_plan
 
 BORDERS = ["clamp", "mirror", "wrap", "zero"]
@@ -84,17 +84,6 @@ def test_what_the_border_does_to_the_mean(key, n):
     zero = dense(starts, table, n, "zero")
     assert all(sum(row) <= 1 for row in zero)
     assert all(c <= target for c in column_sums(as_1d(key), n, m, "zero")[reach:n - reach] or [target])
-
-
-@pytest.mark.parametrize("key", slow_beyond(catalogue.ANALYSIS_FILTERS, 1))
-@pytest.mark.parametrize("border", BORDERS)
-def test_the_reference_matrix_equals_the_exact_table(key, border):
-    """The two derivations (float64 integral of the kernel, exact Fractions) agree everywhere."""
-    d, w = zip(*paper_weights(key).items(), strict=True)
-    for n, m in [(7, 3), (13, 6), (8, 4), (3, 1), (2, 1), (1001, 500)]:
-        exact = np.array([[float(v) for v in row] for row in dense(*axis_table(as_1d(key), n, m), n, border)])
-        np.testing.assert_allclose(resample_matrix(np.array(d), np.array(w, dtype=float), n, m, border), exact,
-                                   atol=1e-15, err_msg=f"{n}→{m}")
 
 
 # ------------------------------------------------------------------ the plan
