@@ -21,7 +21,6 @@ from pyramid_cli.cli import main
 from pyramid_cli.core import catalogue
 from pyramid_cli.core.geometry import mip_sizes
 from pyramid_cli.exec import emulate
-from pyramid_cli.jobs.texture import TextureLevels
 from pyramid_cli.plan import Pass, ResamplePass, check
 from pyramid_cli.plan.resample import axis_table, column_sums, dense
 from pyramid_cli.reference.mip import mip_reference
@@ -112,14 +111,6 @@ def test_a_one_pixel_axis_is_left_alone():
     x = np.arange(7.0)[None, :]
     assert [lv.shape for lv in pyr.mipmap(np.ones((1, 1, 3)), backend="reference")] == [(1, 1, 3)]
     np.testing.assert_allclose(emulate.run_outputs(p, x)[-1], mip_reference(x, "quadratic")[-1], atol=1e-12)
-
-
-def test_round_down_refuses_what_it_cannot_resample():
-    from pyramid_cli.core.errors import UsageError
-
-    with pytest.raises(UsageError, match="one separable ⊗↓ step"):
-        TextureLevels(analysis="box *v^2 g")
-    TextureLevels(analysis="box *v^2 g", rounding="up")  # the pyramid's rule takes any ⊗↓
 
 
 def test_pyramid_plan_shows_each_level():
