@@ -10,8 +10,3 @@ def test_level_paths_need_a_level_field():
     assert pipeline.level_path("out_{level}.exr", 3) == "out_3.exr"
     with pytest.raises(UsageError, match="needs {level}"):
         pipeline.level_path("out.exr", 3)
-
-
-def test_wrote_line():
-    assert pipeline.wrote_line("a.exr", 4, 3, None, "cpu") == "wrote a.exr (4×3, cpu)"
-    assert pipeline.wrote_line("a.tx", 4, 3, 3, "gl") == "wrote a.tx (4×3, 3 MIP levels, gl)"

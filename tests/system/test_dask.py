@@ -99,30 +99,7 @@ def blur(tmp_path, out: str, *extra):
 
 
 # ------------------------------------------------------------------ without a cluster
-def test_without_distributed_cluster_exits_2_naming_the_extra(tmp_path, monkeypatch):
-    monkeypatch.setitem(sys.modules, "distributed", None)
-    with pytest.raises(UsageError, match=r"pip install 'bilinear-pyramid\[cluster\]'"):
-        cluster.require()
-    write_sequence(tmp_path / "in", 1, 2)
-    r = CliRunner().invoke(main, ["blur", "--backend", "cpu", str(tmp_path / "in" / "plate.####.exr"),
-                                  "-o", str(tmp_path / "out" / "o.####.exr"), "--cluster", "local:1"])
-    assert r.exit_code == 2 and "bilinear-pyramid[cluster]" in r.output
-
-
-def test_chunks_and_default_size():
-    assert cluster.chunks(list(range(7)), 3) == [[0, 1, 2], [3, 4, 5], [6]]
-    assert cluster.default_chunk(30, 2) == 4 and cluster.default_chunk(10_000, 10) == cluster.MAX_CHUNK
-    assert cluster.default_chunk(1, 8) == 1
-
-
-def test_frames_not_done_read_as_runs():
-    assert not_done([1005, 1006, 1007, 1008, 1020]) == "frames 1005-1008,1020"
-    assert not_done([1001, 1003, 1005, 1007, 1010]) == "frames 1001-1007:2,1010"  # what --frames reads back
-    assert not_done([7]) == "frame 7" and not_done([3, 4]) == "frames 3,4"
-    jobs = [SimpleNamespace(input=f"in/{k}.exr") for k in range(7)]
-    assert cluster.describe_jobs(jobs) == "in/0.exr, in/1.exr, in/2.exr, in/3.exr, in/4.exr and 2 more"
-
-
+# (require(), chunking and describe_jobs alone: tests/run/cluster/test_connection.py, test_gather.py)
 @pytest.mark.cli
 def test_chunk_and_cluster_timeout_without_cluster_are_refused(tmp_path):
     write_sequence(tmp_path / "in", 1, 2)

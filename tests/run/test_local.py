@@ -1,0 +1,47 @@
+"""The local runner (pyramid_cli.run.local): read → run → write a list of jobs on one session, and a texture's
+channels as maketx's --nchannels and --monochrome-detect change them. Whole commands: tests/run/test_batch.py."""
+
+import numpy as np
+import pytest
+
+import pyramid_cli as pyr
+from pyramid_cli import imageio as io
+from pyramid_cli.exec.session import Session
+from pyramid_cli.jobs.texture import TextureLevels
+from pyramid_cli.run import batch
+from pyramid_cli.run.local import run_jobs, texture_channels
+from pyramid_cli.run.report import Reporter
+from pyramid_cli.run.settings import ReadOptions, WriteOptions
+
+
+@pytest.fixture(scope="module")
+def session():
+    with Session("cpu") as s:
+        yield s
+
+
+def test_run_jobs_writes_each_output_and_says_so_in_job_order(tmp_path, session):
+    jobs = []
+    for k in range(3):
+        pyr.write_image(tmp_path / f"in{k}.exr", np.full((6, 8, 3), k / 4, np.float32))
+        jobs.append(batch.Job(str(tmp_path / f"in{k}.exr"), str(tmp_path / f"out{k}.exr")))
+    (tmp_path / "in1.exr").write_text("not an exr")
+    out = []
+    report = run_jobs(jobs, pyr.Blur(levels=1), session, read=ReadOptions(), write=WriteOptions(),
+                      reporter=Reporter(out=out.append, err=out.append), keep_going=True)
+    assert [j.input for j in report.done] == [jobs[0].input, jobs[2].input] and len(report.failed) == 1
+    assert out == [f"wrote {jobs[0].output} (8×6, {session.ran})", f"wrote {jobs[2].output} (8×6, {session.ran})"]
+    np.testing.assert_allclose(pyr.read_image(jobs[2].output).pixels, 0.5, atol=1e-6)  # a constant stays constant
+
+
+def test_texture_channels_makes_a_grey_texture_one_channel(tmp_path):
+    grey = np.repeat(np.linspace(0, 1, 20, dtype=np.float32).reshape(4, 5, 1), 3, axis=2)
+    pyr.write_image(tmp_path / "grey.exr", grey)
+    image = io.read_image(str(tmp_path / "grey.exr"))
+    said = []
+    reporter = Reporter(verbose=True, err=said.append)
+    assert texture_channels(image, TextureLevels(), "grey.exr", reporter) is image  # nothing asked: as it is
+    mono = texture_channels(image, TextureLevels(monochrome_detect=True), "grey.exr", reporter)
+    assert mono.pixels.shape == (4, 5, 1) and len(mono.spec.channel_names) == 1
+    np.testing.assert_array_equal(mono.pixels[..., 0], grey[..., 0])
+    assert said == ["pyramid: grey.exr: 3 channel(s) → 1 (Y): monochrome"]
