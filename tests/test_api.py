@@ -87,6 +87,7 @@ def test_collapse_inverts_laplacian(backend):
 
 
 @pytest.mark.gl
+@pytest.mark.slow
 def test_a_session_compiles_each_program_once_over_200_arrays(gl_executor):
     rng = np.random.default_rng(5)
     with pyr.Session("gl") as s:

@@ -68,6 +68,7 @@ BREAKS = {
 
 
 @pytest.mark.parametrize("kind", sorted(BREAKS))
+@pytest.mark.slow
 def test_each_kind_of_contract_fails_when_broken(tmp_path, kind):
     """A copy of the package with one violating import (in a function body, where cycles hide) breaks the
     first contract of that kind, and the report names the import."""
@@ -132,6 +133,7 @@ def test_the_private_name_scan_catches_one(tmp_path):
     assert private_imports(src, "pyramid_cli.plan.m") == ["pyramid_cli.plan.m imports pyramid_cli.plan.recipes._chain"]
 
 
+@pytest.mark.slow
 def test_glcontext_loads_only_through_the_gl_executor():
     """moderngl's EGL backend; not in the import graph (nothing names it), so no contract can protect it."""
     bad = []

@@ -115,6 +115,7 @@ def expressions(draw, depth=0):
 
 @settings(max_examples=300, deadline=None)
 @given(expressions())
+@pytest.mark.slow
 def test_canonical_texts_parse_back(expr):
     if isinstance(expr, Input):
         return

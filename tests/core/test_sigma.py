@@ -19,6 +19,7 @@ def test_levels_sigma_equals_the_kernel_evaluation(analysis, synthesis):
                             rel_tol=1e-12)
 
 
+@pytest.mark.slow
 def test_sigma_blend_matches_the_kernel_evaluation():
     """The closed-form (m, t) equals the one found from the evaluated kernels (the planner's only source
     before the closed form: the first level count at or past sigma, blended with the one below)."""

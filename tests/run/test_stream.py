@@ -186,6 +186,7 @@ def test_cli_streams_when_told_and_says_so(tmp_path):
     assert not (tmp_path / "x.exr").exists()
 
 
+@pytest.mark.slow
 def test_cli_gl_pads_the_bands_not_the_picture(tmp_path):
     """On GL a picture that its power-of-two textures would pad (520×520: 1024×1024) runs in bands even within
     the budget, and says why; the pixels are those of GL's whole run of the picture (the Python API's)."""

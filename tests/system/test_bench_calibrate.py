@@ -33,6 +33,7 @@ def synthetic_points(truth: cost.CostModel, noise: float = 0.0) -> list[dict]:
     return points
 
 
+@pytest.mark.slow
 def test_fit_recovers_the_constants_and_the_tiling():
     truth = cost.CostModel(pass_s=8e-5, shader_tap_s=8e-6, pixel_s=6e-9, fetch_linear_s=3e-9,
                            fetch_nearest_s=1.5e-9, source_pixel_s=0.0, tile=64, threads=2)

@@ -50,6 +50,7 @@ def _run_gpu(tmp_path, *extra):
     return json.loads(out.read_text()), p
 
 
+@pytest.mark.slow
 def test_bench_gpu_without_cuda_skips_in_one_line(tmp_path):
     """No torch, or torch without CUDA: one 'skipped' line, exit 0, no targets (CI has no torch)."""
     try:

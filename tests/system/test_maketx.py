@@ -142,6 +142,7 @@ def maketx(src: Path, dst: Path, *args: str) -> None:
 
 
 @pytest.mark.parametrize("ext", ["tx", "exr"])
+@pytest.mark.slow
 def test_metadata_keys_match_maketx(tmp_path, png8, ext):
     ours, theirs = tmp_path / f"ours.{ext}", tmp_path / f"theirs.{ext}"
     mipmap("--wrap", "periodic", png8, ours)
@@ -310,6 +311,7 @@ def test_bench_maketx_runs_and_reports(tmp_path):
 
 
 @pytest.mark.parametrize("ext", ["tx", "exr"])
+@pytest.mark.slow
 def test_constant_color_detect_makes_one_tile_like_maketx(tmp_path, ext):
     src, ours, theirs = tmp_path / "flat.png", tmp_path / f"ours.{ext}", tmp_path / f"theirs.{ext}"
     write(src, np.full((100, 300, 4), (10, 200, 77, 255), np.uint8), "uint8")
@@ -418,6 +420,7 @@ def write_half(path: Path, pixels: np.ndarray) -> None:
 
 @pytest.mark.parametrize("shape", slow_beyond([(16, 16, 3), (64, 32, 4)]))
 @pytest.mark.parametrize("backend", ["cpu", "gl"])
+@pytest.mark.slow
 def test_box_on_even_sizes_is_bit_identical_to_maketx_box(tmp_path, shape, backend):
     """Half sources: a sum of four halves is exact in float32, so the order of the additions cannot
     matter and both tools must store the same half values at every level (float32 sources differ by
@@ -441,6 +444,7 @@ def test_box_on_even_sizes_is_bit_identical_to_maketx_box(tmp_path, shape, backe
 
 @pytest.mark.parametrize("shape", [pytest.param((777, 1001), marks=pytest.mark.slow), (3, 5), (1, 7), (7, 1), (2, 3),
                                    pytest.param((1080, 1920), marks=pytest.mark.slow)])
+@pytest.mark.slow
 def test_level_count_and_sizes_are_maketxs(tmp_path, shape):
     src, ours, theirs = tmp_path / "in.exr", tmp_path / "ours.tx", tmp_path / "theirs.tx"
     write_half(src, np.random.default_rng(12).random(shape + (3,)))
@@ -514,6 +518,7 @@ def sources(tmp_path) -> dict[str, Path]:
                                           ("rgba", ["--nchannels", "3"]), ("rgba", ["--nchannels", "5"]),
                                           ("mono", ["--nchannels", "4"]), ("mono", ["--monochrome-detect",
                                                                                    "--nchannels", "2"])])
+@pytest.mark.slow
 def test_channel_flags_like_maketx(tmp_path, sources, source, args):
     ours, theirs = tmp_path / "ours.exr", tmp_path / "theirs.exr"
     mipmap(*args, "--type", "float", sources[source], ours)

@@ -44,6 +44,7 @@ def test_frame_ranges_in_openjd_syntax(frames, expected):
     assert farm.openjd_range(frames) == expected
 
 
+@pytest.mark.slow
 def test_range_spellings_mean_the_same_to_openjd():
     """What farm-template writes, OpenJD reads as the same frames; what OpenJD hands a task, --frames reads so."""
     ranges = pytest.importorskip("openjd.model._range_expr")
