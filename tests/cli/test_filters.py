@@ -7,6 +7,7 @@ import pytest
 from click.testing import CliRunner
 
 from helpers.cli import invoke
+from helpers.images import read_with_spec as read
 from helpers.images import write as write_exr
 from pyramid_cli.cli import main
 from pyramid_cli.core.parse import parse
@@ -15,12 +16,6 @@ from pyramid_cli.reference import filters as reference
 pytestmark = pytest.mark.cli
 
 
-def read(path):
-    inp = oiio.ImageInput.open(str(path))
-    spec = inp.spec()
-    px = inp.read_image("float")
-    inp.close()
-    return px, spec
 
 
 @pytest.mark.parametrize("pixel_type, tol", [("float", 1e-6), ("half", 2e-3)])

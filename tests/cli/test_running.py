@@ -2,20 +2,12 @@
 write settings."""
 
 import numpy as np
-import OpenImageIO as oiio
 import pytest
 
 from helpers.cli import invoke
+from helpers.images import read_with_spec as read
 from helpers.images import write as write_exr
 from pyramid_cli.cli.running import drop, make_reporter, open_session, read_write
-
-
-def read(path):
-    inp = oiio.ImageInput.open(str(path))
-    spec = inp.spec()
-    px = inp.read_image("float")
-    inp.close()
-    return px, spec
 
 
 def _opts(**changes):

@@ -73,3 +73,31 @@ def write_sequence(folder: Path, first: int, last: int, name: str = "plate.{:04d
     for f in range(first, last + 1):
         pixels = np.random.default_rng(abs(f)).random((*size, 3)).astype(np.float32)
         pyr.write_image(str(folder / name.format(f)), pixels)
+
+
+def read_with_spec(path):
+    """A file's pixels as float and its ImageSpec, straight from OpenImageIO (not through the package)."""
+    inp = oiio.ImageInput.open(str(path))
+    spec = inp.spec()
+    px = inp.read_image("float")
+    inp.close()
+    return px, spec
+
+
+def write_method_files(d: Path) -> Path:
+    """The images the fill and blend command tests read: an apple/orange pair and their mask, an RGBA with a
+    hole and a half-covered pixel, one with NaNs, and an all-zero RGBA."""
+    import pyramid_cli as pyr
+    from pyramid_cli.demo import apple_orange
+
+    a, b, m = apple_orange(64)
+    rgba = np.concatenate([a, np.ones(a.shape[:2] + (1,), np.float32)], axis=2)
+    rgba[20:40, 10:50] = 0
+    rgba[5, 5, 3] = 0.5
+    rgba[5, 5, :3] *= 0.5
+    nan = a.copy()
+    nan[30:34, 30:40] = np.nan
+    for name, px in [("a.exr", a), ("b.exr", b), ("m.exr", m), ("holes.exr", rgba), ("nan.exr", nan),
+                     ("empty.exr", np.zeros((8, 8, 4), np.float32))]:
+        pyr.write_image(d / name, px)
+    return d

@@ -69,3 +69,37 @@ def extended_chain(step_list, g: np.ndarray, out_shape: tuple[int, int]) -> np.n
         for c in range(1, out_shape[1] + 1):
             out[r - 1, c - 1] = value(len(step_list), r, c)
     return out
+
+
+def paper_weights(key: str) -> dict[int, Fraction]:
+    """1-D weights of a named analysis mask straight from the paper's formula f[r] = Σ h[i] g[2r − ⌊i − n/2⌋]:
+    {d: w_d}, with d = ⌊i − n/2⌋ for the 1-based mask index i; the mask's row sums (all masks are separable)."""
+    from pyramid_cli.core import catalogue
+
+    mask = catalogue.mask(key).mask
+    n = len(mask)
+    weights = {floor(i - n / 2): sum(mask[i - 1], Fraction(0)) for i in range(1, n + 1)}
+    return {d: w for d, w in weights.items() if w}
+
+
+def as_1d(key: str):
+    """:func:`paper_weights` as a sorted tuple of (offset, weight)."""
+    return tuple(sorted(paper_weights(key).items()))
+
+
+def reference_blur(g, levels, analysis, synthesis, quasi=False):
+    """m reference analysis steps, then m synthesis steps, each cropped to the level's size (written here,
+    independently of the library's blur reference, which tests/reference/test_pyramids.py checks against it)."""
+    from pyramid_cli.core.geometry import level_sizes
+    from pyramid_cli.core.parse import parse
+    from pyramid_cli.reference import filters as reference
+
+    sizes = level_sizes(g.shape[:2], levels)
+    x = g
+    for _ in range(levels):
+        x = reference.run(parse(f"{analysis} *v g"), x)
+    if quasi:
+        x = reference.run(parse("quasi * g"), x)
+    for k in range(levels, 0, -1):
+        x = reference.run(parse(f"{synthesis} *^ g"), x)[:sizes[k - 1][0], :sizes[k - 1][1]]
+    return x

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import json
 from fractions import Fraction
-from math import floor
 
 import numpy as np
 import pytest
@@ -17,6 +16,7 @@ from click.testing import CliRunner
 
 import pyramid_cli as pyr
 from helpers.marks import slow_beyond
+from helpers.oracles import as_1d, paper_weights
 from pyramid_cli.cli import main
 from pyramid_cli.core import catalogue
 from pyramid_cli.core.geometry import mip_sizes
@@ -31,17 +31,7 @@ SYMMETRIC = ["box", "box4", "quadratic"]  # the dual-lattice filters: symmetric 
 SIZES = [(37, 23), (3, 5), (1, 7), (7, 1), (2, 3), (9, 16)]
 
 
-def paper_weights(key: str) -> dict[int, Fraction]:
-    """1-D weights of a named analysis mask straight from the paper's formula f[r] = Σ h[i] g[2r − ⌊i − n/2⌋]:
-    {d: w_d}, with d = ⌊i − n/2⌋ for the 1-based mask index i; the mask's row sums (all masks are separable)."""
-    mask = catalogue.mask(key).mask
-    n = len(mask)
-    weights = {floor(i - n / 2): sum(mask[i - 1], Fraction(0)) for i in range(1, n + 1)}
-    return {d: w for d, w in weights.items() if w}
 
-
-def as_1d(key: str):
-    return tuple(sorted(paper_weights(key).items()))
 
 
 # ------------------------------------------------------------------ the weights

@@ -3,13 +3,11 @@ exact tables, and what a level of it keeps. Executors against it: tests/plan/tes
 
 from __future__ import annotations
 
-from fractions import Fraction
-from math import floor
-
 import numpy as np
 import pytest
 
 from helpers.marks import slow_beyond
+from helpers.oracles import as_1d, paper_weights
 from pyramid_cli.core import catalogue
 from pyramid_cli.core.geometry import mip_sizes
 from pyramid_cli.plan.resample import axis_table, dense
@@ -18,17 +16,7 @@ from pyramid_cli.reference.mip import bilinear_matrix, kernel_1d, mip_reference,
 BORDERS = ["clamp", "mirror", "wrap", "zero"]
 
 
-def paper_weights(key: str) -> dict[int, Fraction]:
-    """1-D weights of a named analysis mask straight from the paper's formula f[r] = Σ h[i] g[2r − ⌊i − n/2⌋]:
-    {d: w_d}, with d = ⌊i − n/2⌋ for the 1-based mask index i; the mask's row sums (all masks are separable)."""
-    mask = catalogue.mask(key).mask
-    n = len(mask)
-    weights = {floor(i - n / 2): sum(mask[i - 1], Fraction(0)) for i in range(1, n + 1)}
-    return {d: w for d, w in weights.items() if w}
 
-
-def as_1d(key: str):
-    return tuple(sorted(paper_weights(key).items()))
 
 
 @pytest.mark.parametrize("key", slow_beyond(catalogue.ANALYSIS_FILTERS, 1))

@@ -4,6 +4,7 @@ level by level, and its analysis and synthesis halves against each other."""
 import numpy as np
 import pytest
 
+from helpers.oracles import reference_blur
 from pyramid_cli.core.geometry import level_sizes
 from pyramid_cli.core.parse import parse
 from pyramid_cli.reference import filters as reference
@@ -14,20 +15,6 @@ from pyramid_cli.reference.pyramids import (
     laplacian_reference,
     levels_reference,
 )
-
-
-def reference_blur(g, levels, analysis, synthesis, quasi=False):
-    """m reference analysis steps, then m synthesis steps, each cropped to the level's size (written here,
-    independently of pyramids.blur_reference, which the next test checks against it)."""
-    sizes = level_sizes(g.shape[:2], levels)
-    x = g
-    for _ in range(levels):
-        x = reference.run(parse(f"{analysis} *v g"), x)
-    if quasi:
-        x = reference.run(parse("quasi * g"), x)
-    for k in range(levels, 0, -1):
-        x = reference.run(parse(f"{synthesis} *^ g"), x)[:sizes[k - 1][0], :sizes[k - 1][1]]
-    return x
 
 
 def test_library_blur_reference_matches():

@@ -10,26 +10,13 @@ import pytest
 
 import pyramid_cli as pyr
 from helpers.cli import invoke
+from helpers.images import write_method_files
 
 
 # ------------------------------------------------------------------ the command line
-# the same files as tests/workflows/test_methods.py's fixture of this name (module fixtures are not shared)
 @pytest.fixture(scope="module")
 def files(tmp_path_factory):
-    from pyramid_cli.demo import apple_orange
-
-    d = tmp_path_factory.mktemp("methods")
-    a, b, m = apple_orange(64)
-    rgba = np.concatenate([a, np.ones(a.shape[:2] + (1,), np.float32)], axis=2)
-    rgba[20:40, 10:50] = 0
-    rgba[5, 5, 3] = 0.5
-    rgba[5, 5, :3] *= 0.5
-    nan = a.copy()
-    nan[30:34, 30:40] = np.nan
-    for name, px in [("a.exr", a), ("b.exr", b), ("m.exr", m), ("holes.exr", rgba), ("nan.exr", nan),
-                     ("empty.exr", np.zeros((8, 8, 4), np.float32))]:
-        pyr.write_image(d / name, px)
-    return d
+    return write_method_files(tmp_path_factory.mktemp("methods"))
 
 
 def test_cli_fill_alpha_equals_the_api_and_is_opaque(files, tmp_path):

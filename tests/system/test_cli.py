@@ -10,6 +10,7 @@ import OpenImageIO as oiio
 import pytest
 
 from helpers.cli import invoke
+from helpers.images import read_with_spec as read
 from pyramid_cli.core.parse import parse
 from pyramid_cli.reference import filters as reference
 
@@ -24,12 +25,6 @@ def write_exr(path, pixels, pixel_type="float"):
     out.close()
 
 
-def read(path):
-    inp = oiio.ImageInput.open(str(path))
-    spec = inp.spec()
-    px = inp.read_image("float")
-    inp.close()
-    return px, spec
 
 
 def test_apply_missing_input_exits_3(tmp_path):

@@ -12,6 +12,7 @@ import pytest
 import pyramid_cli as pyr
 from helpers.cases import GRID_SIZES
 from helpers.cli import invoke
+from helpers.images import write_method_files
 from helpers.marks import slow_beyond
 from helpers.paths import ROOT
 from pyramid_cli.core.errors import DataError
@@ -250,20 +251,7 @@ def test_apple_orange_has_no_seam():
 # ------------------------------------------------------------------ the command line
 @pytest.fixture(scope="module")
 def files(tmp_path_factory):
-    from pyramid_cli.demo import apple_orange
-
-    d = tmp_path_factory.mktemp("methods")
-    a, b, m = apple_orange(64)
-    rgba = np.concatenate([a, np.ones(a.shape[:2] + (1,), np.float32)], axis=2)
-    rgba[20:40, 10:50] = 0
-    rgba[5, 5, 3] = 0.5
-    rgba[5, 5, :3] *= 0.5
-    nan = a.copy()
-    nan[30:34, 30:40] = np.nan
-    for name, px in [("a.exr", a), ("b.exr", b), ("m.exr", m), ("holes.exr", rgba), ("nan.exr", nan),
-                     ("empty.exr", np.zeros((8, 8, 4), np.float32))]:
-        pyr.write_image(d / name, px)
-    return d
+    return write_method_files(tmp_path_factory.mktemp("methods"))
 
 
 @pytest.mark.parametrize("command", ["fill", "blend"])

@@ -5,6 +5,7 @@ import pytest
 from click.testing import CliRunner
 
 from helpers.marks import slow_beyond
+from helpers.oracles import reference_blur
 from pyramid_cli.cli import main
 from pyramid_cli.core.catalogue import ANALYSIS_FILTERS as ANALYSIS
 from pyramid_cli.core.catalogue import SYNTHESIS_FILTERS as SYNTHESIS
@@ -14,20 +15,6 @@ from pyramid_cli.core.sigma import impulse_sigma
 from pyramid_cli.exec import emulate
 from pyramid_cli.reference import filters as reference
 from pyramid_cli.workflows.pyramids import blur_plan, lattice_mismatch
-
-
-def reference_blur(g, levels, analysis, synthesis, quasi=False):
-    """m reference analysis steps, then m synthesis steps, each cropped to the level's size (written here,
-    independently of pyramids.blur_reference, which tests/reference/test_pyramids.py checks against a copy of it)."""
-    sizes = level_sizes(g.shape[:2], levels)
-    x = g
-    for _ in range(levels):
-        x = reference.run(parse(f"{analysis} *v g"), x)
-    if quasi:
-        x = reference.run(parse("quasi * g"), x)
-    for k in range(levels, 0, -1):
-        x = reference.run(parse(f"{synthesis} *^ g"), x)[:sizes[k - 1][0], :sizes[k - 1][1]]
-    return x
 
 
 @pytest.mark.parametrize("analysis", ANALYSIS)

@@ -8,27 +8,19 @@ from fractions import Fraction
 import pytest
 
 import pyramid_cli.plan.shapes as generate
-from pyramid_cli.core.parse import parse
-from pyramid_cli.plan import check, plan
+from helpers.plans import planned
 
 pytest.importorskip("numba")
 
 from pyramid_cli.exec import cpu  # noqa: E402
 
 
-def _planned(text, size, strategy="cost", border="clamp"):
-    expr = parse(text)
-    p = plan(expr, size, strategy, border)
-    check(p)
-    return expr, p
-
-
 def test_kernel_source_is_canonical_and_unrolled():
-    _, a = _planned("gauss7", (9, 9), "paper")
-    _, b = _planned("bartlett", (40, 3), "paper")
+    _, a = planned("gauss7", (9, 9), "paper")
+    _, b = planned("bartlett", (40, 3), "paper")
     texts = {cpu.kernel_source(generate.shape(ps), (False,)) for ps in a.passes + b.passes}
     assert len(texts) == 2
-    _, ds = _planned("doosabin", (8, 8))
+    _, ds = planned("doosabin", (8, 8))
     text = cpu.kernel_source(generate.shape(ds.passes[0]), (False,))
     assert "cache=True" in text and "v0_3 = t0[" in text and "if C == 4:" in text  # RGBA unrolled
     assert "np.float32(0.25)" in text and "np.float32(0.75)" in text  # one vertical (¼, ¾) sum per row phase
@@ -37,7 +29,7 @@ def test_kernel_source_is_canonical_and_unrolled():
 
 def test_phase_terms_expand_taps_exactly():
     """A tap at a quarter position becomes its four texels, with the bilinear weights, summed per texel."""
-    _, p = _planned("doosabin", (8, 8))
+    _, p = planned("doosabin", (8, 8))
     for _, taps in generate.shape(p.passes[0]).phases:
         terms = cpu.phase_terms(taps)
         assert sum(t.weight for t in terms) == 1 and len(terms) == 4

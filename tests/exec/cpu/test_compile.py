@@ -16,27 +16,14 @@ import pytest
 
 import pyramid_cli.plan.shapes as generate
 from helpers.paths import ROOT
+from helpers.plans import planned, random_image
 from pyramid_cli.core.errors import BackendError
-from pyramid_cli.core.parse import parse
 from pyramid_cli.exec import emulate
-from pyramid_cli.plan import check, plan
 from pyramid_cli.workflows import pyramids
 
 pytest.importorskip("numba")
 
 from pyramid_cli.exec import cpu  # noqa: E402
-
-
-def random_image(size, channels, seed, dtype=np.float32):
-    rng = np.random.default_rng(seed)
-    return rng.standard_normal(size if channels is None else size + (channels,)).astype(dtype)
-
-
-def _planned(text, size, strategy="cost", border="clamp"):
-    expr = parse(text)
-    p = plan(expr, size, strategy, border)
-    check(p)
-    return expr, p
 
 
 def test_cache_dir_follows_the_conventions(monkeypatch, tmp_path):
@@ -106,7 +93,7 @@ def test_an_unwritable_cache_folder_falls_back(tmp_path):
     """A cache path that cannot be a folder (here: a file) still runs, compiling into a private folder."""
     blocker = tmp_path / "not-a-folder"
     blocker.write_text("")
-    _, p = _planned("1/5 [1 1 3] * g", (4, 6))  # a shape no other test compiles
+    _, p = planned("1/5 [1 1 3] * g", (4, 6))  # a shape no other test compiles
     image = random_image((4, 6), None, 1)
     with cpu.CPUExecutor(threads=1, cache=blocker / "cache") as odd:
         np.testing.assert_allclose(odd.run(p, image), emulate.run(p, image), rtol=0, atol=1e-5)

@@ -13,6 +13,7 @@ import pytest
 import pyramid_cli.plan.shapes as generate
 from helpers.cases import NAMED, step
 from helpers.marks import slow_beyond
+from helpers.plans import planned, random_image
 from pyramid_cli.core.border import Border
 from pyramid_cli.core.geometry import mip_levels
 from pyramid_cli.core.parse import parse
@@ -38,25 +39,13 @@ def ex(cache_folder):
         yield executor
 
 
-def random_image(size, channels, seed, dtype=np.float32):
-    rng = np.random.default_rng(seed)
-    return rng.standard_normal(size if channels is None else size + (channels,)).astype(dtype)
-
-
-def _planned(text, size, strategy="cost", border="clamp"):
-    expr = parse(text)
-    p = plan(expr, size, strategy, border)
-    check(p)
-    return expr, p
-
-
 @pytest.mark.parametrize("channels", [None, 1, 3, 4, 6, 2])
 def test_every_channel_count(ex, channels):
     """C = 4 and 1 have unrolled loops; others (2, 3, 6) the generic one: all agree with the reference."""
     size = (23, 31)
     image = random_image(size, channels, 5)
     for text in ["doosabin *^ (box4 *v g)", "fourpoint", "cubic *v g", "quasi"]:
-        expr, p = _planned(text, size)
+        expr, p = planned(text, size)
         np.testing.assert_allclose(ex.run(p, image), reference.run(expr, image), rtol=0, atol=1e-5, err_msg=text)
 
 
@@ -68,7 +57,7 @@ def test_threads_split_rows_without_changing_a_bit(threads):
     image = random_image(size, 4, 8)
     with cpu.CPUExecutor(threads=1) as one, cpu.CPUExecutor(threads=threads) as many:
         for text in ["doosabin *^ (box4 *v g)", "bartlett", "fourpoint", "(box4)^3 *v g"]:
-            expr, p = _planned(text, size)
+            expr, p = planned(text, size)
             got = many.run(p, image)
             np.testing.assert_array_equal(got, one.run(p, image))
             if text != "(box4)^3 *v g":
@@ -115,10 +104,10 @@ def test_blur_levels_collapse_and_mip(ex):
 def test_half_input_read_back_and_borders(ex):
     size = (9, 11)
     image = random_image(size, 4, 3, np.float16)
-    expr, p = _planned("bartlett", size, border="mirror")
+    expr, p = planned("bartlett", size, border="mirror")
     np.testing.assert_allclose(ex.run(p, image), reference.run(expr, image.astype(np.float32), Border("mirror")),
                                rtol=0, atol=1e-5)
-    _, ident = _planned("g", size)
+    _, ident = planned("g", size)
     b = Builder(size)
     done = step(b, 0, "box *v g")
     both = b.build("x", outputs=[0, done])
@@ -130,7 +119,7 @@ def test_half_input_read_back_and_borders(ex):
 def test_other_dtypes_and_layouts(ex):
     size = (20, 30)
     base = random_image(size, 6, 4)
-    expr, p = _planned("gauss5", size)
+    expr, p = planned("gauss5", size)
     want = reference.run(expr, base[:, :, 1:4])
     np.testing.assert_allclose(ex.run(p, base[:, :, 1:4]), want, rtol=0, atol=1e-5)  # a strided view
     np.testing.assert_allclose(ex.run(p, base[:, :, 1:4].astype(np.float64)), want, rtol=0, atol=1e-5)
@@ -138,7 +127,7 @@ def test_other_dtypes_and_layouts(ex):
 
 
 def test_bad_inputs_are_value_errors(ex):
-    _, p = _planned("box *v g", (4, 5))
+    _, p = planned("box *v g", (4, 5))
     with pytest.raises(ValueError, match="4x5"):
         ex.run(p, np.zeros((5, 4), np.float32))
     with pytest.raises(ValueError, match="input image"):
@@ -150,7 +139,7 @@ def test_bad_inputs_are_value_errors(ex):
 
 
 def test_kernels_are_compiled_once_per_shape(cache_folder):
-    _, p = _planned("gauss5", (17, 13), "paper")  # box↖ and box↘ alternate: 2 shapes, 4 passes
+    _, p = planned("gauss5", (17, 13), "paper")  # box↖ and box↘ alternate: 2 shapes, 4 passes
     shapes = {generate.shape(ps) for ps in p.passes}
     assert len(shapes) == 2 < len(p.passes)
     with cpu.CPUExecutor(threads=1) as fresh:
@@ -158,9 +147,9 @@ def test_kernels_are_compiled_once_per_shape(cache_folder):
         assert len(fresh._kernels) == 2
         made = fresh.compiles + fresh.cache_loads
         fresh.run(p, random_image((17, 13), None, 0))
-        _, other = _planned("gauss5", (64, 129), "paper")
+        _, other = planned("gauss5", (64, 129), "paper")
         fresh.run(other, random_image((64, 129), 6, 2))
-        _, box = _planned("box\\ * g", (5, 3))
+        _, box = planned("box\\ * g", (5, 3))
         fresh.run(box, random_image((5, 3), 3, 4))
         assert fresh.compiles + fresh.cache_loads == made <= 2  # 0 where another executor of this process made them
         assert len(fresh._kernels) == 2
