@@ -76,3 +76,12 @@ def test_every_page_loads_in_chromium_without_console_errors(site, tmp_path):
     assert sorted(seen) == sorted(pages)
     assert [p for p, title in seen.items() if not title or title.startswith("ERR")] == []
     assert "Uncaught" not in r.stderr and "CONSOLE" not in r.stderr, r.stderr[-3000:]
+
+
+def test_the_readme_is_for_users_and_short():
+    """Under 250 lines, with the install, the two make commands and links into the docs that exist."""
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    assert len(readme.splitlines()) < 250
+    assert "pip install" in readme and "make demo" in readme and "make test" in readme
+    links = re.findall(r"\]\((docs/[^)#]+)", readme)
+    assert links and all((ROOT / link).exists() for link in links), links
