@@ -11,7 +11,8 @@ import sys
 import pytest
 
 BIN = os.path.dirname(sys.executable)
-MODULES = ["numba", "fileseq", "dask", "distributed", "xmlschema", "flip_evaluator", "OpenImageIO", "moderngl"]
+MODULES = ["numba", "fileseq", "dask", "distributed", "xmlschema", "flip_evaluator", "OpenImageIO", "moderngl",
+           "importlinter", "sphinx", "numpydoc", "sphinx_click", "myst_parser", "matplotlib"]
 PROGRAMS = ["idiff", "maketx", "oiiotool", "openjd", "chromium", "make"]
 
 
