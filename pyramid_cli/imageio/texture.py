@@ -11,7 +11,7 @@ from collections.abc import Iterable
 import numpy as np
 import OpenImageIO as oiio
 
-from pyramid_cli.core.errors import InputError, OutputError
+from pyramid_cli.core.errors import InputError, OutputError, UsageError
 from pyramid_cli.core.geometry import halved
 from pyramid_cli.imageio.atomic import atomic_path
 from pyramid_cli.imageio.bands import BandWriter, band_quantum, check_band_output
@@ -19,6 +19,17 @@ from pyramid_cli.imageio.encode import encode, set_windows
 from pyramid_cli.imageio.formats import format_from_path, format_title, one_line
 from pyramid_cli.imageio.image import Image, ImageInfo
 from pyramid_cli.imageio.write import WriteFailed, checked, diagnosis, verify, write_file
+
+#: File name endings of TIFF textures, whose tiles must be a multiple of :data:`TIFF_TILE` pixels.
+TIFF_ENDINGS = (".tx", ".tif", ".tiff")
+TIFF_TILE = 16
+
+
+def check_texture_tile(tile: int, output: str) -> None:
+    """Refuse (exit 2) a MIP-mapped texture's ``tile`` that a TIFF ``output`` (.tx, .tif, .tiff: a path or an
+    output template) cannot hold: TIFF tiles are multiples of 16 pixels."""
+    if tile % TIFF_TILE and output.lower().endswith(TIFF_ENDINGS):
+        raise UsageError(f"--tile {tile}: TIFF tiles must be a multiple of {TIFF_TILE} ({output})")
 
 
 def source_sha1(path: str | os.PathLike[str], extra: str = "") -> str:

@@ -17,7 +17,9 @@ from dataclasses import dataclass
 
 from pyramid_cli.core import catalogue, geometry, options
 from pyramid_cli.core.border import Border
+from pyramid_cli.core.errors import InputError, UsageError
 from pyramid_cli.core.expr import Expr
+from pyramid_cli.core.sigma import check_sigma, sigma_blend
 from pyramid_cli.plan.lower import plan
 from pyramid_cli.plan.model import Plan
 from pyramid_cli.workflows import pyramids
@@ -134,19 +136,17 @@ class SigmaBlur(Work):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        pyramids.sigma_blend(self.sigma, self.analysis, self.synthesis)  # refused (exit 2) when made, as --sigma is
+        sigma_blend(self.sigma, self.analysis, self.synthesis)  # refused (exit 2) when made, as --sigma is
 
     def warnings(self, size=None):
         return _lattice_warnings(self, None, "blur")
 
     def notes(self, size=None):
-        m, t = pyramids.sigma_blend(self.sigma, self.analysis, self.synthesis)
+        m, t = sigma_blend(self.sigma, self.analysis, self.synthesis)
         return [f"sigma {self.sigma:g}: {1 - t:.3f} × {m} level(s) + {t:.3f} × {m + 1} "
                 f"(the blend's equivalent kernel has standard deviation {self.sigma:g} px)"]
 
     def check(self, sizes, where=""):
-        from pyramid_cli.core.sigma import check_sigma
-
         check_sigma(self.sigma, tuple(sizes[0][:2]), self.analysis, self.synthesis, where=where)
 
     def plan(self, sizes, strategy="cost"):
@@ -154,7 +154,6 @@ class SigmaBlur(Work):
                                         strategy)[0]
 
     def reference(self, images):
-        from pyramid_cli.core.sigma import sigma_blend
         from pyramid_cli.reference import pyramids as oracle
 
         m, t = sigma_blend(self.sigma, self.analysis, self.synthesis)
@@ -176,25 +175,9 @@ def blur_work(levels: int = 4, *, sigma: float | None = None, analysis: str = ca
         return Blur(levels=levels, analysis=analysis, synthesis=synthesis, quasi=quasi, border=border,
                     allow_mixed_lattice=allow_mixed_lattice)
     if quasi:
-        from pyramid_cli.core.errors import UsageError
-
         raise UsageError("--quasi and --sigma cannot be combined")
     return SigmaBlur(sigma=sigma, analysis=analysis, synthesis=synthesis, border=border,
                      allow_mixed_lattice=allow_mixed_lattice)
-
-
-#: File name endings of TIFF textures, whose tiles must be a multiple of :data:`TIFF_TILE` pixels.
-TIFF_ENDINGS = (".tx", ".tif", ".tiff")
-TIFF_TILE = 16
-
-
-def check_texture_tile(tile: int, output: str) -> None:
-    """Refuse (exit 2) a MIP-mapped texture's ``tile`` that a TIFF ``output`` (.tx, .tif, .tiff: a path or an
-    output template) cannot hold: TIFF tiles are multiples of 16 pixels."""
-    if tile % TIFF_TILE and output.lower().endswith(TIFF_ENDINGS):
-        from pyramid_cli.core.errors import UsageError
-
-        raise UsageError(f"--tile {tile}: TIFF tiles must be a multiple of {TIFF_TILE} ({output})")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -270,8 +253,6 @@ class Collapse(Work):
         for k in range(1, len(sizes)):
             want = geometry.halved(tuple(sizes[k - 1][:2]))
             if tuple(sizes[k][:2]) != want:
-                from pyramid_cli.core.errors import InputError
-
                 raise InputError(f"{where + ': ' if where else ''}band {k} is {sizes[k][1]}×{sizes[k][0]}; after "
                                  f"{sizes[k - 1][1]}×{sizes[k - 1][0]} it must be {want[1]}×{want[0]}")
 
@@ -340,8 +321,6 @@ class Blend(Work):
 
     def check(self, sizes, where=""):
         if len({tuple(s[:2]) for s in sizes}) > 1:
-            from pyramid_cli.core.errors import InputError
-
             (h0, w0), (h1, w1), (h2, w2) = (tuple(s[:2]) for s in sizes)
             raise InputError(f"{where + ': ' if where else ''}A is {w0}×{h0}, B {w1}×{h1} and the mask {w2}×{h2}: "
                              "they must have one size")
@@ -363,4 +342,4 @@ class Blend(Work):
 
 
 __all__ = ["Work", "Filter", "Blur", "SigmaBlur", "Levels", "Laplacian", "Collapse", "Fill", "Blend", "same_setting",
-           "blur_work", "check_texture_tile", "TIFF_ENDINGS", "TIFF_TILE"]
+           "blur_work"]

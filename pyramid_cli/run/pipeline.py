@@ -18,7 +18,8 @@ from pyramid_cli import imageio as io
 from pyramid_cli.core import catalogue
 from pyramid_cli.core.errors import UsageError
 from pyramid_cli.exec.session import Session
-from pyramid_cli.jobs.work import Collapse, Laplacian, Levels, Work, check_texture_tile, same_setting
+from pyramid_cli.imageio.texture import check_texture_tile
+from pyramid_cli.jobs.work import Collapse, Laplacian, Levels, Work, same_setting
 from pyramid_cli.run import batch
 from pyramid_cli.run.inputs import read_input
 from pyramid_cli.run.local import run_jobs
