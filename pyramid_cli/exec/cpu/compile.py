@@ -17,7 +17,7 @@ import threading
 from collections.abc import Callable
 from pathlib import Path
 
-from pyramid_cli.core import signals
+from pyramid_cli.core import cache, signals
 
 INSTALL_HINT = "install numba: pip install numba (or pip install -e . in a checkout)"
 CACHE_ENV = "PYRAMID_CACHE_DIR"
@@ -36,14 +36,13 @@ def available() -> tuple[bool, str]:
 def cache_dir() -> Path:
     """Where generated kernel sources and numba's compiled code live.
 
-    ``$PYRAMID_CACHE_DIR`` if set, else ``$XDG_CACHE_HOME/bilinear-pyramid/cpu``, else
-    ``~/.cache/bilinear-pyramid/cpu`` (the XDG base directory convention).
+    ``$PYRAMID_CACHE_DIR`` if set, else the ``cpu`` folder of the cache
+    (:func:`pyramid_cli.core.cache.folder`: ``~/.cache/bilinear-pyramid/cpu`` by default).
     """
     env = os.environ.get(CACHE_ENV)
     if env:
         return Path(env).expanduser()
-    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / "bilinear-pyramid" / "cpu"
+    return cache.folder("cpu")
 
 
 _LOCK = threading.Lock()
