@@ -235,3 +235,14 @@ def test_a_run_says_its_budget_and_is_refused_when_nothing_fits(root, tmp_path, 
     assert "memory budget 614.4 KiB: 60% of the 129.0 MiB left under the cgroup v2 limit of 129.0 MiB" in r.output
     assert "/sys/fs/cgroup/job/memory.max" in r.output and "over the budget of 614.4 KiB" in r.output
     assert not (tmp_path / "out.exr").exists()
+
+
+def test_cgroup_v1_mounted_at_the_container_s_own_cgroup(root):
+    """Docker without a cgroup namespace: the mount's root is the container's cgroup, the path names it too."""
+    put(root, "/proc/self/mountinfo",
+        "35 31 0:32 /docker/abc /sys/fs/cgroup/memory ro,nosuid - cgroup cgroup rw,memory\n")
+    put(root, "/proc/self/cgroup", "12:memory:/docker/abc")
+    put(root, "/sys/fs/cgroup/memory/memory.limit_in_bytes", 700 * MIB)
+    put(root, "/sys/fs/cgroup/memory/memory.usage_in_bytes", 100 * MIB)
+    lim = budget.cgroup_v1(str(root))
+    assert (lim.size, lim.left, lim.where) == (700 * MIB, 600 * MIB, "/sys/fs/cgroup/memory/memory.limit_in_bytes")
