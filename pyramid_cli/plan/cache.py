@@ -10,13 +10,14 @@ same-sized files plans once) and as an entry of the cache folder's ``plans`` sub
 An entry's name is a digest of everything that determines the plan (:func:`plan_key`): the
 job's canonical description (its class and compared fields, recursively; an expression's
 source position is not one), the input sizes, the strategy, the cost model's constants, the
-package version, a digest of the planner's sources (so an edited checkout never reads a stale
-plan) and :data:`FORMAT`. The entry is JSON written by :func:`encode` for the Plan's own
-classes only (no pickle: nothing in the folder can run code), repeats that key in full, and is
-read back by :func:`decode`; an entry that is truncated, corrupt, of another version or of
-another key is recomputed and rewritten, never trusted. Writes are atomic
-(:func:`pyramid_cli.core.cache.write`); a folder that cannot be written only costs the speed-up.
-The folder keeps at most :data:`MAX_ENTRIES` entries, the least recently used going first.
+package version, a digest of the planner's sources (:func:`pyramid_cli.core.fingerprint.sources`:
+an edited checkout never reads a stale plan) and :data:`FORMAT`. The entry is JSON written by
+:func:`encode` for the Plan's own classes only (no pickle: nothing in the folder can run code),
+repeats that key in full, and is read back by :func:`decode`, which checks every value's type and
+the plan's invariants; an entry that is truncated, corrupt, of another version or of another key
+is recomputed and rewritten, never trusted. Writes are atomic (:func:`pyramid_cli.core.cache.write`);
+a folder that cannot be written only costs the speed-up. The folder keeps at most
+:data:`MAX_ENTRIES` entries, the least recently used going first.
 """
 
 from __future__ import annotations
@@ -29,10 +30,9 @@ import threading
 from collections import OrderedDict
 from collections.abc import Callable
 from fractions import Fraction
-from functools import cache
-from pathlib import Path
 
 from pyramid_cli.core import cache as disk
+from pyramid_cli.core import fingerprint
 from pyramid_cli.core.version import __version__
 from pyramid_cli.plan.model import Image, Pass, Plan, PointwisePass, ResamplePass, Tap, check
 
@@ -63,30 +63,12 @@ def canonical(value: object) -> object:
     return repr(value)
 
 
-@cache
-def fingerprint() -> str:
-    """A digest of the planner's sources (name, size and modification time of every file in
-    :data:`SOURCES`): a checkout whose planner changes gets new entries, as a new version does."""
-    package = Path(__file__).resolve().parent.parent
-    files = []
-    for name in SOURCES:
-        try:
-            with os.scandir(package / name) as it:
-                for entry in it:
-                    if entry.is_file() and entry.name.endswith((".py", ".json")):
-                        st = entry.stat()
-                        files.append((name, entry.name, st.st_size, st.st_mtime_ns))
-        except OSError:
-            files.append((name, "?"))
-    return disk.key(*sorted(files))
-
-
 def plan_key(work: object, sizes, strategy: str) -> str:
     """The full description of a plan (see the module): what an entry's name digests and its text repeats."""
     from pyramid_cli.plan import cost
 
     sizes = tuple(tuple(int(n) for n in s[:2]) for s in sizes)
-    return repr(("plan", FORMAT, __version__, fingerprint(), canonical(work), sizes, strategy,
+    return repr(("plan", FORMAT, __version__, fingerprint.sources(*SOURCES), canonical(work), sizes, strategy,
                  canonical(cost.model())))
 
 
@@ -299,5 +281,5 @@ def clear_memo() -> None:
         _memo.clear()
 
 
-__all__ = ["FORMAT", "FOLDER", "MAX_ENTRIES", "MEMO_SIZE", "SOURCES", "canonical", "fingerprint", "plan_key",
+__all__ = ["FORMAT", "FOLDER", "MAX_ENTRIES", "MEMO_SIZE", "SOURCES", "canonical", "plan_key",
            "encode", "decode", "entry_name", "load", "store", "prune", "cached", "clear_memo"]
