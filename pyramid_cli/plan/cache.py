@@ -9,15 +9,16 @@ same-sized files plans once) and as an entry of the cache folder's ``plans`` sub
 
 An entry's name is a digest of everything that determines the plan (:func:`plan_key`): the
 job's canonical description (its class and compared fields, recursively; an expression's
-source position is not one), the input sizes, the strategy, the cost model's constants, the
-package version, a digest of the planner's sources (:func:`pyramid_cli.core.fingerprint.sources`:
-an edited checkout never reads a stale plan) and :data:`FORMAT`. The entry is JSON written by
-:func:`encode` for the Plan's own classes only (no pickle: nothing in the folder can run code),
-repeats that key in full, and is read back by :func:`decode`, which checks every value's type and
-the plan's invariants; an entry that is truncated, corrupt, of another version or of another key
-is recomputed and rewritten, never trusted. Writes are atomic (:func:`pyramid_cli.core.cache.write`);
-a folder that cannot be written only costs the speed-up. The folder keeps at most
-:data:`MAX_ENTRIES` entries, the least recently used going first.
+source position is not one), the input sizes, the strategy, the cost model's constants (for
+the strategy that weighs recipes by them), the package version, a digest of the planner's
+sources (:func:`pyramid_cli.core.fingerprint.sources`: an edited checkout never reads a stale
+plan) and :data:`FORMAT`. The entry is JSON written by :func:`encode` for the Plan's own
+classes only (no pickle: nothing in the folder can run code), repeats that key in full, and is
+read back by :func:`decode`, which checks every value's type and the plan's invariants; an
+entry that is truncated, corrupt, of another version or of another key is recomputed and
+rewritten, never trusted. Writes are atomic (:func:`pyramid_cli.core.cache.write`); a folder
+that cannot be written only costs the speed-up. The folder keeps at most :data:`MAX_ENTRIES`
+entries, the least recently used going first.
 """
 
 from __future__ import annotations
@@ -41,6 +42,7 @@ FOLDER = "plans"      # the sub-folder of the cache root
 MEMO_SIZE = 64        # plans kept in this process
 MAX_ENTRIES = 512     # entries kept on disk (the least recently used are removed beyond it)
 SOURCES = ("core", "plan", "workflows", "jobs")  # the package folders whose code makes plans
+MODEL_FREE = ("paper", "fused")  # strategies that plan without the cost model
 
 _memo: OrderedDict[str, Plan | None] = OrderedDict()
 _lock = threading.Lock()
@@ -64,12 +66,18 @@ def canonical(value: object) -> object:
 
 
 def plan_key(work: object, sizes, strategy: str) -> str:
-    """The full description of a plan (see the module): what an entry's name digests and its text repeats."""
-    from pyramid_cli.plan import cost
+    """The full description of a plan (see the module): what an entry's name digests and its text repeats.
 
+    The cost model's constants are part of it where the strategy consults them: every strategy but
+    :data:`MODEL_FREE` ("paper" and "fused" never weigh recipes, so a CPU run never loads the model)."""
     sizes = tuple(tuple(int(n) for n in s[:2]) for s in sizes)
+    model = None
+    if strategy not in MODEL_FREE:
+        from pyramid_cli.plan import cost
+
+        model = canonical(cost.model())
     return repr(("plan", FORMAT, __version__, fingerprint.sources(*SOURCES), canonical(work), sizes, strategy,
-                 canonical(cost.model())))
+                 model))
 
 
 # ---------------------------------------------------------------- the entry
@@ -281,5 +289,5 @@ def clear_memo() -> None:
         _memo.clear()
 
 
-__all__ = ["FORMAT", "FOLDER", "MAX_ENTRIES", "MEMO_SIZE", "SOURCES", "canonical", "plan_key",
+__all__ = ["FORMAT", "FOLDER", "MAX_ENTRIES", "MEMO_SIZE", "SOURCES", "MODEL_FREE", "canonical", "plan_key",
            "encode", "decode", "entry_name", "load", "store", "prune", "cached", "clear_memo"]

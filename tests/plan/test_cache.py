@@ -162,6 +162,12 @@ def test_the_cost_model_is_part_of_the_key(monkeypatch):
     assert len(calibrated.passes) > 1 and len(fused.passes) == 1
 
 
+def test_plans_that_weigh_no_recipe_never_load_the_cost_model(monkeypatch):
+    monkeypatch.setattr(cost, "model", lambda: pytest.fail("the cost model was consulted"))
+    for strategy in cache.MODEL_FREE:
+        assert Blur(levels=2).plan([(16, 16)], strategy) is not None
+
+
 def test_an_unwritable_cache_folder_costs_only_the_speed_up(tmp_path, monkeypatch):
     blocker = tmp_path / "a-file"
     blocker.write_text("not a folder")
