@@ -164,6 +164,11 @@ def decode(doc: dict) -> Plan | None:
             raise IndexError(f"no fraction {i}")
         return fr[i]
 
+    def row_of(indices) -> tuple[Fraction, ...]:  # a resampling table's row at once (MIP maps hold thousands)
+        if not all(type(i) is int for i in indices) or (indices and min(indices) < 0):
+            raise ValueError("a table row holds fraction indices")
+        return tuple(map(fr.__getitem__, indices))
+
     passes: list[Pass | ResamplePass | PointwisePass] = []
     for e in d["passes"]:
         kind = e[0]
@@ -190,7 +195,7 @@ def decode(doc: dict) -> Plan | None:
             _ints(target, source, axis, *starts)
             _strs(label, why)
             passes.append(ResamplePass(label, target, source, axis, tuple(starts),
-                                       tuple(tuple(f(w) for w in row) for row in weights), why))
+                                       tuple(map(row_of, weights)), why))
         else:
             raise ValueError(f"unknown pass kind {kind!r}")
     images = []
