@@ -271,16 +271,20 @@ def prune(keep: int = MAX_ENTRIES) -> None:
 def cached(work: object, sizes, strategy: str, build: Callable[[], Plan | None]) -> Plan | None:
     """``work``'s plan for inputs of ``sizes`` by ``strategy``: from this process's memo, else the
     disk entry, else ``build()`` (then kept in both). The same key gives the same plan object in
-    one process, as the planner's own caches did."""
+    one process, as the planner's own caches did. A job class defined outside the package (a caller's
+    own :class:`~pyramid_cli.jobs.work.Work`) is kept in the process only: its code is not in the key."""
     key = plan_key(work, sizes, strategy)
     with _lock:
         if key in _memo:
             _memo.move_to_end(key)
             return _memo[key]
-    found, p = load(key)
+    # on disk only the package's own jobs: the digest of the sources covers their code, not a caller's subclass
+    persist = type(work).__module__.startswith("pyramid_cli.")
+    found, p = load(key) if persist else (False, None)
     if not found:
         p = build()
-        store(key, p)
+        if persist:
+            store(key, p)
     with _lock:
         p = _memo.setdefault(key, p)
         while len(_memo) > MEMO_SIZE:

@@ -214,3 +214,15 @@ def test_the_cpu_executor_runs_a_plan_read_back_to_the_same_bytes(name, cpu_exec
     for a, b in zip(cpu_executor.run_outputs(made, images, np.float32),
                     cpu_executor.run_outputs(read, images, np.float32), strict=True):
         assert a.tobytes() == b.tobytes()
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class MyBlur(Blur):
+    """A caller's own job: its code can change under the same name and fields."""
+
+
+def test_a_callers_own_job_is_kept_in_the_process_only(cache_home):
+    work = MyBlur(levels=1)
+    first = work.plan([(8, 8)], "fused")
+    assert work.plan([(8, 8)], "fused") is first
+    assert not (cache_home / cache.FOLDER).exists()
