@@ -91,3 +91,12 @@ def test_the_check_sees_a_heavy_import(tmp_path):
     pytest.importorskip("matplotlib")
     modules = loaded(["explain", "--plot", str(tmp_path / "p.png"), "box4 *v g"], tmp_path)
     assert "matplotlib" in modules
+
+
+def test_the_python_api_loads_no_image_io_until_it_reads_a_file():
+    """``pyr.blur`` on arrays needs numpy and an executor, not OpenImageIO (``pyr.read_image`` loads it)."""
+    script = "import json, sys, pyramid_cli as pyr; pyr.blur, pyr.Session; print(json.dumps(sorted(sys.modules)))"
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120, check=True)
+    modules = set(json.loads(out.stdout))
+    assert "pyramid_cli.api" in modules
+    assert not {"OpenImageIO", "numba", "moderngl", "matplotlib", "dask"} & modules
