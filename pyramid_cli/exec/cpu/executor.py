@@ -311,6 +311,13 @@ class CPUExecutor:
             for s in ps.sources():
                 last_read[s] = i
         keep = set(plan.outputs)
+        spare: dict[tuple, list[np.ndarray]] = {}  # this run's dead intermediates, by shape, for later targets
+
+        def retire(k: int) -> None:
+            a = stored.pop(k)
+            if k not in plan.inputs and a.dtype == np.float32:
+                spare.setdefault(a.shape, []).append(a)
+
         for i, ps in enumerate(plan.passes):
             if isinstance(ps, ResamplePass):
                 src = stored[ps.source]
@@ -318,20 +325,24 @@ class CPUExecutor:
                     src = self._half_lut()[src]
                 stored[ps.target] = self._resample(plan, ps, np.ascontiguousarray(src))
                 if last_read[ps.source] == i and ps.source not in keep:
-                    del stored[ps.source]
+                    retire(ps.source)
                 continue
             srcs = sources(ps)
             target = plan.images[ps.target]
-            out = np.empty(target.stored + (channels,), dtype=np.float32)
+            # a dead intermediate of the same shape (the blur's way up reuses its way down): fresh memory costs
+            # a page fault per page at its first write, about as much as the pass's own stores
+            shape_ = target.stored + (channels,)
+            free = spare.get(shape_)
+            out = free.pop() if free else np.empty(shape_, dtype=np.float32)
             if isinstance(ps, PointwisePass):
                 self._run_pointwise(ps, out, [self._float(stored[s]) if s in half else stored[s] for s in srcs])
             else:
                 kern = self.kernel(ps)
                 self._run_pass(plan, ps, kern, out, [stored[s] for s in srcs], srcs)
             stored[ps.target] = out
-            for s in srcs:
+            for s in set(srcs):
                 if last_read[s] == i and s not in keep:
-                    del stored[s]
+                    retire(s)
         results = []
         for k in plan.outputs:
             im = plan.images[k]
@@ -403,13 +414,15 @@ class CPUExecutor:
         if i_lo >= i_hi or c_lo >= c_hi or out.size <= TINY:  # one window: fewer calls beat fewer copies
             self._window_call(kern, out, srcs, imgs, offs, (m_first, m_last + 1), cols, ps, yoff, xoff)
             return
+        # the interior first: its threads take the first touch of the fresh output's pages (the kernel zeroes
+        # them on first write); a border strip first would fault every page of a column strip on one thread
+        self._call(kern, out, srcs, (i_lo, i_hi), inner, offs, yoff, xoff, parallel=True)
         self._window_call(kern, out, srcs, imgs, offs, (m_first, i_lo), cols, ps, yoff, xoff)
         self._window_call(kern, out, srcs, imgs, offs, (i_hi, m_last + 1), cols, ps, yoff, xoff)
         left = [(lo, a) for (lo, _), (a, _) in zip(cols, inner, strict=True)]
         right = [(b, hi) for (_, hi), (_, b) in zip(cols, inner, strict=True)]
         self._window_call(kern, out, srcs, imgs, offs, (i_lo, i_hi), left, ps, yoff, xoff)
         self._window_call(kern, out, srcs, imgs, offs, (i_lo, i_hi), right, ps, yoff, xoff)
-        self._call(kern, out, srcs, (i_lo, i_hi), inner, offs, yoff, xoff, parallel=True)
 
     def _window_call(self, kern: Kernel, out, srcs, imgs, offs, rows: tuple[int, int], cols, ps, yoff, xoff):
         """Groups ``rows`` × ``cols`` through windows of each source gathered with its border mode."""

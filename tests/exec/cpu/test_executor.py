@@ -178,6 +178,20 @@ def test_a_blur_and_a_mip_plan_run_on_at_most_two_kernels(ex, make):
         assert f.shape == w.shape
 
 
+def test_dead_intermediates_are_reused_and_live_ones_are_not(ex):
+    """A run writes a later target into a dead intermediate of its shape (the way up into the way down),
+    never into an image still to be read or returned."""
+    size = (64, 96)
+    x = random_image(size, 3, 8)
+    sigma, _, _ = pyramids.blur_plan_sigma(size, 5.0, strategy="fused")  # two ways up, blended at the end
+    np.testing.assert_allclose(ex.run(sigma, x), emulate.run(sigma, x), rtol=0, atol=1e-5)
+    lap = pyramids.levels_plan(size, 3, laplacian=True, strategy="fused")
+    outs = ex.run_outputs(lap, [x])
+    for o, want in zip(outs, emulate.run_outputs(lap, [x]), strict=True):
+        np.testing.assert_allclose(o, want, rtol=0, atol=1e-5)
+    assert not any(np.shares_memory(a, b) for i, a in enumerate(outs) for b in outs[i + 1:])
+
+
 @pytest.mark.parametrize("border", slow_beyond(BORDERS))
 def test_cpu_plans_fuse_each_step_and_equal_reference(ex, border):
     """The "fused" strategy (the CPU executor's): one pass per written step, the same numbers at every pixel."""
