@@ -27,6 +27,7 @@ from __future__ import annotations
 import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -89,14 +90,22 @@ def _fold(index: np.ndarray, n: int, border: str) -> np.ndarray:
     return fold(index + 1, n, Border.parse(border)) - 1
 
 
+@lru_cache(maxsize=256)  # a strip's index arrays are as long as its side: 256 of 4K strips are ~15 MB
+def _window_index(rows: tuple[int, int], cols: tuple[int, int], extent: tuple[int, int], border: str):
+    """The gather of :func:`_window` (``np.ix_`` of the folded indices) and the rows and columns that read zero;
+    the same few windows recur in every run of a plan, so they are computed once."""
+    ri = _fold(np.arange(rows[0], rows[1] + 1), extent[0], border)
+    ci = _fold(np.arange(cols[0], cols[1] + 1), extent[1], border)
+    return np.ix_(np.maximum(ri, 0), np.maximum(ci, 0)), ri < 0, ci < 0
+
+
 def _window(src: np.ndarray, rows: tuple[int, int], cols: tuple[int, int], border: str) -> np.ndarray:
     """Texels ``rows[0]..rows[1]`` × ``cols[0]..cols[1]`` (inclusive, 0-based stored, possibly outside) of ``src``."""
-    ri = _fold(np.arange(rows[0], rows[1] + 1), src.shape[0], border)
-    ci = _fold(np.arange(cols[0], cols[1] + 1), src.shape[1], border)
-    win = src[np.ix_(np.maximum(ri, 0), np.maximum(ci, 0))]
+    index, zero_rows, zero_cols = _window_index(rows, cols, src.shape[:2], border)
+    win = src[index]
     if border == "zero":
-        win[ri < 0] = 0
-        win[:, ci < 0] = 0
+        win[zero_rows] = 0
+        win[:, zero_cols] = 0
     return win
 
 
@@ -147,7 +156,8 @@ class CPUExecutor:
         self.cache = Path(cache) if cache is not None else cache_dir()
         self.compiles = 0
         self.cache_loads = 0
-        self._kernels: dict[tuple, Kernel] = {}
+        self._kernels: dict = {}   # pass shape (or "resample", "pointwise") → compiled kernel
+        self._by_pass: dict[int, tuple] = {}   # id(pass) → (pass, Kernel)
         self._pool: ThreadPoolExecutor | None = None
         self._lut: np.ndarray | None = None
 
@@ -202,10 +212,16 @@ class CPUExecutor:
     # ------------------------------------------------------------ kernels
     def kernel(self, ps) -> Kernel:
         """The compiled kernel of a pass's shape (for float32 and float16 sources alike)."""
+        hit = self._by_pass.get(id(ps))
+        if hit is not None and hit[0] is ps:  # the shape of a pass run before (exact Fractions: not free)
+            return hit[1]
         s = shape(ps)
         k = self._kernels.get(s)
         if k is None:
             k = self._kernels[s] = self._build(s)
+        if len(self._by_pass) > 4096:
+            self._by_pass.clear()
+        self._by_pass[id(ps)] = (ps, k)  # the pass is held, so its id is not reused while the entry lives
         return k
 
     def _ready(self, fn, sig: str, compile_=compile_plain) -> None:
