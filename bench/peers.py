@@ -12,8 +12,8 @@ Jobs (see ``JOBS``; outputs in the same format and compression as the peer's):
 * ``png-blur``: ``pyramid blur --sigma 8 --compression 6`` of a 4K 8-bit RGB PNG against libvips
   ``gaussblur`` 8 (``bench/scripts/vips_blur.py``: a fresh interpreter importing pyvips, as a user's
   script; ``pngsave compression=6``, both zlib level 6);
-* ``tiff-blur``: the same on a 4K float RGB TIFF (deflate) against libvips (``tiffsave compression=deflate``),
-  with the bare OpenImageIO read+write of the file (``bench/scripts/io_floor.py``) beside it;
+* ``tiff-blur``: the same on a 4K float RGB TIFF (deflate) against libvips (``tiffsave compression=deflate``);
+  both blurs have the bare OpenImageIO read+write of their input (``bench/scripts/io_floor.py``) beside them;
 * ``exr-blur``: ``pyramid blur --levels 5`` of a 4K RGBA half EXR (zip) against ``oiiotool IN -o OUT``;
 * ``png-mipmap`` / ``exr-mipmap``: ``pyramid mipmap --tile 64 --compression zip`` of the 4K PNG (to ``.tx``)
   and of the 4K half EXR (to a tiled EXR) against ``maketx --tile 64 64 --compression zip`` (each tool's
@@ -193,7 +193,8 @@ def jobs(files: dict[str, Path], out: Path) -> list[Job]:
     return [
         Job("png-blur", "blur sigma 8, 4K 8-bit RGB PNG (zlib level 6)", "libvips gaussblur 8 (pyvips)",
             {"": ["blur", "-q", "--sigma", "8", "--compression", "6", png, "{o}.png"]},
-            [*vips, png, "{o}.png"], no_vips),
+            [*vips, png, "{o}.png"], no_vips,
+            {"OIIO read+write (floor)": [sys.executable, str(SCRIPTS / "io_floor.py"), png, "{o}.png"]}),
         Job("tiff-blur", "blur sigma 8, 4K float RGB TIFF (deflate)", "libvips gaussblur 8 (pyvips, deflate)",
             {"": ["blur", "-q", "--sigma", "8", "--compression", "zip", tif, "{o}.tif"]},
             [*vips, tif, "{o}.tif"], no_vips,
@@ -370,6 +371,10 @@ def table_lines(report: dict) -> list[str]:
     for j in report["jobs"]:
         if not j["rows"]:
             lines.append(f"{j['id']:15s} skipped: {j.get('skipped')}")
+        for name, c in j.get("contenders", {}).items():
+            if not name.startswith(("pyramid", "peer")) and "median_s" in c:  # a floor, for scale
+                lines.append(f"{j['id']:15s} {name[:18]:18s} {fmt(c['median_s'], 's'):>9s} "
+                             f"{fmt(c['peak_rss_mib'], 'MiB'):>8s}")
         for r in j["rows"]:
             if "error" in r:
                 lines.append(f"{j['id']:15s} {r['pyramid']:18s} failed: {r['error'][:80]}")
@@ -430,22 +435,28 @@ def profile(job_id: str, job: Job | None, pyr: Pyramid, data: Path, out_txt: Pat
     if job is None or pyr.argv[-2:] != ["-m", "pyramid_cli.cli"]:
         raise SystemExit(f"peers: --profile {job_id}: profiles a fresh-process job of `python -m pyramid_cli.cli`")
     a = outputs(job.ours.get("auto", job.ours.get("")), data / "out" / job_id / "profile")
+    out_txt.parent.mkdir(parents=True, exist_ok=True)
     stats_file = out_txt.with_suffix(".prof")
-    argv = [*pyr.argv[:-2], "-m", "cProfile", "-o", str(stats_file), "-m", "pyramid_cli.cli", *a]
-    subprocess.run(argv, check=True, env=pyr.env, capture_output=True)  # warm-up: kernel cache, page cache
-    t0 = time.perf_counter()
-    subprocess.run(argv, check=True, env=pyr.env, capture_output=True)
-    wall = time.perf_counter() - t0
+    argv = [*pyr.argv[:-2], str(SCRIPTS / "profile_threads.py"), str(stats_file), "pyramid_cli.cli", *a]
+    for _ in range(2):  # the first is a warm-up (kernel cache, page cache); the second is kept
+        t0 = time.perf_counter()
+        p = subprocess.run(argv, env=pyr.env, capture_output=True, text=True)
+        wall = time.perf_counter() - t0
+        if p.returncode:
+            raise SystemExit(f"peers: --profile {job_id}: {shlex.join(argv)} exited {p.returncode}: "
+                             f"{p.stderr.strip()[-600:]}")
     with out_txt.open("w") as f:
-        f.write(f"# {job_id}: {shlex.join(argv)}\n# wall {wall:.3f} s under the profiler (main thread only)\n")
+        st = pstats.Stats(str(stats_file), stream=f)
+        imports = max((v[3] for k, v in st.stats.items() if k[2] == "_find_and_load"), default=0.0)
+        waits = sum(v[2] for k, v in st.stats.items() if any(w in k[2] for w in ("acquire", "SimpleQueue", "sleep")))
+        f.write(f"# {job_id}: {shlex.join(argv)}\n# wall {wall:.3f} s under the profiler; every Python thread's "
+                f"stats merged: imports {imports:.3f} s (cumulative), waits {waits:.3f} s (locks, idle pool threads)\n")
         for key in ("cumulative", "tottime"):
-            st = pstats.Stats(str(stats_file), stream=f)
             st.sort_stats(key).print_stats(lines)
-    st = pstats.Stats(str(stats_file))
-    imports = max((v[3] for k, v in st.stats.items() if k[2] == "_find_and_load"), default=0.0)
+        f.write("# the package's own functions and numba's cache loads, by cumulative time: the phases\n")
+        st.sort_stats("cumulative").print_stats(r"pyramid_cli|numba/core/caching|\(_find_and_load\)", 2 * lines)
     stats_file.unlink()
-    return {"job": job_id, "argv": argv, "wall_s": wall, "imports_s": imports, "total_s": st.total_tt,
-            "text": str(out_txt)}
+    return {"job": job_id, "argv": argv, "wall_s": wall, "imports_s": imports, "waits_s": waits, "text": str(out_txt)}
 
 
 # ====================================================================== main
