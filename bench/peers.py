@@ -470,7 +470,7 @@ def main(argv=None) -> int:
     ap.add_argument("--pyramid-tree", action="append", metavar="DIR",
                     help="also time DIR's pyramid_cli (PYTHONPATH=DIR), interleaved; repeatable")
     ap.add_argument("--data", default="/tmp/pyramid-bench-peers", help="where inputs are made once and outputs go")
-    ap.add_argument("--json", help="default bench/results/peers-DATE.json")
+    ap.add_argument("--json", help="default bench/results/peers-DATE.json (--quick: DATA/peers-quick.json)")
     ap.add_argument("--plot", help="default: the JSON's path with .png")
     ap.add_argument("--profile", metavar="JOB[,JOB]", help="profile pyramid on these jobs (cProfile), nothing else")
     args = ap.parse_args(argv)
@@ -480,7 +480,8 @@ def main(argv=None) -> int:
     args.repeat = args.repeat or (1 if args.quick else 5)
     args.warmup = 0 if args.quick else 1
     day = _dt.date.today().isoformat()
-    out_json = Path(args.json or HERE / "results" / f"peers-{day}.json")
+    default = Path(args.data) / "peers-quick.json" if args.quick else HERE / "results" / f"peers-{day}.json"
+    out_json = Path(args.json or default)  # a smoke run never overwrites the committed results
     pyrs = pyramids(args)
     data = Path(args.data)
     log("peers: making the inputs …")
@@ -510,15 +511,19 @@ def main(argv=None) -> int:
             report["skipped"].append(f"{job_id}: {res['skipped']}")
         report["jobs"].append(res)
     report["load_avg"]["end"] = os.getloadavg()[0]
+    report["failed"] = [f"{j['id']}: {name}: {c['error']}" for j in report["jobs"]
+                        for name, c in j.get("contenders", {}).items() if "error" in c]
+    report["failed"] += [f"{j['id']}: {r['pyramid']}: {r['error']}" for j in report["jobs"] for r in j["rows"]
+                         if "error" in r]
     report["table"] = table_lines(report)
-    print("\n".join(report["table"]))
+    print("\n".join(report["table"] + [f"failed: {f}" for f in report["failed"]]))
     print(f"load average {report['load_avg']['start']:.1f} at the start, {report['load_avg']['end']:.1f} at the end")
     out_json.parent.mkdir(parents=True, exist_ok=True)
     out_json.write_text(json.dumps(report, indent=1, ensure_ascii=False, default=str) + "\n")
     print(f"wrote {out_json}")
     why = plot(report, Path(args.plot or out_json.with_suffix(".png")))
     print(why or f"plot: {args.plot or out_json.with_suffix('.png')}")
-    return 0
+    return 1 if report["failed"] else 0
 
 
 if __name__ == "__main__":

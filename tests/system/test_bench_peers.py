@@ -40,9 +40,9 @@ def test_peers_quick_writes_json_and_plot(tmp_path):
     assert p.returncode == 0, p.stderr[-2000:]
     report = json.loads(out.read_text())
     for key in ("schema", "created", "machine", "quick", "repeat", "load_avg", "pyramids", "inputs", "targets",
-                "jobs", "skipped", "table"):
+                "jobs", "skipped", "failed", "table"):
         assert key in report, key
-    assert report["quick"] is True and report["repeat"] == 1
+    assert report["quick"] is True and report["repeat"] == 1 and report["failed"] == []
     assert {"start", "end"} <= set(report["load_avg"])
     assert {"cpu", "cores_usable", "versions", "versions_peers"} <= set(report["machine"])
     assert {"libvips", "numba", "maketx", "oiiotool"} <= set(report["machine"]["versions_peers"])
