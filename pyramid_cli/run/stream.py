@@ -7,6 +7,8 @@ row-band scheduler of :mod:`pyramid_cli.exec.tiles` (each image of the plan keep
 rows later passes still read: the guard bands, at every level), and the output's rows
 are encoded and written as they complete into the temporary file that is renamed onto
 the output at the end (atomic, as every write). The pixels are those of the untiled run.
+Decoding, computing and encoding overlap: the input is decoded ahead on a thread of its own
+and the outputs encoded and written behind on another (:mod:`pyramid_cli.run.overlap`).
 
 The budget is ``--memory SIZE``, or by default a quarter of the memory available when
 the command starts (:func:`default_memory`). The band height is chosen from it and
@@ -20,6 +22,7 @@ import contextlib
 import dataclasses
 import os
 import re
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -27,6 +30,7 @@ import numpy as np
 
 from pyramid_cli.core.errors import DataError, OutputError, UsageError
 from pyramid_cli.plan import Plan
+from pyramid_cli.run.overlap import DEPTH, overlapped
 
 MIN_BAND = 8            # rows: dithering's Bayer pattern and most tile heights are multiples of 8
 COPIES = 3              # a band held, its next rows, and the transient concatenation of both
@@ -144,7 +148,8 @@ def estimate(plan: Plan, channels: int, band: int | None, in_bytes: int = 4, out
     (its share of the band) plus the rows its consumers' guard bands reach, :data:`COPIES` times.
     ``texture``: bytes of the texture an executor keeps for each image's (rows, columns) held, on top
     (the GL executor's power-of-two RGBA textures, host memory on llvmpipe: :func:`costs`).
-    ``keeps_input``: the input is written too, as level 0 (``levels``, ``mipmap``), by a writer of its own."""
+    ``keeps_input``: the input is written too, as level 0 (``levels``, ``mipmap``), by a writer of its own.
+    Streamed, the bands in flight between the threads of :mod:`pyramid_cli.run.overlap` count too."""
     anchor = max(plan.images[k].size[0] for k in plan.outputs)
     total = 0
     feet = _footprints(plan)
@@ -154,14 +159,17 @@ def estimate(plan: Plan, channels: int, band: int | None, in_bytes: int = 4, out
         if band is None:
             total += rows * cols * channels * item
         else:
-            rows = min(rows, -(-band * im.size[0] // anchor) + feet[k])
+            share = -(-band * im.size[0] // anchor)
+            rows = min(rows, share + feet[k])
             total += COPIES * rows * cols * channels * item
+            if k in plan.inputs:  # decoded ahead (run.overlap: the queue and the step being decoded)
+                total += (DEPTH + 1) * min(im.size[0], share) * cols * channels * item
         if texture is not None:
             total += texture((rows, cols))
     written = [plan.inputs[0]] * keeps_input + list(plan.outputs)
     for k in written:  # what the writers hold (whole: the results; streamed: a band being encoded)
         rows, cols = plan.images[k].size
-        share = rows if band is None else 2 * -(-band * rows // anchor)
+        share = rows if band is None else (2 + DEPTH) * -(-band * rows // anchor)  # + the writer's queue
         total += share * cols * channels * out_bytes
     return total
 
@@ -289,6 +297,14 @@ def costs(executor) -> dict:
             "texture": executor.texture_bytes if executor.host_textures else None}
 
 
+def read_step(plan: Plan, band: int) -> int:
+    """Input rows decoded at a time ahead of a scheduler running ``plan`` in bands of ``band`` output rows: the
+    input's share of a band (:mod:`pyramid_cli.run.overlap`)."""
+    anchor = max(plan.images[k].size[0] for k in plan.outputs)
+    rows = max(plan.images[k].size[0] for k in plan.inputs)
+    return max(MIN_BAND, -(-band * rows // anchor))
+
+
 def stream_file(in_path: str, out_path: str | list[str], work, session, choice: Choice | None = None, *,
                 budget: int, read=None, write=None, reporter=None, stream=None, attributes: dict | None = None
                 ) -> Choice:
@@ -328,21 +344,27 @@ def stream_file(in_path: str, out_path: str | list[str], work, session, choice: 
                             keeps_input=bool(kept), **costs(executor))
         band = choice.band or MIN_BAND
         slot = {k: kept + i for i, k in enumerate(plan.outputs)}
-        with io.stream_writers(paths, [info] * len(paths), [s + (c,) for s in sizes], **options) as writers:
+        with (io.stream_writers(paths, [info] * len(paths), [s + (c,) for s in sizes], **options) as writers,
+              overlapped(stream.read, h, read_step(plan, band)) as (reader, writer)):
             def source(k, rows, cols):
-                px = stream.read(*rows)
+                px = reader.rows(*rows)
                 if kept:  # level 0 is the input: written as it is read (each row once, in order)
-                    writers[0].write(rows[0], px.astype(dtypes[0], copy=False))
+                    writer.call(writers[0].write, rows[0], px.astype(dtypes[0], copy=False))
                 px = px[:, cols[0]:cols[1]] if (cols[0], cols[1]) != (0, w) else px
                 return px.astype(np.float64) if emu else px
 
-            def sink(k, r, c0, px):  # px is the scheduler's buffer: the writer may keep rows, so a copy
+            def sink(k, r, c0, px):  # px is the scheduler's buffer: the writer keeps rows, so a copy
                 j = slot[k]
-                writers[j].write(r, px.astype(dtypes[j]))
+                writer.call(writers[j].write, r, px.astype(dtypes[j]))
 
             scheduler = tiles.Scheduler(executor, plan, source, sink, band=band,
                                         dtype=np.float64 if emu else np.float32)
+            started = time.thread_time()
             scheduler.run()
+            computed = time.thread_time() - started
+        if reporter is not None:
+            reporter.detail(f"{in_path}: CPU seconds: decoding {reader.busy:.2f}, computing {computed:.2f} (this "
+                            f"thread), encoding and writing {writer.busy:.2f}, each on a thread of its own")
         session.ran = session.name
         if reporter is not None and stream.nonfinite and ro.nan == "keep":
             reporter.warn(f"{in_path}: {stream.nonfinite} NaN/Inf value(s) kept; they spread through the filter "
@@ -630,20 +652,25 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
         writer = None if once else open_writer()
         slot = {k: i for i, k in enumerate(plan.outputs)}
 
-        def source(k, rows, cols):
-            px = st.read(*rows)
-            if once:
-                level0.write(0, rows[0], px)
-                stats.add_decoded(px)
-            else:
-                writer.write(rows[0], px.astype(np.float32, copy=False))  # level 0: each row once, in order
-            px = px[:, cols[0]:cols[1]] if (cols[0], cols[1]) != (0, w) else px
-            return px.astype(np.float64) if emu else px
+        def keep_level0(y: int, px: np.ndarray) -> None:
+            level0.write(0, y, px)
+            stats.add_decoded(px)
 
-        def sink(k, r, c0, px):
-            kept.write(slot[k], r, px)
+        with overlapped(st.read, h, read_step(plan, choice.band)) as (reader, behind):
+            def source(k, rows, cols):
+                px = reader.rows(*rows)
+                if once:
+                    behind.call(keep_level0, rows[0], px)
+                else:  # level 0: each row once, in order
+                    behind.call(writer.write, rows[0], px.astype(np.float32, copy=False))
+                px = px[:, cols[0]:cols[1]] if (cols[0], cols[1]) != (0, w) else px
+                return px.astype(np.float64) if emu else px
 
-        tiles.Scheduler(executor, plan, source, sink, band=choice.band, dtype=np.float64 if emu else np.float32).run()
+            def sink(k, r, c0, px):
+                kept.write(slot[k], r, px)
+
+            tiles.Scheduler(executor, plan, source, sink, band=choice.band,
+                            dtype=np.float64 if emu else np.float32).run()
         if once:
             st.on_stored = None
             for y in range(0, h, step):  # level 0 as encoded, in the bands of the two-read way (dithering lines up)
