@@ -76,7 +76,8 @@ def process(paths: list[str], template: str | None, work: Work, session: Session
         job_list = drop_missing(job_list, keep_going, reporter.warn)
     if (not many and len(job_list) == 1 and cluster is None and frames is None
             and not (skip_existing and batch.is_fresh(job_list[0]))):
-        from pyramid_cli.run.stream import run_job, run_mip
+        from pyramid_cli.run.stream import run_job
+        from pyramid_cli.run.stream_mip import run_mip
 
         if mip_tile:
             if run_mip(job_list[0], work, session, memory=memory, tile=mip_tile, read=ro, write=wo,

@@ -14,7 +14,7 @@ from pyramid_cli import imageio as io
 from pyramid_cli.core.errors import UsageError
 from pyramid_cli.exec.session import Session
 from pyramid_cli.jobs.texture import TextureLevels
-from pyramid_cli.run import batch, stream
+from pyramid_cli.run import batch, stream_mip
 from pyramid_cli.run.pipeline import process
 from pyramid_cli.run.report import Reporter
 from pyramid_cli.workflows import mip
@@ -270,7 +270,7 @@ def test_the_spill_file_round_trips(tmp_path):
     path = tmp_path / "spill"
     shapes = [(5, 3, 2), (2, 1, 2)]
     path.write_bytes(b"")
-    kept = stream._Kept(shapes, str(path))
+    kept = stream_mip._Kept(shapes, str(path))
     a, b = noise(5, 3, 2), noise(2, 1, 2, seed=1)
     kept.write(1, 0, b)
     kept.write(0, 2, a[2:])
