@@ -262,7 +262,7 @@ def choose(plan: Plan, channels: int, budget: int, *, in_bytes: int = 4, out_byt
 
 def choose_mip(plan: Plan, channels: int, budget: int, *, in_bytes: int = 4, work_bytes: int = 4,
                texture: Callable[[tuple[int, int]], int] | None = None, level0: int = 0,
-               where: str = "", prefer: int | None = None) -> Choice:
+               where: str = "") -> Choice:
     """:func:`choose` for a MIP map streamed as :func:`run_mip` streams it.
 
     Level 0's writer holds a band of rows and their encoding. The coarser levels (``plan.outputs``, about a
@@ -290,7 +290,7 @@ def choose_mip(plan: Plan, channels: int, budget: int, *, in_bytes: int = 4, wor
                               level0=level0 * level0_held)
         return None
 
-    return _pick(plan, whole, budget, texture, False, fit, where, cost, prefer)
+    return _pick(plan, whole, budget, texture, False, fit, where, cost)
 
 
 # Pictures of at least STREAM_PIXELS stream on the CPU executor even when they fit whole, in bands of about
