@@ -48,9 +48,10 @@ def process(paths: list[str], template: str | None, work: Work, session: Session
     ``Session()``'s defaults), connecting and waiting for workers up to ``cluster_timeout``
     seconds (:mod:`pyramid_cli.run.cluster`).
 
-    One input of ``apply``, ``blur`` or ``mipmap`` whose whole-picture run would not fit ``memory`` bytes
-    (default: a quarter of the available memory) streams from file to file in bands
-    (:mod:`pyramid_cli.run.stream`); images that fit run whole.
+    One input of ``apply`` or ``blur`` streams from file to file in bands (:mod:`pyramid_cli.run.stream`), decoding,
+    computing and encoding at once, when it is large enough to be faster so (:func:`pyramid_cli.run.stream.speed_band`)
+    or when its whole-picture run would not fit ``memory`` bytes (default: a quarter of the available memory);
+    ``mipmap`` only in the latter case (:mod:`pyramid_cli.run.stream_mip`). Other images run whole.
     """
     ro, wo, reporter = read or ReadOptions(), write or WriteOptions(), reporter or Reporter()
     if mip_tile:
