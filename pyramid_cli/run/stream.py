@@ -392,9 +392,11 @@ def stream_file(in_path: str, out_path: str | list[str], work, session, choice: 
                 px = px[:, cols[0]:cols[1]] if (cols[0], cols[1]) != (0, w) else px
                 return px.astype(np.float64) if emu else px
 
+            def encode(j: int, r: int, px: np.ndarray) -> None:  # on the writer's thread
+                writers[j].write(r, px.astype(dtypes[j], copy=False))  # float32 to half: slow, so here
+
             def sink(k, r, c0, px):  # px is the scheduler's buffer: the writer keeps rows, so a copy
-                j = slot[k]
-                writer.call(writers[j].write, r, px.astype(dtypes[j]))
+                writer.call(encode, slot[k], r, px.copy())
 
             scheduler = tiles.Scheduler(executor, plan, source, sink, band=band,
                                         dtype=np.float64 if emu else np.float32)
