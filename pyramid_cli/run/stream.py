@@ -220,17 +220,20 @@ def _pick(plan: Plan, whole: int, budget: int, texture, force: bool, fit: Callab
     and 295 MB; mipmap 5000x3000 3.5-3.9 s and 521 MB against 3.4-3.8 s and 1.3 GB, the same bytes.
 
     ``prefer``: bands of about this many rows are faster than the whole run (:func:`speed_band`); a picture that
-    fits whole then streams in them all the same (``Choice.faster``)."""
+    fits whole then streams in them all the same (``Choice.faster``), and one that does not streams in them
+    rather than in the largest bands the budget holds (larger bands were no faster, and held gigabytes at 16K)."""
     pad = padding(plan, texture)
     if pad > PADDED:
         choice = fit(min(budget, PADDED_BAND_BYTES, whole // 4))
         if choice is not None:
             return dataclasses.replace(choice, padded=pad)
+    faster = fit(min(budget, cost(prefer))) if prefer else None
     if whole <= budget and not force:
-        choice = fit(min(budget, cost(prefer))) if prefer else None
-        if choice is not None and choice.working_set < whole:
-            return dataclasses.replace(choice, faster=True)
+        if faster is not None and faster.working_set < whole:
+            return dataclasses.replace(faster, faster=True)
         return Choice(budget, whole, None, whole)
+    if faster is not None:  # bands of the fastest size, not the largest the budget holds: flat memory
+        return faster
     choice = fit(budget)
     if choice is None:
         raise _too_small(where, cost(MIN_BAND), budget)

@@ -103,6 +103,10 @@ def test_what_runs_whole_by_default(session):
     assert choice.faster and choice.band == 64 and choice.working_set < choice.whole
     assert "faster than whole" in choice.describe() and choice.to_json()["faster"]
     assert not stream.choose(plan, 3, 1 << 40).streams
+    # over the budget: the bands of the fastest size, not the largest the budget holds (memory stays flat)
+    over = stream.choose(plan, 3, choice.whole // 2, prefer=64)
+    assert over.band == 64 and not over.faster
+    assert stream.choose(plan, 3, choice.whole // 2).band > 64
 
 
 @pytest.mark.slow
