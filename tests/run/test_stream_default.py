@@ -122,3 +122,31 @@ def test_a_megapixel_png_streams_as_shipped(tmp_path, session):
     finally:
         mp.undo()
     assert filecmp.cmp(tmp_path / "s.png", tmp_path / "w.png", shallow=False)
+
+
+def test_a_read_error_mid_stream_is_the_whole_runs_error_and_leaves_nothing(tmp_path, session,
+                                                                          small_pictures_stream):
+    """--nan fail meets a NaN in the reader's thread, past the first bands: the main thread raises the whole run's
+    one-line error, the previous output stays, no temporary and no thread is left."""
+    import os
+    import threading
+
+    from pyramid_cli.core.errors import DataError
+    from pyramid_cli.run.settings import ReadOptions
+
+    px = noise(150, 97, 4, seed=15)
+    px[120, 50, 1] = float("nan")
+    src = tmp_path / "in.exr"
+    write(src, px, "float")
+    out = tmp_path / "out.exr"
+    out.write_bytes(b"previous")
+    said = []
+    for threshold in (1, WHOLE):  # streamed, then whole
+        small_pictures_stream.setattr(stream, "STREAM_PIXELS", threshold)
+        with pytest.raises(DataError, match="first at x=50, y=120") as caught:
+            process([str(src), str(out)], None, blur_work(3), session, read=ReadOptions(nan="fail"),
+                    reporter=Reporter(quiet=True))
+        said.append(str(caught.value))
+        assert out.read_bytes() == b"previous" and sorted(os.listdir(tmp_path)) == ["in.exr", "out.exr"]
+        assert not [t for t in threading.enumerate() if t.name in ("pyramid-read", "pyramid-write")]
+    assert said[0] == said[1] and "\n" not in said[0]
