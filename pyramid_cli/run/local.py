@@ -87,7 +87,7 @@ def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: R
     def write_job(job, images):
         options = wo.for_inputs([job.input])
         if mip_tile:
-            from pyramid_cli.run.stream import mip_metadata
+            from pyramid_cli.run.stream_mip import mip_metadata
 
             # the source's SHA-1 hashed as it was read: the file is not read again
             meta = mip_metadata(work, job.input, images[0].spec.pixel_hash)

@@ -48,9 +48,11 @@ def process(paths: list[str], template: str | None, work: Work, session: Session
     ``Session()``'s defaults), connecting and waiting for workers up to ``cluster_timeout``
     seconds (:mod:`pyramid_cli.run.cluster`).
 
-    One input of ``apply``, ``blur`` or ``mipmap`` whose whole-picture run would not fit ``memory`` bytes
-    (default: :func:`pyramid_cli.run.budget.default_budget`) streams from file to file in bands
-    (:mod:`pyramid_cli.run.stream`); images that fit run whole.
+    One input of ``apply`` or ``blur`` streams from file to file in bands (:mod:`pyramid_cli.run.stream`),
+    decoding, computing and encoding at once, when it is large enough to be faster so
+    (:func:`pyramid_cli.run.stream.speed_band`) or when its whole-picture run would not fit ``memory`` bytes
+    (default: :func:`pyramid_cli.run.budget.default_budget`); ``mipmap`` only in the latter case
+    (:mod:`pyramid_cli.run.stream_mip`). Other images run whole.
     """
     ro, wo, reporter = read or ReadOptions(), write or WriteOptions(), reporter or Reporter()
     if mip_tile:
@@ -76,7 +78,8 @@ def process(paths: list[str], template: str | None, work: Work, session: Session
         job_list = drop_missing(job_list, keep_going, reporter.warn)
     if (not many and len(job_list) == 1 and cluster is None and frames is None
             and not (skip_existing and batch.is_fresh(job_list[0]))):
-        from pyramid_cli.run.stream import run_job, run_mip
+        from pyramid_cli.run.stream import run_job
+        from pyramid_cli.run.stream_mip import run_mip
 
         if mip_tile:
             if run_mip(job_list[0], work, session, memory=memory, tile=mip_tile, read=ro, write=wo,

@@ -1,0 +1,293 @@
+"""``pyramid mipmap`` of one input streamed: a MIP file's level 0 comes first, its header before its rows.
+
+:func:`run_mip` runs the plan on the row-band scheduler as :mod:`pyramid_cli.run.stream` does, with the
+decoding and the writing of level 0 overlapped (:mod:`pyramid_cli.run.overlap`), and keeps the coarser
+levels (:class:`_Kept`: in memory or in a temporary file beside the output) until level 0 is written.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+
+import numpy as np
+
+from pyramid_cli.core.errors import OutputError, UsageError
+from pyramid_cli.run.budget import resolve
+from pyramid_cli.run.overlap import overlapped
+from pyramid_cli.run.stream import MIN_BAND, choose_mip, costs, executor_of, read_step
+
+
+class _Kept:
+    """MIP levels' rows until their turn (a MIP file holds level 0 first, its header before its rows): arrays
+    of ``dtype`` in memory, or, given ``spill``, a raw file read and written with explicit I/O (no mapping: the
+    rows on disk do not count in the process's memory). A spill that fails (a full disk) is an OutputError
+    naming ``beside``, the output the file sits beside (exit 4)."""
+
+    def __init__(self, shapes: list[tuple[int, int, int]], spill: str | None = None, dtype=np.float32,
+                 beside: str = ""):
+        self.shapes, self.dtype, self.beside = shapes, np.dtype(dtype), beside
+        self.arrays = None if spill else [np.empty(s, dtype=self.dtype) for s in shapes]
+        self.fd = None
+        self.offsets = [0]
+        for h, w, c in shapes:
+            self.offsets.append(self.offsets[-1] + h * w * c * self.dtype.itemsize)
+        if spill:
+            self.fd = os.open(spill, os.O_RDWR)
+
+    def close(self) -> None:
+        if self.fd is not None:
+            os.close(self.fd)
+            self.fd = None
+
+    def _at(self, i: int, r: int) -> int:
+        _, w, c = self.shapes[i]
+        return self.offsets[i] + r * w * c * self.dtype.itemsize
+
+    def write(self, i: int, r: int, px: np.ndarray) -> None:
+        if self.arrays is not None:
+            self.arrays[i][r:r + len(px)] = px
+            return
+        view = memoryview(np.ascontiguousarray(px, dtype=self.dtype)).cast("B")
+        at = self._at(i, r)
+        try:
+            while view:
+                n = os.pwrite(self.fd, view, at)
+                view, at = view[n:], at + n
+        except OSError as exc:
+            raise self._failed(exc) from None
+
+    def _failed(self, exc: OSError) -> OutputError:
+        from pyramid_cli.imageio.atomic import error_reason
+
+        return OutputError(f"cannot write {self.beside}: {error_reason(exc)} (in the temporary file of its coarser "
+                           "MIP levels beside it)")
+
+    def rows(self, i: int, r0: int, r1: int) -> np.ndarray:
+        if self.arrays is not None:
+            return self.arrays[i][r0:r1]
+        _, w, c = self.shapes[i]
+        size = (r1 - r0) * w * c * self.dtype.itemsize
+        data = bytearray()
+        try:
+            while len(data) < size:
+                chunk = os.pread(self.fd, size - len(data), self._at(i, r0) + len(data))
+                if not chunk:
+                    raise OSError(f"the spill file ends {size - len(data)} bytes early")
+                data += chunk
+        except OSError as exc:
+            raise self._failed(exc) from None
+        return np.frombuffer(data, dtype=self.dtype).reshape(r1 - r0, w, c)
+
+
+@contextlib.contextmanager
+def _scratch(beside: str):
+    """A hidden temporary file beside ``beside`` (as :mod:`pyramid_cli.imageio.atomic` names them), removed on success,
+    failure and interruption alike."""
+    from pyramid_cli.imageio.atomic import make_temp, remove_quietly
+
+    tmp = make_temp(beside + ".levels")
+    try:
+        yield tmp
+    finally:
+        remove_quietly(tmp)
+
+
+# mipmap options that need the whole picture before the levels: they run whole
+_MIP_WHOLE = {"resize": "--resize", "fill": "--fill", "nchannels": "--nchannels",
+              "monochrome_detect": "--monochrome-detect"}
+
+
+def mip_metadata(work, path: str, state=None) -> dict[str, str]:
+    """The attributes ``pyramid mipmap`` gives level 0 besides the colours
+    (:func:`pyramid_cli.workflows.mip.texture_metadata`):
+    the SHA-1 from ``state`` (:func:`pyramid_cli.workflows.mip.sha1_state`), else hashed from the file ``path``."""
+    from pyramid_cli import imageio as io
+    from pyramid_cli.workflows.mip import finish_sha1, hash_extra, texture_metadata
+
+    border = getattr(work, "border", "clamp")
+    analysis = getattr(work, "filter_name", getattr(work, "analysis", ""))
+    extra = hash_extra(border, analysis)
+    sha1 = finish_sha1(state, extra) if state is not None else io.source_sha1(path, extra)
+    return texture_metadata(border, analysis, sha1, io.oiio_version())
+
+
+def _level0_stats(st, stats, step: int, out_path: str, options: dict):
+    """Read ``st`` once, ``step`` rows at a time, into ``stats`` (a :class:`pyramid_cli.workflows.mip.PixelStats`): the
+    SHA-1 of the rows as stored, the average and constant colour of level 0 as decoded and as encoded. (A
+    function of its own so that no band outlives the pass: the last one stayed alive through the second.)"""
+    from pyramid_cli import imageio as io
+
+    h = st.shape[0]
+    st.on_stored = stats.hash_rows
+    try:
+        for y in range(0, h, step):
+            px = st.read(y, min(h, y + step)).astype(np.float32, copy=False)
+            stats.add_decoded(px)
+            stats.add_encoded(io.encoded_rows(out_path, io.Image(px, st.info), **options))
+    finally:
+        st.on_stored = None
+    return stats
+
+
+def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, write=None, reporter=None) -> bool:
+    """``pyramid mipmap`` of one input streamed when its whole run would not fit the budget (``memory``, else
+    :func:`pyramid_cli.run.budget.default_budget`); False when it runs whole as before.
+
+    Level 0's header must say, before its first row, the SHA-1 of the source, the average and constant colour
+    of level 0 as stored (:class:`pyramid_cli.workflows.mip.PixelStats`) and, under ``--constant-color-detect``, whether
+    the picture is constant (then it shrinks to one tile and runs whole, as before: it is small). The input is
+    read once when level 0 can be kept in memory until then (:func:`choose_mip`): the plan runs on the row-band
+    scheduler while the statistics are gathered, then level 0 and the coarser levels are written. Otherwise it
+    is read twice: first band by band for the header, then through the scheduler with level 0 written as it is
+    read. The coarser levels are kept in memory when they fit the budget beside the working set, else in a
+    temporary file beside the output, removed on success, failure and interruption. Refused before any work:
+    the options that need the whole picture (``--resize``, ``--fill``, ``--nchannels``, ``--monochrome-detect``)
+    and plans that do not tile (:func:`pyramid_cli.exec.tiles.tileable`), when ``memory`` is given (without it they
+    run whole).
+    """
+    from pyramid_cli import imageio as io
+    from pyramid_cli.exec import tiles
+    from pyramid_cli.run.report import Reporter
+    from pyramid_cli.run.settings import ReadOptions, WriteOptions
+    from pyramid_cli.workflows.mip import PixelStats
+
+    ro, wo, reporter = read or ReadOptions(), write or WriteOptions(), reporter or Reporter()
+    whole_only = [flag for name, flag in _MIP_WHOLE.items() if getattr(work, name, False)]
+    if session is None or session.executor is None:
+        if memory is not None:
+            executor_of(session)  # refuses with the reason
+        return False
+    if whole_only or not io.streams_to(job.output) or not work.keeps_input:
+        if memory is not None:
+            why = (f"{', '.join(whole_only)} need(s) the whole picture" if whole_only
+                   else f"{job.output} is encoded whole")
+            raise UsageError(f"--memory: mipmap cannot stream here ({why}); leave --memory out to run it whole")
+        return False
+    given = resolve(memory)
+    budget = given.size
+    reporter.detail(f"{job.input}: {given.describe()}")
+    in_path, out_path = job.input, job.output
+    executor = executor_of(session)
+    emu = executor.work_dtype == np.float64
+
+    def open_input():
+        return io.open_stream(in_path, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan, keep_half=True)
+
+    with contextlib.ExitStack() as stack:
+        st = stack.enter_context(open_input())
+        h, w, c = st.shape
+        work.check(((h, w),), where=in_path)
+        plan = session.plan(work, [(h, w)])
+        if plan is None:
+            return False
+        kw = {"in_bytes": st.dtype.itemsize, "where": in_path, **costs(executor)}
+        # no preference for bands here (stream.speed_band): measured, fresh processes interleaved, a 4K 8-bit PNG's
+        # .tx took 2.32 CPU seconds and 445 MiB streamed against 1.77 s and 388 MiB whole (level 0 and the
+        # coarser levels are kept until level 0's header is known, so bands save little): it streams when it must
+        choice = choose_mip(plan, c, budget, level0=h * w * c * st.dtype.itemsize, **kw)
+        reporter.detail(f"{in_path}: {choice.describe()}")
+        if not choice.streams:
+            return False
+        if not tiles.tileable(plan):
+            if memory is not None:
+                raise UsageError(f"--memory: the MIP levels of a {w}×{h} picture cannot stream (a pass of its plan "
+                                 "does not tile); leave --memory out to run it whole")
+            return False
+        shapes = [(h, w, c)] + [plan.images[k].size + (c,) for k in plan.outputs]
+        info = st.info
+        options = wo.for_inputs([in_path])
+        io.check_write_options(out_path, wo.pixel_type, wo.compression)  # refused before any work
+        step = 2 * max(MIN_BAND, choice.band)  # level 0's rows at a time outside the scheduler (multiples of 8)
+        stats = PixelStats(h)
+        once = bool(choice.level0)
+        if once:  # level 0 kept as read while the scheduler runs; its header's statistics gathered on the way
+            level0 = _Kept([shapes[0]], None, st.dtype)
+            st.on_stored = stats.hash_rows
+        else:  # the first read, for the header; the scheduler reads again, writing level 0 as it reads it
+            _level0_stats(st, stats, step, out_path, options)
+            if _constant(work, stats):
+                return _write_constant(work, session, stats, shapes[0], tile, in_path, out_path, info, options,
+                                       reporter)
+            st = stack.enter_context(open_input())
+        kept = _Kept(shapes[1:], stack.enter_context(_scratch(out_path)) if choice.spill else None,
+                     beside=out_path)
+        stack.callback(kept.close)
+
+        def open_writer():
+            meta = mip_metadata(work, in_path, stats.sha1())
+            return stack.enter_context(io.mip_stream_writer(out_path, info, shapes, tile=tile, meta=meta,
+                                                            colors=(stats.average(), stats.constant()), **options))
+
+        writer = None if once else open_writer()
+        slot = {k: i for i, k in enumerate(plan.outputs)}
+
+        encoded = [0]  # level 0's rows gathered as encoded: in the bands of the two-read way (dithering lines up)
+
+        def keep_level0(y: int, px: np.ndarray) -> None:  # on the writer's thread, beside the work
+            level0.write(0, y, px)
+            stats.add_decoded(px)
+            while encoded[0] < h and y + len(px) >= min(h, encoded[0] + step):
+                a, b = encoded[0], min(h, encoded[0] + step)
+                rows = level0.rows(0, a, b).astype(np.float32, copy=False)
+                stats.add_encoded(io.encoded_rows(out_path, io.Image(rows, info), **options))
+                encoded[0] = b
+
+        with overlapped(st.read, h, read_step(plan, choice.band)) as (reader, behind):
+            def source(k, rows, cols):
+                px = reader.rows(*rows)
+                if once:
+                    behind.call(keep_level0, rows[0], px)
+                else:  # level 0: each row once, in order
+                    behind.call(writer.write, rows[0], px.astype(np.float32, copy=False))
+                px = px[:, cols[0]:cols[1]] if (cols[0], cols[1]) != (0, w) else px
+                return px.astype(np.float64) if emu else px
+
+            def sink(k, r, c0, px):
+                kept.write(slot[k], r, px)
+
+            tiles.Scheduler(executor, plan, source, sink, band=choice.band,
+                            dtype=np.float64 if emu else np.float32).run()
+        if once:
+            st.on_stored = None
+            if encoded[0] != h:
+                raise RuntimeError(f"level 0: {encoded[0]} of {h} rows gathered")
+            if _constant(work, stats):
+                return _write_constant(work, session, stats, shapes[0], tile, in_path, out_path, info, options,
+                                       reporter)
+            writer = open_writer()
+            for y in range(0, h, step):
+                writer.write(y, level0.rows(0, y, min(h, y + step)).astype(np.float32, copy=False))
+        for i in range(len(shapes) - 1):
+            writer.append_level(lambda r0, r1, i=i: kept.rows(i, r0, r1))
+    session.ran = session.name
+    if st.nonfinite and ro.nan == "keep":
+        reporter.warn(f"{in_path}: {st.nonfinite} NaN/Inf value(s) kept; they spread through the filter "
+                      "(--nan zero or --nan fail to change that)")
+    reporter.result(f"wrote {out_path} ({w}×{h}, {len(shapes)} MIP levels, {session.ran}, streamed in bands of "
+                    f"{choice.band} rows{', the input read once' if once else ''})")
+    return True
+
+
+def _constant(work, stats) -> bool:
+    return bool(getattr(work, "constant_detect", False) and stats.decoded_constant)
+
+
+def _write_constant(work, session, stats, shape, tile: int, in_path: str, out_path: str, info, options,
+                    reporter) -> bool:
+    """``--constant-color-detect`` on a constant picture: one tile of its colour, run and written whole."""
+    from pyramid_cli import imageio as io
+    from pyramid_cli.workflows.mip import shrink_constant
+
+    h, w, c = shape
+    first = stats.decoded_first.astype(np.float32)
+    small = shrink_constant(np.broadcast_to(first, (min(tile, h), min(tile, w), c)), tile)
+    reporter.detail(f"{in_path}: constant colour, made from one {small.shape[1]}×{small.shape[0]} tile")
+    outs = session.run(work, [small], np.float32)
+    io.write_levels(out_path, [io.Image(px, info) for px in outs], mode="mipmap", tile=tile,
+                    meta=mip_metadata(work, in_path, stats.sha1()), **options)
+    reporter.result(f"wrote {out_path} ({w}×{h}, {len(outs)} MIP levels, {session.ran})")
+    return True
+
+
+__all__ = ["run_mip", "mip_metadata"]
