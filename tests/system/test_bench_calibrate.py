@@ -72,7 +72,8 @@ def test_synthetic_passes_have_the_fetches_they_claim():
 @pytest.mark.gl
 def test_quick_calibration_prints_a_model_and_writes_nothing(gl_executor):
     before = (ROOT / "pyramid_cli" / "plan" / cost.MODEL_FILE).read_text()
-    r = subprocess.run([sys.executable, str(ROOT / "bench" / "calibrate.py"), "--quick", "--no-validate"],
+    r = subprocess.run([sys.executable, str(ROOT / "bench" / "calibrate.py"), "--quick", "--no-validate",
+                        "--no-backends"],
                        capture_output=True, text=True, timeout=120, cwd=ROOT)
     assert r.returncode == 0, r.stderr[-2000:]
     doc = json.loads(r.stdout[r.stdout.index("\n{") + 1:])
