@@ -400,7 +400,8 @@ class Session:
         work.check(tuple(im.shape[:2] for im in images))
         kept = [images[0]] if work.keeps_input else []
         if not self._decided:
-            self.decide(work, [np.shape(im) for im in images], dtype=np.asarray(images[0]).dtype)
+            shapes = [np.shape(im) if np.ndim(im) > 2 else (*np.shape(im)[:2], 1) for im in images]
+            self.decide(work, shapes, dtype=np.asarray(images[0]).dtype)
         if self._ready() is None:
             self.ran = "reference"
             return kept + [rounded(o, dtype) for o in work.reference(images)]
