@@ -151,6 +151,7 @@ def test_an_uncalibrated_hardware_gpu_keeps_gl(contexts, monkeypatch):
 
 def test_prepare_async_loads_the_cpu_executor_in_the_background(contexts, monkeypatch):
     costs_say(monkeypatch, cpu=1.0, gl=2.0)
+    monkeypatch.setattr(session, "spare_core", lambda: True)
     with Session("auto") as s:
         s.prepare_async(Blur(levels=2), [(16, 16, 3)], dtype=np.float32)
         ex = s.executor
@@ -159,6 +160,14 @@ def test_prepare_async_loads_the_cpu_executor_in_the_background(contexts, monkey
         (out,) = s.run(Blur(levels=2), np.ones((16, 16, 3), dtype=np.float32))  # waits for the thread
         assert ex.result().backend == "cpu" and s.ran.startswith("cpu")
     np.testing.assert_allclose(out, 1.0, atol=1e-6)
+
+
+def test_prepare_async_waits_on_a_busy_machine(contexts, monkeypatch):
+    costs_say(monkeypatch, cpu=1.0, gl=2.0)
+    monkeypatch.setattr(session, "spare_core", lambda: False)
+    with Session("auto") as s:
+        s.prepare_async(Blur(levels=2), [(16, 16, 3)], dtype=np.float32)
+        assert s.decided and not s.executor.started  # made when first used
 
 
 def test_prepare_async_never_fails(contexts, monkeypatch):
@@ -222,3 +231,14 @@ def test_cpu_backend_without_numba_is_refused_at_once(monkeypatch):
     monkeypatch.setattr(cpu, "available", lambda: (False, "numba cannot be imported (a test); install numba"))
     with pytest.raises(BackendError, match="numba cannot be imported"):
         Session("cpu")
+
+
+def test_a_broken_cost_model_falls_back_to_the_renderer_rule(contexts, monkeypatch):
+    def broken(*a, **k):
+        raise ValueError("backend_costs.json: missing 'cpu'")
+
+    monkeypatch.setattr(auto, "estimates", broken)
+    with Session("auto") as s:
+        s.decide(Blur(levels=2), [(8, 8)])
+        assert not s.on_gl and "no estimate (ValueError" in s.why
+    assert contexts == []
