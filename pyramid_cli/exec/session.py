@@ -324,9 +324,9 @@ class Session:
             cpu_plan, gl_plan = work.plan(rc, "fused"), work.plan(rc, "cost")
         except Exception:  # noqa: BLE001 - the run reports a job that cannot be planned
             cpu_plan = gl_plan = None
-        if cpu_plan is None or gl_plan is None:  # nothing to compute, or no plan: the fixed costs decide
-            self._use_gl(gl)
-            self._why = f"auto: GL renderer {renderer} (no plan to estimate)"
+        if cpu_plan is None or gl_plan is None:  # nothing to compute (or the run will say why not)
+            self._use_cpu()
+            self._why = "auto: no plan to estimate; the CPU executor, which sets nothing up before it runs"
             return
         from pyramid_cli.exec.gl import texture_size
 
