@@ -5,7 +5,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 OUT    := samples/out
 
-.PHONY: demo test docs docs-pictures lint bench calibrate check-gl clean
+.PHONY: demo test docs docs-pictures lint bench bench-peers calibrate check-gl clean
 
 $(STAMP): pyproject.toml
 	@$(PYTHON) -c 'import sys; sys.exit(sys.version_info < (3, 10))' || \
@@ -50,6 +50,13 @@ lint: $(STAMP)
 bench: $(STAMP) check-gl
 	$(PY) -m pip install -q -e '.[test,docs,plot,bench]'
 	$(PY) bench/run.py
+
+# pyramid against libvips, maketx, oiiotool and OpenCV (fresh processes, interleaved; about 10 minutes on 2 cores):
+# bench/results/peers-DATE.json and .png. REPEAT=N sets the rounds, PEERS_ARGS passes more (--only, --pyramid-tree).
+REPEAT ?= 5
+bench-peers: $(STAMP) check-gl
+	$(PY) -m pip install -q -e '.[test,docs,plot,bench]'
+	$(PY) bench/peers.py --repeat $(REPEAT) $(PEERS_ARGS)
 
 # Re-measure the planner's cost model on this machine's GL (about a minute) and
 # check the docs' fetch table against the new model.

@@ -120,16 +120,24 @@ def cmd_time(argv: list[str], env=None) -> float:
     return dt
 
 
-def cmd_peak_rss(argv: list[str]) -> float:
-    """Peak resident memory (MB) of one command, measured by ``bench/scripts/peak_rss.py``.
+def cmd_time_peak_rss(argv: list[str], env=None) -> tuple[float, float]:
+    """Wall time (s) and peak resident memory (MiB) of one command, measured by ``bench/scripts/peak_rss.py``.
 
     A child forked from this (large) process would inherit its high-water mark across exec, so
-    a small launcher forks the command from its own fresh address space and reports its rusage.
+    a small launcher forks the command from its own fresh address space and reports its rusage;
+    the time runs from that fork to the command's exit (the launcher's own start is not in it).
     """
-    p = subprocess.run([sys.executable, "-S", str(SCRIPTS / "peak_rss.py"), *argv], capture_output=True, text=True)
+    p = subprocess.run([sys.executable, "-S", str(SCRIPTS / "peak_rss.py"), *argv], capture_output=True, text=True,
+                       env=env)
     if p.returncode:
         raise RuntimeError(f"{' '.join(argv[:4])} … exited {p.returncode}: {p.stderr.strip()[-600:]}")
-    return float(p.stdout.split()[-1])
+    seconds, mib = p.stdout.split()[-2:]
+    return float(seconds), float(mib)
+
+
+def cmd_peak_rss(argv: list[str]) -> float:
+    """Peak resident memory (MiB) of one command (:func:`cmd_time_peak_rss`)."""
+    return cmd_time_peak_rss(argv)[1]
 
 
 def pyramid_cmd() -> list[str]:

@@ -134,7 +134,7 @@ def _banded(work: Work, array, out: Sequence[np.ndarray] | None, memory, session
     """One image through ``work`` band by band (:mod:`pyramid_cli.exec.tiles`): a memory-mapped input is read
     a band at a time and the results written into ``out`` (one array per output of the plan, after level 0
     for a job that keeps its input; a memmap keeps it on disk), within ``memory`` bytes of working set
-    (default: a quarter of the available memory), the pixels of the whole run."""
+    (default: :func:`pyramid_cli.run.budget.default_budget`), the pixels of the whole run."""
     from pyramid_cli.exec import tiles
     from pyramid_cli.run import stream
 
@@ -194,8 +194,8 @@ def apply(expr: str | Expr, array, *, border: str = "clamp", backend: str = "aut
         With ``out``, a ``numpy.memmap`` input or ``memory``, the image runs band by band in bounded memory
         (the pixels of the whole run), so images larger than RAM work.
     memory : int or str, optional
-        Working-set budget of a banded run in bytes, or ``"512M"``, ``"2G"`` (default: a quarter of the
-        available memory).
+        Working-set budget of a banded run in bytes, or ``"512M"``, ``"2G"`` (default: what the container's
+        memory limit, the rlimits and the available memory leave: :func:`pyramid_cli.run.budget.default_budget`).
 
     Returns
     -------

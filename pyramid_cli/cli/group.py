@@ -6,6 +6,7 @@ from __future__ import annotations
 import click
 
 from pyramid_cli.core.errors import EXIT_CODES, PyramidError
+from pyramid_cli.core.version import __version__
 
 EXIT_CODE_HELP = "\b\nExit codes:\n" + "\n".join(f"  {code}  {text}" for code, text in EXIT_CODES.values())
 
@@ -28,7 +29,7 @@ class Group(click.Group):
 
 @click.group(cls=Group, epilog=EXIT_CODE_HELP,
              context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
-@click.version_option(package_name="bilinear-pyramid", prog_name="pyramid")
+@click.version_option(__version__, package_name="bilinear-pyramid", prog_name="pyramid")  # no metadata read
 def main() -> None:
     """Image pyramids from bilinear texture passes (Kraus & Strengert, GRAPP 2007).
 

@@ -129,7 +129,8 @@ def sequence_options() -> list:
 def memory_option(f):
     """--memory: the working-set budget of a streamed single-image job (pyramid_cli.run.stream)."""
     return click.option("--memory", metavar="SIZE", default=None,
-                        help="Working-set budget, e.g. 512M or 2G (default: a quarter of the available memory). "
+                        help="Working-set budget, e.g. 512M or 2G (default: the smallest that the container's memory "
+                             "limit, the rlimits and a quarter of the available memory allow). "
                              "A picture whose whole run would not fit streams from file to file in bands of rows "
                              "chosen from it; -v says which. Work that cannot fit is refused before it starts.")(f)
 

@@ -10,14 +10,16 @@ blurs (:func:`sigma_blend`) after :func:`check_sigma` refuses what no image of t
 
 from __future__ import annotations
 
+import json
 import math
 from fractions import Fraction
 from functools import lru_cache
 
-from pyramid_cli.core import algebra
+from pyramid_cli.core import algebra, cache
 from pyramid_cli.core.catalogue import DEFAULT_ANALYSIS, DEFAULT_SYNTHESIS
 from pyramid_cli.core.errors import UsageError
 from pyramid_cli.core.expr import Apply, Expr, Input, Named, Op, steps
+from pyramid_cli.core.fingerprint import sources
 from pyramid_cli.core.geometry import level_sizes, mip_levels
 from pyramid_cli.core.options import MAX_LEVELS
 from pyramid_cli.core.parse import one_step
@@ -70,13 +72,38 @@ def impulse_sigma(levels: int, analysis: str, synthesis: str) -> float:
     return (total / len(phases)) ** 0.5
 
 
+FORM_FORMAT = 1  # the layout of a variance form's cache entry
+
+
 @lru_cache(maxsize=32)
 def variance_form(analysis: str, synthesis: str) -> tuple[Fraction, Fraction] | None:
     """(A, B) with variance(m levels) = A·4ᵐ + B, from 1 and 2 levels, checked at 3; None if it does not fit.
 
     Variances add under the pyramid's cascade and level k's filters act 2ᵏ input pixels apart,
-    so the blur's variance is a geometric series in 4.
+    so the blur's variance is a geometric series in 4. The three impulse responses are exact
+    kernel algebra (tens of milliseconds), so the form is kept in the cache folder's ``plans``
+    (:mod:`pyramid_cli.core.cache`), keyed by the filters and the core's sources
+    (:func:`pyramid_cli.core.fingerprint.sources`); an entry that is not exactly one is recomputed.
     """
+    key = repr(("variance_form", FORM_FORMAT, sources("core"), analysis, synthesis))
+    name = f"sigma-{cache.key(key)}.json"
+    try:
+        doc = json.loads((cache.read("plans", name) or b"").decode("utf-8"))
+        if doc["key"] == key:
+            if doc["form"] is None:
+                return None
+            (a, b), (c, d) = doc["form"]
+            if all(type(n) is int for n in (a, b, c, d)) and b > 0 and d > 0:
+                return Fraction(a, b), Fraction(c, d)
+    except (ValueError, KeyError, TypeError, UnicodeDecodeError):
+        pass  # none yet, or not one: computed below
+    form = _variance_form(analysis, synthesis)
+    data = None if form is None else [[f.numerator, f.denominator] for f in form]
+    cache.write("plans", name, json.dumps({"key": key, "form": data}).encode("utf-8"))
+    return form
+
+
+def _variance_form(analysis: str, synthesis: str) -> tuple[Fraction, Fraction] | None:
     v = [Fraction(impulse_sigma(m, analysis, synthesis) ** 2).limit_denominator(1 << 20) for m in (1, 2, 3)]
     a = (v[1] - v[0]) / 12
     b = v[0] - 4 * a

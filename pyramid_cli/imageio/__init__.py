@@ -56,35 +56,74 @@ model), :mod:`~pyramid_cli.imageio.colour` (sRGB, premultiplication, 8/16-bit co
 encoding rules), :mod:`~pyramid_cli.imageio.write` (the checked writer), :mod:`~pyramid_cli.imageio.atomic`
 (atomic replacement), :mod:`~pyramid_cli.imageio.texture` (MIP-mapped textures and multi-part files),
 :mod:`~pyramid_cli.imageio.bands` (a band of rows at a time), :mod:`~pyramid_cli.imageio.raw` (stored values
-for ``pyramid diff``). This package re-exports their public API.
+for ``pyramid diff``). This package re-exports their public API, each name loaded from its module on
+first use (PEP 562), so that ``pyramid diff`` of two files loads neither the band streams nor the texture
+writer, and ``import pyramid_cli.imageio.raw`` only what it needs.
 """
 
 
-from pyramid_cli.core.geometry import check_size
-from pyramid_cli.imageio.atomic import ensure_output_dir
-from pyramid_cli.imageio.bands import (
-    BandWriter,
-    ImageStream,
-    open_stream,
-    stream_writer,
-    stream_writers,
-    streams_to,
-)
-from pyramid_cli.imageio.colour import count_nonfinite, linear_to_srgb, srgb_to_linear
-from pyramid_cli.imageio.encode import check_write_options, encoded_rows, stores_half_unchanged
-from pyramid_cli.imageio.formats import oiio_version, output_pixel_type
-from pyramid_cli.imageio.image import Image, ImageInfo, describe_rules, info_for_array
-from pyramid_cli.imageio.read import (
-    check_input_file,
-    check_pyramid,
-    check_same_channels,
-    count_parts,
-    read_image,
-    read_parts,
-    read_shape,
-)
-from pyramid_cli.imageio.texture import MipBandWriter, mip_stream_writer, source_sha1, write_levels
-from pyramid_cli.imageio.write import write_image, write_images, write_spec
+from __future__ import annotations
+
+from importlib import import_module
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # what each name is, for readers and checkers; loaded on first use below
+    from pyramid_cli.core.geometry import check_size
+    from pyramid_cli.imageio.atomic import ensure_output_dir
+    from pyramid_cli.imageio.bands import (
+        BandWriter,
+        ImageStream,
+        open_stream,
+        stream_writer,
+        stream_writers,
+        streams_to,
+    )
+    from pyramid_cli.imageio.colour import count_nonfinite, linear_to_srgb, srgb_to_linear
+    from pyramid_cli.imageio.encode import check_write_options, encoded_rows, stores_half_unchanged
+    from pyramid_cli.imageio.formats import oiio_version, output_pixel_type
+    from pyramid_cli.imageio.image import Image, ImageInfo, describe_rules, info_for_array
+    from pyramid_cli.imageio.read import (
+        check_input_file,
+        check_pyramid,
+        check_same_channels,
+        count_parts,
+        read_image,
+        read_parts,
+        read_shape,
+    )
+    from pyramid_cli.imageio.texture import MipBandWriter, mip_stream_writer, source_sha1, write_levels
+    from pyramid_cli.imageio.write import write_image, write_images, write_spec
+
+# name → its module
+_HOMES = {
+    "check_size": "pyramid_cli.core.geometry",
+    "ensure_output_dir": "pyramid_cli.imageio.atomic",
+    **dict.fromkeys(["BandWriter", "ImageStream", "open_stream", "stream_writer", "stream_writers", "streams_to"],
+                    "pyramid_cli.imageio.bands"),
+    **dict.fromkeys(["count_nonfinite", "linear_to_srgb", "srgb_to_linear"], "pyramid_cli.imageio.colour"),
+    **dict.fromkeys(["check_write_options", "encoded_rows", "stores_half_unchanged"], "pyramid_cli.imageio.encode"),
+    **dict.fromkeys(["oiio_version", "output_pixel_type"], "pyramid_cli.imageio.formats"),
+    **dict.fromkeys(["Image", "ImageInfo", "describe_rules", "info_for_array"], "pyramid_cli.imageio.image"),
+    **dict.fromkeys(["check_input_file", "check_pyramid", "check_same_channels", "count_parts", "read_image",
+                     "read_parts", "read_shape"], "pyramid_cli.imageio.read"),
+    **dict.fromkeys(["MipBandWriter", "mip_stream_writer", "source_sha1", "write_levels"],
+                    "pyramid_cli.imageio.texture"),
+    **dict.fromkeys(["write_image", "write_images", "write_spec"], "pyramid_cli.imageio.write"),
+}
+
+
+def __getattr__(name: str):
+    home = _HOMES.get(name)
+    if home is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(import_module(home), name)
+    globals()[name] = value  # found directly from now on
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_HOMES})
+
 
 __all__ = [
     "BandWriter",

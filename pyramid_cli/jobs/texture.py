@@ -68,9 +68,9 @@ class TextureLevels(Levels):
             return len(mip_sizes((ceil2(size[0]), ceil2(size[1]))))  # level 0 is made too
         return len(mip_sizes(size, self.rounding)) - 1
 
-    def plan(self, sizes, strategy="cost"):
+    def make_plan(self, sizes, strategy="cost"):
         if self.rounding == "up":
-            return super().plan(sizes, strategy)
+            return super().make_plan(sizes, strategy)
         if not self.count(sizes[0]):
             return None
         return mip_plan(tuple(sizes[0][:2]), self.analysis, self.border, strategy, self.resize)

@@ -20,6 +20,7 @@ from pyramid_cli.core.border import Border
 from pyramid_cli.core.errors import InputError, UsageError
 from pyramid_cli.core.expr import Expr
 from pyramid_cli.core.sigma import check_sigma, sigma_blend
+from pyramid_cli.plan.cache import cached
 from pyramid_cli.plan.lower import plan
 from pyramid_cli.plan.model import Plan
 from pyramid_cli.workflows import pyramids
@@ -50,7 +51,16 @@ class Work:
     label = "work"
 
     def plan(self, sizes: tuple[Size, ...], strategy: str = "cost") -> Plan | None:
-        """The plan for inputs of ``sizes`` (rows, columns); None when there is nothing to compute."""
+        """The plan for inputs of ``sizes`` (rows, columns); None when there is nothing to compute.
+
+        Made once (:meth:`make_plan`) and kept in this process and in the cache folder
+        (:func:`pyramid_cli.plan.cache.cached`): a batch of same-sized files, and the next process,
+        read it back instead of redoing its exact algebra."""
+        sizes = tuple(tuple(int(n) for n in s[:2]) for s in sizes)
+        return cached(self, sizes, strategy, lambda: self.make_plan(sizes, strategy))
+
+    def make_plan(self, sizes: tuple[Size, ...], strategy: str = "cost") -> Plan | None:
+        """The plan for inputs of ``sizes``, computed (what every job defines; :meth:`plan` caches it)."""
         raise NotImplementedError
 
     def check(self, sizes: tuple[Size, ...], where: str = "") -> None:
@@ -82,7 +92,7 @@ class Filter(Work):
     expr: Expr | None = None
     label = "apply"
 
-    def plan(self, sizes, strategy="cost"):
+    def make_plan(self, sizes, strategy="cost"):
         return plan(self.expr, tuple(sizes[0]), strategy, self.border)
 
     def check(self, sizes, where=""):
@@ -113,7 +123,7 @@ class Blur(Work):
     def warnings(self, size=None):
         return _lattice_warnings(self, self.levels, "blur")
 
-    def plan(self, sizes, strategy="cost"):
+    def make_plan(self, sizes, strategy="cost"):
         return pyramids.blur_plan(tuple(sizes[0]), self.levels, self.analysis, self.synthesis, self.quasi, strategy,
                                   self.border)
 
@@ -149,7 +159,7 @@ class SigmaBlur(Work):
     def check(self, sizes, where=""):
         check_sigma(self.sigma, tuple(sizes[0][:2]), self.analysis, self.synthesis, where=where)
 
-    def plan(self, sizes, strategy="cost"):
+    def make_plan(self, sizes, strategy="cost"):
         return pyramids.blur_plan_sigma(tuple(sizes[0]), self.sigma, self.analysis, self.synthesis, self.border,
                                         strategy)[0]
 
@@ -195,7 +205,7 @@ class Levels(Work):
     def count(self, size: Size) -> int:
         return geometry.mip_levels(size) if self.levels is None else self.levels
 
-    def plan(self, sizes, strategy="cost"):
+    def make_plan(self, sizes, strategy="cost"):
         m = self.count(tuple(sizes[0]))
         return pyramids.levels_plan(tuple(sizes[0]), m, self.analysis, border=self.border,
                                     strategy=strategy) if m else None
@@ -216,7 +226,7 @@ class Laplacian(Work):
     synthesis: str = catalogue.DEFAULT_SYNTHESIS
     label = "laplacian"
 
-    def plan(self, sizes, strategy="cost"):
+    def make_plan(self, sizes, strategy="cost"):
         return pyramids.levels_plan(tuple(sizes[0]), self.levels, self.analysis, True, self.synthesis, self.border,
                                     strategy)
 
@@ -256,7 +266,7 @@ class Collapse(Work):
                 raise InputError(f"{where + ': ' if where else ''}band {k} is {sizes[k][1]}×{sizes[k][0]}; after "
                                  f"{sizes[k - 1][1]}×{sizes[k - 1][0]} it must be {want[1]}×{want[0]}")
 
-    def plan(self, sizes, strategy="cost"):
+    def make_plan(self, sizes, strategy="cost"):
         return pyramids.collapse_plan(tuple(tuple(s) for s in sizes), self.synthesis, self.border, strategy)
 
     def reference(self, images):
@@ -281,7 +291,7 @@ class Fill(Work):
     def warnings(self, size=None):
         return _lattice_warnings(self, None, "fill")
 
-    def plan(self, sizes, strategy="cost"):
+    def make_plan(self, sizes, strategy="cost"):
         from pyramid_cli.workflows.methods import fill_plan
 
         return fill_plan(tuple(sizes[0][:2]), self.levels, self.analysis, self.synthesis, self.premultiplied,
@@ -325,7 +335,7 @@ class Blend(Work):
             raise InputError(f"{where + ': ' if where else ''}A is {w0}×{h0}, B {w1}×{h1} and the mask {w2}×{h2}: "
                              "they must have one size")
 
-    def plan(self, sizes, strategy="cost"):
+    def make_plan(self, sizes, strategy="cost"):
         from pyramid_cli.workflows.methods import blend_plan
 
         size = tuple(sizes[0][:2])

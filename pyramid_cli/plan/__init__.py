@@ -3,8 +3,9 @@
 Read in processing order: :mod:`.model` (the Plan every executor runs),
 :mod:`.recipes` (the paper's decompositions and their check against the masks),
 :mod:`.taps` (weights as bilinear fetches), :mod:`.bounds` (guard bands),
-:mod:`.estimate` (the cost model's view), :mod:`.lower` (steps to passes) and
-:mod:`.report` (what ``pyramid plan`` prints).
+:mod:`.estimate` (the cost model's view), :mod:`.lower` (steps to passes),
+:mod:`.report` (what ``pyramid plan`` prints) and :mod:`.cache` (plans kept in the process and on disk,
+which every job's :meth:`~pyramid_cli.jobs.work.Work.plan` reads first).
 """
 
 from __future__ import annotations

@@ -49,7 +49,7 @@ def process(paths: list[str], template: str | None, work: Work, session: Session
     seconds (:mod:`pyramid_cli.run.cluster`).
 
     One input of ``apply``, ``blur`` or ``mipmap`` whose whole-picture run would not fit ``memory`` bytes
-    (default: a quarter of the available memory) streams from file to file in bands
+    (default: :func:`pyramid_cli.run.budget.default_budget`) streams from file to file in bands
     (:mod:`pyramid_cli.run.stream`); images that fit run whole.
     """
     ro, wo, reporter = read or ReadOptions(), write or WriteOptions(), reporter or Reporter()
@@ -140,7 +140,7 @@ def write_levels_files(input_path: str, pattern: str, work: Levels | Laplacian, 
     Returns the paths written. Laplacian bands are stored as float and record the
     synthesis filter and border (``pyramid:synthesis``, ``pyramid:border``) so that :func:`collapse_files`
     can undo them. One file per level streams, every level band by band, when the whole pyramid would not
-    fit ``memory`` bytes (default: a quarter of the available memory; :mod:`pyramid_cli.run.stream`).
+    fit ``memory`` bytes (default: :func:`pyramid_cli.run.budget.default_budget`; :mod:`pyramid_cli.run.stream`).
     """
     ro, wo, reporter = read or ReadOptions(), write or WriteOptions(), reporter or Reporter()
     laplacian = isinstance(work, Laplacian)

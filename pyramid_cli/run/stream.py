@@ -8,8 +8,9 @@ rows later passes still read: the guard bands, at every level), and the output's
 are encoded and written as they complete into the temporary file that is renamed onto
 the output at the end (atomic, as every write). The pixels are those of the untiled run.
 
-The budget is ``--memory SIZE``, or by default a quarter of the memory available when
-the command starts (:func:`default_memory`). The band height is chosen from it and
+The budget is ``--memory SIZE``, or by default what the limits the process is under leave
+when the command starts (:mod:`pyramid_cli.run.budget`: a container's cgroup, rlimits, the memory
+available). The band height is chosen from it and
 from the plan's guard bands (:func:`choose`); work that cannot fit even in the smallest
 band is refused before it starts. Images that fit run whole, as before (fastest).
 """
@@ -19,7 +20,6 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import os
-import re
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -27,52 +27,12 @@ import numpy as np
 
 from pyramid_cli.core.errors import DataError, OutputError, UsageError
 from pyramid_cli.plan import Plan
+from pyramid_cli.run.budget import available_memory, default_memory, format_size, parse_size, resolve
 
 MIN_BAND = 8            # rows: dithering's Bayer pattern and most tile heights are multiples of 8
 COPIES = 3              # a band held, its next rows, and the transient concatenation of both
 PADDED = 1.25           # textures this many times the pictures: the executor pads the whole picture, so run bands
 PADDED_BAND_BYTES = 256 << 20  # … of at most this working set and a quarter of the whole run's (measured best)
-_UNITS = {"": 1, "B": 1, "K": 1 << 10, "M": 1 << 20, "G": 1 << 30, "T": 1 << 40}
-
-
-def parse_size(text: str) -> int:
-    """Bytes in ``512M``, ``2G``, ``1.5GiB``, ``800000000`` (binary units; UsageError otherwise)."""
-    m = re.fullmatch(r"\s*(\d+(?:\.\d+)?)\s*([KMGT]?)(?:I?B)?\s*", str(text).upper())
-    if not m:
-        raise UsageError(f"--memory: expected a size such as 512M or 2G, not {text!r}")
-    value = int(float(m.group(1)) * _UNITS[m.group(2)])
-    if value <= 0:
-        raise UsageError(f"--memory: the size must be positive, not {text!r}")
-    return value
-
-
-def format_size(n: float) -> str:
-    for unit in ("B", "KiB", "MiB", "GiB", "TiB"):
-        if abs(n) < 1024 or unit == "TiB":
-            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.1f} {unit}"
-        n /= 1024
-    return f"{n} B"
-
-
-def available_memory() -> int:
-    """Bytes of memory available now (``MemAvailable`` of /proc/meminfo; else physical memory)."""
-    try:
-        with open("/proc/meminfo") as f:
-            for line in f:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except OSError:
-        pass
-    try:
-        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-    except (ValueError, OSError, AttributeError):  # pragma: no cover - not POSIX
-        return 4 << 30
-
-
-def default_memory() -> int:
-    """The working-set budget when ``--memory`` is not given: a quarter of the available memory
-    (other processes and the page cache keep the rest), at least 256 MiB."""
-    return max(256 << 20, available_memory() // 4)
 
 
 @dataclass(frozen=True)
@@ -366,7 +326,10 @@ def _decide(in_path: str, work, session, memory: int | None, read, reporter):
             _executor(session)  # refuses with the reason
         return None
     ro = read or ReadOptions()
-    budget = memory if memory is not None else default_memory()
+    given = resolve(memory)
+    budget = given.size
+    if reporter is not None:
+        reporter.detail(f"{in_path}: {given.describe()}")
     st = io.open_stream(in_path, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan, keep_half=True)
     try:
         h, w, c = st.shape
@@ -577,7 +540,9 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
                    else f"{job.output} is encoded whole")
             raise UsageError(f"--memory: mipmap cannot stream here ({why}); leave --memory out to run it whole")
         return False
-    budget = memory if memory is not None else default_memory()
+    given = resolve(memory)
+    budget = given.size
+    reporter.detail(f"{job.input}: {given.describe()}")
     in_path, out_path = job.input, job.output
     executor = _executor(session)
     emu = executor.work_dtype == np.float64
@@ -687,5 +652,5 @@ def _write_constant(work, session, stats, shape, tile: int, in_path: str, out_pa
     return True
 
 
-__all__ = ["Choice", "choose", "choose_mip", "estimate", "parse_size", "default_memory", "stream_file",
-           "format_size", "run_job", "run_levels", "run_mip", "mip_metadata"]
+__all__ = ["Choice", "choose", "choose_mip", "estimate", "parse_size", "default_memory", "available_memory",
+           "stream_file", "format_size", "run_job", "run_levels", "run_mip", "mip_metadata"]

@@ -1,7 +1,9 @@
 """Blur strength as a standard deviation (pyramid_cli.core.sigma): the closed forms equal the evaluated kernels,
 and the sigmas a run may ask for."""
 
+import json
 import math
+from fractions import Fraction
 
 import pytest
 
@@ -49,3 +51,44 @@ def test_sigma_beyond_the_image_is_refused_and_names_the_limit():
 def test_blur_strength_grows_with_levels():
     sigmas = [impulse_sigma(m, "box4", "doosabin") for m in range(1, 5)]
     assert all(b > 1.8 * a for a, b in zip(sigmas, sigmas[1:], strict=False))
+
+
+@pytest.fixture
+def fresh_forms(tmp_path, monkeypatch):
+    """The variance forms' cache in ``tmp_path``, none remembered in the process."""
+    monkeypatch.setenv("PYRAMID_CACHE_HOME", str(tmp_path))
+    sigmas.variance_form.cache_clear()
+    yield tmp_path / "plans"
+    sigmas.variance_form.cache_clear()
+
+
+def test_a_variance_form_is_computed_once_and_read_back(fresh_forms, monkeypatch):
+    want = sigmas._variance_form("box4", "doosabin")
+    assert sigmas.variance_form("box4", "doosabin") == want
+    (entry,) = fresh_forms.iterdir()
+    sigmas.variance_form.cache_clear()
+    monkeypatch.setattr(sigmas, "_variance_form", lambda *a: pytest.fail("computed again"))
+    got = sigmas.variance_form("box4", "doosabin")
+    assert got == want and all(type(f) is Fraction for f in got)
+
+
+@pytest.mark.parametrize("damage", [b"", b"{", b'{"key": "x", "form": [[1, 2], [3, 4]]}', b"\xff",
+                                    b'{"key": KEY, "form": [[1, 0], [3, 4]]}', b'{"key": KEY, "form": [["1", 2]]}'])
+def test_a_damaged_or_foreign_variance_form_is_recomputed(damage, fresh_forms):
+    want = sigmas.variance_form("box4", "doosabin")
+    (entry,) = fresh_forms.iterdir()
+    key = json.loads(entry.read_bytes())["key"]
+    entry.write_bytes(damage.replace(b"KEY", json.dumps(key).encode()))
+    sigmas.variance_form.cache_clear()
+    assert sigmas.variance_form("box4", "doosabin") == want
+    assert json.loads(entry.read_bytes())["key"] == key  # rewritten
+
+
+def test_an_unwritable_cache_folder_still_gives_the_form(tmp_path, monkeypatch):
+    (tmp_path / "file").write_text("")
+    monkeypatch.setenv("PYRAMID_CACHE_HOME", str(tmp_path / "file" / "below"))
+    sigmas.variance_form.cache_clear()
+    try:
+        assert sigmas.variance_form("box4", "doosabin") == sigmas._variance_form("box4", "doosabin")
+    finally:
+        sigmas.variance_form.cache_clear()

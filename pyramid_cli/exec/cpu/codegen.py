@@ -9,8 +9,10 @@ For clamp this equals the emulator's clamped bilinear read: outside the extent b
 neighbours are the edge texel. A tap is therefore expanded into at most four texel reads
 with exact rational weights (summed over taps reading the same texel), written into the
 kernel as float32 literals (:func:`kernel_source`); the loops are plain strided loops over
-rows and columns that LLVM vectorises. Resampling passes share one table-driven kernel per
-axis (:func:`resample_source`), pointwise passes one kernel per op (:func:`pointwise_source`).
+rows and columns that LLVM vectorises. A kernel serves float32 and float16 sources alike (the
+storage is an argument), so a plan loads one kernel per distinct pass shape, whatever its inputs
+store; every resampling pass shares one table-driven kernel (:func:`resample_source`), every
+pointwise pass another (:func:`pointwise_source`).
 
 This module only writes text: numba is imported by the generated sources, compiled in
 :mod:`pyramid_cli.exec.cpu.compile`.
@@ -27,7 +29,7 @@ import numpy as np
 from pyramid_cli.plan.model import POINTWISE_OPS
 from pyramid_cli.plan.shapes import PassShape
 
-KERNEL_VERSION = 3           # bump when the generated text changes meaning: new files, new cache entries
+KERNEL_VERSION = 4           # bump when the generated text changes meaning: new files, new cache entries
 VARIANTS = (4, 1, None)   # channel counts with an unrolled copy of the strided loops (None: any C)
 
 
@@ -97,12 +99,18 @@ def factor(mats: list[dict[tuple[int, int], Fraction]]):
     return {dr: x for dr, x in zip(drs, u, strict=True) if x}, vs
 
 
-def kernel_source(s: PassShape, half: tuple[bool, ...]) -> str:
-    """Python source of the numba kernel of one pass shape; ``half[k]``: source slot k is float16 (as uint16).
+def kernel_source(s: PassShape) -> str:
+    """Python source of the numba kernel of one pass shape, for float32 and float16 sources alike.
 
     Arrays are flat per row: ``out`` is (rows, columns·C), every source likewise, ``C`` the
-    channel count. The kernel computes the output groups ``m ∈ [m0, m1)`` of rows (the ``P``
-    rows sharing one base row ``S·m``) and, per column phase ``j``, the column groups
+    channel count. Each source slot k arrives twice, ``s{k}`` (float32) and ``h{k}`` (float16 as
+    uint16): bit k of ``half`` says which one holds the pixels (the other is a 1×1 placeholder), and
+    a half row is converted once through ``lut`` (65536 float32 values) into a scratch row before
+    any tap reads it. So one compiled kernel serves every storage of the sources (a half input's
+    first pass and the float32 passes after it), with the same arithmetic on the same values.
+
+    The kernel computes the output groups ``m ∈ [m0, m1)`` of rows (the ``P`` rows sharing one
+    base row ``S·m``) and, per column phase ``j``, the column groups
     ``[lo_j, hi_j)``: output row ``P·m + i + yoff`` (``i = 1..P``), column ``P·n + j + xoff``;
     source slot k row ``S·m + dr + ro_k``, column ``S·n + dc + co_k``. Every index it touches
     must lie inside the arrays: the caller guarantees it (interior or window).
@@ -116,13 +124,14 @@ def kernel_source(s: PassShape, half: tuple[bool, ...]) -> str:
     (pr, pc), (sr, sc) = s.period, s.stride
     table = {ph: phase_terms(taps) for ph, taps in s.phases}
     slots = range(s.n_sources)
-    params = ["out"] + [f"s{k}" for k in slots] + (["lut"] if any(half) else []) + ["C"]
+    params = ["out"] + [f"{a}{k}" for k in slots for a in "sh"] + ["lut", "half", "C"]
     params += ["m0", "m1", "yoff", "xoff"] + [f"{e}{j}" for j in range(1, pc + 1) for e in ("lo", "hi")]
     params += [f"{e}{k}" for k in slots for e in ("ro", "co")]
     weights: dict[str, str] = {}
     consts: set[int] = set()
     scaled: set[int] = set()
     tmps: set[int] = set()
+    by_row: set[int] = set()   # slots read row by row (each with a ring of converted half rows)
     unit = pc == 1 and sc == 1
 
     def unsigned(v: int) -> str:  # unsigned index arithmetic: no negative-index wraparound, loops vectorise
@@ -150,7 +159,7 @@ def kernel_source(s: PassShape, half: tuple[bool, ...]) -> str:
         return f"{name} * {read}"
 
     def loop(hterms: dict, phases: list[int], lo: str, hi: str, variants: tuple) -> list[str]:
-        """Column groups [lo, hi) writing column phases ``phases``; hterms[j]: (array, slot, dc, w, half)."""
+        """Column groups [lo, hi) writing column phases ``phases``; hterms[j]: (array, slot, dc, w)."""
         used = [t for j in phases for t in hterms[j]]
         low = {k: min(t[2] for t in used if t[1] == k) for k in {t[1] for t in used}}
         out = [f"            n0 = {lo}", f"            n1 = {hi}", "            if n1 > n0:"]
@@ -159,7 +168,7 @@ def kernel_source(s: PassShape, half: tuple[bool, ...]) -> str:
             out.append(f"{ind}fo = np.uint64((n0 + 1 + xoff) * C)")
             out += [f"{ind}f{k} = np.uint64((n0 + co{k} + {d}) * C)" for k, d in sorted(low.items())]
             out.append(f"{ind}for g in range(np.uint64((n1 - n0) * C)):")
-            parts = [(w, _read(arr, f"f{k} + g + {times_c(dc - low[k], None)}", h)) for arr, k, dc, w, h in hterms[1]]
+            parts = [(w, _read(arr, f"f{k} + g + {times_c(dc - low[k], None)}")) for arr, k, dc, w in hterms[1]]
             out.append(f"{ind}    o[fo + g] = {wsum(parts)}")
             return out
         out.append(f"{ind}x0 = np.uint64({pc} * n0 + {phases[0]} + xoff)")
@@ -177,24 +186,24 @@ def kernel_source(s: PassShape, half: tuple[bool, ...]) -> str:
                 out.append(f"{pad}    for c in range({width}):")
                 for j in phases:
                     target = "x + c" if j == phases[0] else f"x + {times_c(j - phases[0], cc)} + c"
-                    parts = [(w, _read(arr, f"c{k} + {times_c(dc - low[k], cc)} + c", h))
-                             for arr, k, dc, w, h in hterms[j]]
+                    parts = [(w, _read(arr, f"c{k} + {times_c(dc - low[k], cc)} + c"))
+                             for arr, k, dc, w in hterms[j]]
                     out.append(f"{pad}        o[{target}] = {wsum(parts)}")
                 continue
             # channels unrolled, every load before any store: the arrays may alias as far as LLVM
             # knows, so a store between loads would keep the SLP vectoriser from packing them
             names: dict[tuple[str, int, int], int] = {}
             for j in phases:
-                for arr, k, dc, _, h in hterms[j]:
+                for arr, k, dc, _ in hterms[j]:
                     if (arr, k, dc) not in names:
                         names[(arr, k, dc)] = n = len(names)
                         for c in range(cc):
-                            read = _read(arr, f"c{k} + {unsigned((dc - low[k]) * cc + c)}", h)
+                            read = _read(arr, f"c{k} + {unsigned((dc - low[k]) * cc + c)}")
                             out.append(f"{pad}    v{n}_{c} = {read}")
             for j in phases:
                 for c in range(cc):
                     target = f"x + {unsigned((j - phases[0]) * cc + c)}"
-                    parts = [(w, f"v{names[(arr, k, dc)]}_{c}") for arr, k, dc, w, _ in hterms[j]]
+                    parts = [(w, f"v{names[(arr, k, dc)]}_{c}") for arr, k, dc, w in hterms[j]]
                     out.append(f"{pad}    o[{target}] = {wsum(parts)}")
         return out
 
@@ -213,14 +222,14 @@ def kernel_source(s: PassShape, half: tuple[bool, ...]) -> str:
                 for j, m in zip(mats, per, strict=True):
                     for (dr, dc), w in sorted(m.items()):
                         rows.add((k, dr))
-                        hterms[j].append((_name(k, dr), k, dc, w, half[k]))
+                        hterms[j].append((_name(k, dr), k, dc, w))
                 continue
             u, vs = f
             rows |= {(k, dr) for dr in u}
             if len(u) == 1 and next(iter(u.values())) == 1:  # one row: read it directly
-                arr, h = _name(k, next(iter(u))), half[k]
+                arr = _name(k, next(iter(u)))
             else:
-                arr, h = f"t{k}", False
+                arr = f"t{k}"
                 tmps.add(k)
                 dcs = [dc for v in vs for dc in v]
                 vertical += ["            if nB > nA:",
@@ -228,11 +237,18 @@ def kernel_source(s: PassShape, half: tuple[bool, ...]) -> str:
                              f"                fb = np.uint64(((nB - 1) * {sc} + co{k} + {max(dcs)} + 1) * C)",
                              "                for g in range(fa, fb):",
                              f"                    t{k}[g] = " + wsum([
-                                 (w, _read(_name(k, dr), "g", half[k])) for dr, w in sorted(u.items())])]
+                                 (w, _read(_name(k, dr), "g")) for dr, w in sorted(u.items())])]
             for j, v in zip(mats, vs, strict=True):
-                hterms[j] += [(arr, k, dc, w, h) for dc, w in sorted(v.items())]
+                hterms[j] += [(arr, k, dc, w) for dc, w in sorted(v.items())]
         body += [f"        y = {pr} * m + {i} + yoff", "        if y >= 0 and y < H:", "            o = out[y]"]
-        body += [f"            {_name(k, dr)} = s{k}[{sr} * m + {dr} + ro{k}]" for k, dr in sorted(rows)]
+        for k, dr in sorted(rows):
+            # a half source row is converted through the table once per call into a ring of scratch rows
+            # (row q lives in scratch row q mod NB, NB the rows one group reads: none evicts another in use)
+            name = _name(k, dr)
+            by_row.add(k)
+            body += [f"            rr = {sr} * m + {dr} + ro{k}", f"            if H{k}:",
+                     f"                {name} = cb{k}[half_row(h{k}, rr, cb{k}, tag{k}, lut)]", "            else:",
+                     f"                {name} = s{k}[rr]"]
         if vertical:
             body += ["            nA = 1 << 62", "            nB = -(1 << 62)"]
             for j in range(1, pc + 1):
@@ -252,51 +268,68 @@ def kernel_source(s: PassShape, half: tuple[bool, ...]) -> str:
     decl += [f"{w} = np.float32({v})" for v, w in weights.items()]
     decl += [f"U{v} = np.uint64({v})" for v in sorted(consts)]
     decl += [f"D{v} = np.uint64({v}) * CU" for v in sorted(scaled)]
-    decl += [f"t{k} = np.empty(s{k}.shape[1], np.float32)" for k in sorted(tmps)]
+    decl += [f"t{k} = np.empty(max(s{k}.shape[1], h{k}.shape[1]), np.float32)" for k in sorted(tmps)]
+    decl += [f"H{k} = (half >> {k}) & 1" for k in slots]
+    for k in sorted(by_row):
+        drs = [t.dr for ts in table.values() for t in ts if t.slot == k]
+        decl += [f"cb{k} = np.empty(({max(drs) - min(drs) + 1}, h{k}.shape[1]), np.float32)",
+                 f"tag{k} = np.full(cb{k}.shape[0], -1, np.int64)"]
     lines = [
         f"# generated by pyramid_cli.exec.cpu (kernel version {KERNEL_VERSION}); do not edit",
-        f"# shape: period {s.period}, stride {s.stride}, {s.n_sources} source(s), half {half}",
+        f"# shape: period {s.period}, stride {s.stride}, {s.n_sources} source(s)",
         "import numpy as np",
         "from numba import njit",
         "",
         "",
+        HALF_ROW,
         '@njit(nogil=True, cache=True, boundscheck=False, error_model="numpy")',
         f"def kernel({', '.join(params)}):",
     ] + [f"    {d}" for d in decl] + ["    for m in range(m0, m1):"] + body
     return "\n".join(lines) + "\n"
 
 
+# A half source row through the table into a ring of scratch rows, once per call: row rr lives in scratch row
+# rr mod NB (NB the rows one output group reads, so none evicts another in use); returns that scratch row.
+HALF_ROW = """@njit(nogil=True, cache=True, boundscheck=False, error_model="numpy")
+def half_row(h, rr, cb, tag, lut):
+    q = rr % cb.shape[0]
+    if tag[q] != rr:
+        hr = h[rr]
+        cr = cb[q]
+        for g in range(hr.shape[0]):
+            cr[g] = lut[hr[g]]
+        tag[q] = rr
+    return q
+
+"""
+
+
 def _indent(lines: list[str]) -> list[str]:
     return ["    " + ln for ln in lines]
 
 
-def _read(array: str, index: str, half: bool) -> str:
-    read = f"{array}[{index}]"
-    return f"lut[{read}]" if half else read
+def _read(array: str, index: str) -> str:
+    return f"{array}[{index}]"
 
 
-# ------------------------------------------------------------------ resampling kernels (ResamplePass)
-RESAMPLE_SOURCE = {
-    # axis 0: output row j = Σ_k w[j, k] · source row idx[j, k]; a contiguous, vectorised loop over the row
-    0: """
+# ------------------------------------------------------------------ resampling kernel (ResamplePass)
+RESAMPLE_SOURCE = """
 @njit(nogil=True, cache=True, boundscheck=False, error_model="numpy")
-def kernel(out, src, idx, w, C, j0, j1):
+def kernel(out, src, idx, w, C, j0, j1, axis):
     L = idx.shape[1]
-    for j in range(j0, j1):
-        o = out[j]
-        o[:] = 0.0
-        for k in range(L):
-            wk = w[j, k]
-            if wk != 0.0:
-                s = src[idx[j, k]]
-                for g in range(o.shape[0]):
-                    o[g] += wk * s[g]
-""",
-    # axis 1: output column j of every row r in [j0, j1) = Σ_k w[j, k] · source column idx[j, k]
-    1: """
-@njit(nogil=True, cache=True, boundscheck=False, error_model="numpy")
-def kernel(out, src, idx, w, C, j0, j1):
-    L = idx.shape[1]
+    if axis == 0:
+        # output row j = sum_k w[j, k] * source row idx[j, k]: a contiguous, vectorised loop over the row
+        for j in range(j0, j1):
+            o = out[j]
+            o[:] = 0.0
+            for k in range(L):
+                wk = w[j, k]
+                if wk != 0.0:
+                    s = src[idx[j, k]]
+                    for g in range(o.shape[0]):
+                        o[g] += wk * s[g]
+        return
+    # output column j of every row r in [j0, j1) = sum_k w[j, k] * source column idx[j, k]
     n = idx.shape[0]
     acc = np.empty(C, np.float32)
     for r in range(j0, j1):
@@ -311,23 +344,23 @@ def kernel(out, src, idx, w, C, j0, j1):
                     acc[c] += wk * s[base + c]
             for c in range(C):
                 o[j * C + c] = acc[c]
-""",
-}
-RESAMPLE_SIGNATURE = "void(float32[:, ::1], float32[:, ::1], int64[:, ::1], float32[:, ::1], int64, int64, int64)"
+"""
+RESAMPLE_SIGNATURE = ("void(float32[:, ::1], float32[:, ::1], int64[:, ::1], float32[:, ::1], int64, int64, int64, "
+                      "int64)")
 
 
-def resample_source(axis: int) -> str:
-    """Python source of the table-driven numba kernel of a :class:`ResamplePass` along ``axis``.
+def resample_source() -> str:
+    """Python source of the table-driven numba kernel of every :class:`ResamplePass` (``axis`` is an argument).
 
-    One kernel per axis serves every table (a 1001→500 axis has 500 different rows of weights:
+    One kernel serves every table and both axes (a 1001→500 axis has 500 different rows of weights:
     they are data, not code). Indices arrive folded by the border mode; a "zero" read has weight 0.
     """
     return (f"# generated by pyramid_cli.exec.cpu (kernel version {KERNEL_VERSION}); do not edit\n"
-            f"# ResamplePass along axis {axis}\nimport numpy as np\nfrom numba import njit\n\n"
-            + RESAMPLE_SOURCE[axis])
+            f"# ResamplePass along either axis\nimport numpy as np\nfrom numba import njit\n\n"
+            + RESAMPLE_SOURCE)
 
 
-# ------------------------------------------------------------------ pointwise kernels
+# ------------------------------------------------------------------ pointwise kernel
 # The formulas of plan.model.POINTWISE_OPS over flat float32 arrays (a, b, c the operands, K the param).
 POINTWISE_EXPR = {
     "mul": "a[i] * b[i]",
@@ -337,44 +370,43 @@ POINTWISE_EXPR = {
     "over": "a[i] + (ONE - b[i]) * c[i]",
     "blend": "c[i] * a[i] + (ONE - c[i]) * b[i]",
 }
+POINTWISE_CODES = {op: n for n, op in enumerate(POINTWISE_OPS)}   # the ``op`` argument of the kernel
 
 
-def pointwise_source(op: str, param: Fraction) -> str:
-    """Python source of the numba kernel of one pointwise op (:class:`~pyramid_cli.plan.model.PointwisePass`):
-    ``kernel(out, a[, b[, c]], i0, i1)`` computes the flat elements ``[i0, i1)``, float32 throughout."""
-    names = "abc"[:POINTWISE_OPS[op][0]]
-    return "\n".join([
+def pointwise_source() -> str:
+    """Python source of the numba kernel of every pointwise op (:class:`~pyramid_cli.plan.model.PointwisePass`):
+    ``kernel(out, a, b, c, K, op, i0, i1)`` computes the flat elements ``[i0, i1)`` of op number ``op``
+    (:data:`POINTWISE_CODES`) with parameter ``K``, float32 throughout; unused operands are placeholders.
+    One loop per op, so each stays a plain vectorisable loop."""
+    lines = [
         f"# generated by pyramid_cli.exec.cpu (kernel version {KERNEL_VERSION}); do not edit",
-        f"# pointwise {op}, K = {param}",
+        "# every pointwise op",
         "import numpy as np",
         "from numba import njit",
         "",
         "",
         '@njit(nogil=True, cache=True, boundscheck=False, error_model="numpy")',
-        f"def kernel(out, {', '.join(names)}, i0, i1):",
+        "def kernel(out, a, b, c, K, op, i0, i1):",
         "    ONE = np.float32(1.0)",
         "    ZERO = np.float32(0.0)",
-        f"    K = np.float32({_f32(param)})",
-        "    for i in range(i0, i1):",
-        f"        out[i] = {POINTWISE_EXPR[op]}",
-    ]) + "\n"
+    ]
+    for op, code in POINTWISE_CODES.items():
+        lines += [f"    {'if' if code == 0 else 'elif'} op == {code}:  # {op}", "        for i in range(i0, i1):",
+                  f"            out[i] = {POINTWISE_EXPR[op]}"]
+    return "\n".join(lines) + "\n"
 
 
-
-def signature(n_sources: int, half: tuple[bool, ...], pc: int) -> str:
+def signature(n_sources: int, pc: int) -> str:
     """The numba signature of :func:`kernel_source`'s kernel for a shape of ``n_sources`` slots and column period
-    ``pc`` (``half[k]``: slot k is read as uint16 through a float32 table)."""
-    arrays = ["float32[:, ::1]"] + ["uint16[:, ::1]" if h else "float32[:, ::1]" for h in half]
-    if any(half):
-        arrays.append("float32[::1]")
-    ints = 5 + 2 * pc + 2 * n_sources
+    ``pc``: each slot as float32 and as float16 stored as uint16, then the float32 table of the half values."""
+    arrays = ["float32[:, ::1]"] + ["float32[:, ::1]", "uint16[:, ::1]"] * n_sources + ["float32[::1]"]
+    ints = 6 + 2 * pc + 2 * n_sources
     return "void(" + ", ".join(arrays + ["int64"] * ints) + ")"
 
 
-def pointwise_signature(n_sources: int) -> str:
-    """The numba signature of :func:`pointwise_source`'s kernel with ``n_sources`` operands."""
-    return "void(" + ", ".join(["float32[::1]"] * (n_sources + 1) + ["int64"] * 2) + ")"
+POINTWISE_SIGNATURE = "void(float32[::1], float32[::1], float32[::1], float32[::1], float32, int64, int64, int64)"
 
 
-__all__ = ["KERNEL_VERSION", "POINTWISE_EXPR", "RESAMPLE_SIGNATURE", "RESAMPLE_SOURCE", "VARIANTS", "Term", "factor",
-           "kernel_source", "phase_terms", "pointwise_signature", "pointwise_source", "resample_source", "signature"]
+__all__ = ["KERNEL_VERSION", "POINTWISE_CODES", "POINTWISE_EXPR", "POINTWISE_SIGNATURE", "RESAMPLE_SIGNATURE",
+           "RESAMPLE_SOURCE", "VARIANTS", "Term", "factor", "kernel_source", "phase_terms", "pointwise_source",
+           "resample_source", "signature"]

@@ -14,7 +14,8 @@ import importlib.util
 import os
 import sys
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 from pyramid_cli.core import cache, signals
@@ -125,7 +126,6 @@ def load(source: str, folder: Path):
         hit = _MODULES.get(digest)
         if hit is not None:
             return hit
-        _skip_blas_probe()
         try:
             path = _write_source(folder, digest, source)
         except OSError:  # a read-only or broken cache folder: compile from a private one
@@ -166,9 +166,48 @@ def ensure_compiled(fn, sig: str, compile_: Callable[[object, str], None] = comp
         if fn.signatures:
             return None
         hits = sum(fn.stats.cache_hits.values())
-        compile_(fn, sig)
+        with light_cache_load(fn):
+            compile_(fn, sig)
         return "loaded" if sum(fn.stats.cache_hits.values()) > hits else "compiled"
 
 
+@contextmanager
+def light_cache_load(fn) -> Iterator[None]:
+    """Within this block, ``fn`` loads its machine code from numba's disk cache without numba's full set-up.
+
+    numba's cache load first "refreshes" its target: it imports and registers every implementation
+    it could ever compile (lists, dicts, random, linalg, jitclass, …), about 0.15 s in a fresh
+    process, for a kernel that is already machine code. A load needs only numba's runtime (the
+    memory allocator of the kernels' scratch rows), so this loads with that alone. On a miss the
+    compile that follows does numba's full set-up itself (every compile refreshes its target), after
+    :func:`_skip_blas_probe`. Where numba's cache object lacks the internals this relies on (another
+    numba, a cache disabled by a full disk), it changes nothing.
+    """
+    cache = getattr(fn, "_cache", None)
+    try:
+        from numba.core.runtime import rtsys
+
+        load, guard = cache._load_overload, cache._guard_against_spurious_io_errors
+    except (ImportError, AttributeError):
+        _skip_blas_probe()
+        yield
+        return
+
+    def load_overload(sig, target_context):
+        rtsys.initialize(target_context)
+        cres = None
+        with guard():  # as numba's own: an unreadable cache entry is a miss
+            cres = load(sig, target_context)
+        if cres is None:
+            _skip_blas_probe()  # a compile follows
+        return cres
+
+    cache.load_overload = load_overload
+    try:
+        yield
+    finally:
+        del cache.load_overload
+
+
 __all__ = ["BLAS_PROBE", "CACHE_ENV", "INSTALL_HINT", "available", "cache_dir", "compile_plain", "compile_vectorised",
-           "ensure_compiled", "fallback_cache", "load", "loaded", "on_disk", "source_digest"]
+           "ensure_compiled", "fallback_cache", "light_cache_load", "load", "loaded", "on_disk", "source_digest"]

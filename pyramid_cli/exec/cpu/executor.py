@@ -16,8 +16,10 @@ into bands of rows run by a thread pool (the kernels release the GIL).
 
 Kernels are keyed by the pass's canonical :class:`~pyramid_cli.plan.shapes.PassShape`
 (taps with image indices replaced by source slots, the key of the GL program cache too)
-and the sources' storage (float32, or float16 inputs read through a 65536-entry table, so
-a half image is never copied to float32 whole).
+alone: the sources' storage (float32, or float16 inputs converted row by row through a
+65536-entry table, so a half image is never copied to float32 whole) is an argument of the
+kernel, so a plan with a half input loads no more kernels than the same plan on float32.
+Every resampling pass shares one kernel, and every pointwise pass another.
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from __future__ import annotations
 import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -32,10 +35,11 @@ import numpy as np
 from pyramid_cli.core.border import Border, fold
 from pyramid_cli.core.errors import BackendError
 from pyramid_cli.exec.cpu.codegen import (
+    POINTWISE_CODES,
+    POINTWISE_SIGNATURE,
     RESAMPLE_SIGNATURE,
     kernel_source,
     phase_terms,
-    pointwise_signature,
     pointwise_source,
     resample_source,
     signature,
@@ -77,6 +81,7 @@ class Kernel:
     shape: PassShape
     terms: dict      # phase → list[Term]
     extents: list    # per slot: (dr_min, dr_max, dc_min, dc_max)
+    digest: str      # of its source: the file it is cached under
 
 
 # ------------------------------------------------------------------ folding
@@ -85,14 +90,22 @@ def _fold(index: np.ndarray, n: int, border: str) -> np.ndarray:
     return fold(index + 1, n, Border.parse(border)) - 1
 
 
+@lru_cache(maxsize=256)  # a strip's index arrays are as long as its side: 256 of 4K strips are ~15 MB
+def _window_index(rows: tuple[int, int], cols: tuple[int, int], extent: tuple[int, int], border: str):
+    """The gather of :func:`_window` (``np.ix_`` of the folded indices) and the rows and columns that read zero;
+    the same few windows recur in every run of a plan, so they are computed once."""
+    ri = _fold(np.arange(rows[0], rows[1] + 1), extent[0], border)
+    ci = _fold(np.arange(cols[0], cols[1] + 1), extent[1], border)
+    return np.ix_(np.maximum(ri, 0), np.maximum(ci, 0)), ri < 0, ci < 0
+
+
 def _window(src: np.ndarray, rows: tuple[int, int], cols: tuple[int, int], border: str) -> np.ndarray:
     """Texels ``rows[0]..rows[1]`` × ``cols[0]..cols[1]`` (inclusive, 0-based stored, possibly outside) of ``src``."""
-    ri = _fold(np.arange(rows[0], rows[1] + 1), src.shape[0], border)
-    ci = _fold(np.arange(cols[0], cols[1] + 1), src.shape[1], border)
-    win = src[np.ix_(np.maximum(ri, 0), np.maximum(ci, 0))]
+    index, zero_rows, zero_cols = _window_index(rows, cols, src.shape[:2], border)
+    win = src[index]
     if border == "zero":
-        win[ri < 0] = 0
-        win[:, ci < 0] = 0
+        win[zero_rows] = 0
+        win[:, zero_cols] = 0
     return win
 
 
@@ -143,7 +156,8 @@ class CPUExecutor:
         self.cache = Path(cache) if cache is not None else cache_dir()
         self.compiles = 0
         self.cache_loads = 0
-        self._kernels: dict[tuple, Kernel] = {}
+        self._kernels: dict = {}   # pass shape (or "resample", "pointwise") → compiled kernel
+        self._by_pass: dict[int, tuple] = {}   # id(pass) → (pass, Kernel)
         self._pool: ThreadPoolExecutor | None = None
         self._lut: np.ndarray | None = None
 
@@ -167,34 +181,30 @@ class CPUExecutor:
 
         return f"cpu (numba {numba.__version__}, {self.threads} thread(s))"
 
-    def uncached(self, plan: Plan, dtype=np.float32) -> int:
-        """How many of ``plan``'s kernels are neither loaded in this process nor compiled on disk yet
-        (what a first run on a machine compiles: about a second each)."""
-        half_inputs = set(plan.inputs) if np.dtype(dtype) == np.float16 else set()
-        missing = set()
+    def kernel_digests(self, plan: Plan) -> set[str]:
+        """The distinct compiled kernels ``plan`` runs on, by the digest of their source: what a first run in a
+        process loads from the disk cache (or compiles), whatever the inputs store (float32 or float16)."""
+        digests = set()
         for ps in plan.passes:
             if isinstance(ps, ResamplePass):
-                if ("resample", ps.axis) in self._kernels:
+                digests.add(_RESAMPLE_DIGEST)
+            elif isinstance(ps, PointwisePass):
+                digests.add(_POINTWISE_DIGEST)
+            else:
+                hit = self._by_pass.get(id(ps))
+                if hit is not None and hit[0] is ps:
+                    digests.add(hit[1].digest)
                     continue
-                digest = source_digest(resample_source(ps.axis))
-                if not on_disk(self.cache, digest):
-                    missing.add(digest)
-                continue
-            if isinstance(ps, PointwisePass):
-                digest = source_digest(pointwise_source(ps.op, ps.param))
-                if not loaded(digest) and not on_disk(self.cache, digest):
-                    missing.add(digest)
-                continue
-            s = shape(ps)
-            half = tuple(src in half_inputs for src in sources(ps))
-            if (s, half) in self._kernels:
-                continue
-            digest = source_digest(kernel_source(s, half))
-            if loaded(digest):
-                continue
-            if not on_disk(self.cache, digest):
-                missing.add(digest)
-        return len(missing)
+                s = shape(ps)
+                k = self._kernels.get(s)
+                digests.add(k.digest if k is not None else source_digest(kernel_source(s)))
+        return digests
+
+    def uncached(self, plan: Plan, dtype=np.float32) -> int:
+        """How many of ``plan``'s kernels are neither loaded in this process nor compiled on disk yet
+        (what a first run on a machine compiles: about a second each). ``dtype`` (the inputs' storage)
+        changes nothing: one kernel serves float32 and float16 sources."""
+        return sum(1 for d in self.kernel_digests(plan) if not loaded(d) and not on_disk(self.cache, d))
 
     def info(self) -> dict:
         """What runs the plans: numba's version, threads and the cache folder."""
@@ -204,14 +214,18 @@ class CPUExecutor:
                 "cache": str(self.cache)}
 
     # ------------------------------------------------------------ kernels
-    def kernel(self, ps, half: tuple[bool, ...] | None = None) -> Kernel:
-        """The compiled kernel of a pass's shape (``half[k]``: source slot k stored as float16)."""
+    def kernel(self, ps) -> Kernel:
+        """The compiled kernel of a pass's shape (for float32 and float16 sources alike)."""
+        hit = self._by_pass.get(id(ps))
+        if hit is not None and hit[0] is ps:  # the shape of a pass run before (exact Fractions: not free)
+            return hit[1]
         s = shape(ps)
-        half = tuple(half) if half is not None else (False,) * s.n_sources
-        key = (s, half)
-        k = self._kernels.get(key)
+        k = self._kernels.get(s)
         if k is None:
-            k = self._kernels[key] = self._build(s, half)
+            k = self._kernels[s] = self._build(s)
+        if len(self._by_pass) > 4096:
+            self._by_pass.clear()
+        self._by_pass[id(ps)] = (ps, k)  # the pass is held, so its id is not reused while the entry lives
         return k
 
     def _ready(self, fn, sig: str, compile_=compile_plain) -> None:
@@ -222,47 +236,45 @@ class CPUExecutor:
         elif done == "compiled":
             self.compiles += 1
 
-    def _build(self, s: PassShape, half: tuple[bool, ...]) -> Kernel:
-        fn = load(kernel_source(s, half), self.cache)
-        sig = signature(s.n_sources, half, s.period[1])
-        self._ready(fn, sig, compile_vectorised)
+    def _build(self, s: PassShape) -> Kernel:
+        source = kernel_source(s)
+        fn = load(source, self.cache)
+        self._ready(fn, signature(s.n_sources, s.period[1]), compile_vectorised)
         terms = {ph: phase_terms(taps) for ph, taps in s.phases}
         extents = []
         for k in range(s.n_sources):
             mine = [t for ts in terms.values() for t in ts if t.slot == k]
             extents.append((min(t.dr for t in mine), max(t.dr for t in mine),
                             min(t.dc for t in mine), max(t.dc for t in mine)) if mine else (0, 0, 0, 0))
-        return Kernel(fn, s, terms, extents)
+        return Kernel(fn, s, terms, extents, source_digest(source))
 
     def prepare(self, plan: Plan, dtype=np.float32) -> None:
         """Compile (or load from the disk cache) the kernels of ``plan`` before running it.
 
-        ``dtype`` is the inputs' storage (float32, or float16 for half files).
+        ``dtype`` is the inputs' storage (float32, or float16 for half files); the same kernels serve both.
         """
-        half_inputs = set(plan.inputs) if np.dtype(dtype) == np.float16 else set()
         for ps in plan.passes:
             if isinstance(ps, ResamplePass):
-                self.resample_kernel(ps.axis)
-                continue
-            if isinstance(ps, PointwisePass):
-                self.pointwise_kernel(ps)
-                continue
-            self.kernel(ps, tuple(src in half_inputs for src in sources(ps)))
+                self.resample_kernel()
+            elif isinstance(ps, PointwisePass):
+                self.pointwise_kernel()
+            else:
+                self.kernel(ps)
 
     # ------------------------------------------------------------ resampling
-    def resample_kernel(self, axis: int):
-        """The compiled table-driven kernel of a :class:`ResamplePass` along ``axis`` (cached like the others)."""
-        key = ("resample", axis)
+    def resample_kernel(self):
+        """The compiled table-driven kernel of every :class:`ResamplePass`, either axis (cached like the others)."""
+        key = "resample"
         k = self._kernels.get(key)
         if k is None:
-            fn = load(resample_source(axis), self.cache)
+            fn = load(resample_source(), self.cache)
             self._ready(fn, RESAMPLE_SIGNATURE)
             k = self._kernels[key] = fn
         return k
 
     def _resample(self, plan: Plan, ps: ResamplePass, src: np.ndarray) -> np.ndarray:
         """One :class:`ResamplePass` on a stored (H, W, C) float32 source; bands of output rows on the pool."""
-        fn = self.resample_kernel(ps.axis)
+        fn = self.resample_kernel()
         h, w, channels = src.shape
         idx, weights = resample_table(ps, plan.images[ps.source], np.float32)
         size = plan.images[ps.target].size
@@ -271,12 +283,12 @@ class CPUExecutor:
         args = (flat_out, flat_src, np.ascontiguousarray(idx), np.ascontiguousarray(weights), channels)
         n = size[0]  # both kernels split their work by output rows
         if self.threads == 1 or out.size < SMALL or n < 2:
-            fn(*args, 0, n)
+            fn(*args, 0, n, ps.axis)
             return out
         parts = min(n, self.threads * 2)
         bounds = [n * i // parts for i in range(parts + 1)]
         pool = self._workers()
-        for f in [pool.submit(fn, *args, a, b) for a, b in zip(bounds, bounds[1:], strict=False) if a < b]:
+        for f in [pool.submit(fn, *args, a, b, ps.axis) for a, b in zip(bounds, bounds[1:], strict=False) if a < b]:
             f.result()
         return out
 
@@ -319,6 +331,13 @@ class CPUExecutor:
             for s in ps.sources():
                 last_read[s] = i
         keep = set(plan.outputs)
+        spare: dict[tuple, list[np.ndarray]] = {}  # this run's dead intermediates, by shape, for later targets
+
+        def retire(k: int) -> None:
+            a = stored.pop(k)
+            if k not in plan.inputs and a.dtype == np.float32:
+                spare.setdefault(a.shape, []).append(a)
+
         for i, ps in enumerate(plan.passes):
             if isinstance(ps, ResamplePass):
                 src = stored[ps.source]
@@ -326,20 +345,24 @@ class CPUExecutor:
                     src = self._half_lut()[src]
                 stored[ps.target] = self._resample(plan, ps, np.ascontiguousarray(src))
                 if last_read[ps.source] == i and ps.source not in keep:
-                    del stored[ps.source]
+                    retire(ps.source)
                 continue
             srcs = sources(ps)
             target = plan.images[ps.target]
-            out = np.empty(target.stored + (channels,), dtype=np.float32)
+            # a dead intermediate of the same shape (the blur's way up reuses its way down): fresh memory costs
+            # a page fault per page at its first write, about as much as the pass's own stores
+            shape_ = target.stored + (channels,)
+            free = spare.get(shape_)
+            out = free.pop() if free else np.empty(shape_, dtype=np.float32)
             if isinstance(ps, PointwisePass):
                 self._run_pointwise(ps, out, [self._float(stored[s]) if s in half else stored[s] for s in srcs])
             else:
-                kern = self.kernel(ps, tuple(s in half for s in srcs))
+                kern = self.kernel(ps)
                 self._run_pass(plan, ps, kern, out, [stored[s] for s in srcs], srcs)
             stored[ps.target] = out
-            for s in srcs:
+            for s in set(srcs):
                 if last_read[s] == i and s not in keep:
-                    del stored[s]
+                    retire(s)
         results = []
         for k in plan.outputs:
             im = plan.images[k]
@@ -355,21 +378,24 @@ class CPUExecutor:
             results.append(a.astype(dtype) if dtype != a.dtype else np.ascontiguousarray(a))
         return results
 
-    def pointwise_kernel(self, ps: PointwisePass):
-        """The compiled kernel of a pointwise pass's op and parameter (:func:`pointwise_source`)."""
-        key = ("pointwise", ps.op, ps.param)
+    def pointwise_kernel(self):
+        """The compiled kernel of every pointwise op (:func:`pointwise_source`: the op and its parameter are
+        arguments)."""
+        key = "pointwise"
         fn = self._kernels.get(key)
         if fn is None:
-            fn = load(pointwise_source(ps.op, ps.param), self.cache)
-            self._ready(fn, pointwise_signature(len(ps.srcs)))
+            fn = load(pointwise_source(), self.cache)
+            self._ready(fn, POINTWISE_SIGNATURE)
             self._kernels[key] = fn
         return fn
 
     def _run_pointwise(self, ps: PointwisePass, out: np.ndarray, srcs: list[np.ndarray]) -> None:
         """Every element of ``out`` by the op, in bands on the thread pool when large."""
-        fn = self.pointwise_kernel(ps)
+        fn = self.pointwise_kernel()
         flat = out.reshape(-1)
         args = [np.ascontiguousarray(a, dtype=np.float32).reshape(-1) for a in srcs]
+        args += [_NO_F32_1D] * (3 - len(args))  # operands the op does not read
+        args += [np.float32(float(ps.param)), POINTWISE_CODES[ps.op]]
         n = flat.size
         if self.threads == 1 or n < SMALL:
             fn(flat, *args, 0, n)
@@ -408,13 +434,15 @@ class CPUExecutor:
         if i_lo >= i_hi or c_lo >= c_hi or out.size <= TINY:  # one window: fewer calls beat fewer copies
             self._window_call(kern, out, srcs, imgs, offs, (m_first, m_last + 1), cols, ps, yoff, xoff)
             return
+        # the interior first: its threads take the first touch of the fresh output's pages (the kernel zeroes
+        # them on first write); a border strip first would fault every page of a column strip on one thread
+        self._call(kern, out, srcs, (i_lo, i_hi), inner, offs, yoff, xoff, parallel=True)
         self._window_call(kern, out, srcs, imgs, offs, (m_first, i_lo), cols, ps, yoff, xoff)
         self._window_call(kern, out, srcs, imgs, offs, (i_hi, m_last + 1), cols, ps, yoff, xoff)
         left = [(lo, a) for (lo, _), (a, _) in zip(cols, inner, strict=True)]
         right = [(b, hi) for (_, hi), (_, b) in zip(cols, inner, strict=True)]
         self._window_call(kern, out, srcs, imgs, offs, (i_lo, i_hi), left, ps, yoff, xoff)
         self._window_call(kern, out, srcs, imgs, offs, (i_lo, i_hi), right, ps, yoff, xoff)
-        self._call(kern, out, srcs, (i_lo, i_hi), inner, offs, yoff, xoff, parallel=True)
 
     def _window_call(self, kern: Kernel, out, srcs, imgs, offs, rows: tuple[int, int], cols, ps, yoff, xoff):
         """Groups ``rows`` × ``cols`` through windows of each source gathered with its border mode."""
@@ -432,10 +460,11 @@ class CPUExecutor:
         self._call(kern, out, wins, rows, cols, woffs, yoff, xoff, parallel=False)
 
     def _call(self, kern: Kernel, out, srcs, rows, cols, offs, yoff, xoff, parallel: bool) -> None:
-        extra = [self._half_lut()] if any(a.dtype == np.uint16 for a in srcs) else []
-        extra.append(out.shape[2])
+        half = sum(1 << k for k, a in enumerate(srcs) if a.dtype == np.uint16)
+        extra = [self._half_lut() if half else _NO_F32_1D, half, out.shape[2]]
         out = out.reshape(out.shape[0], -1)
-        srcs = [a.reshape(a.shape[0], -1) for a in srcs]
+        flat = [a.reshape(a.shape[0], -1) for a in srcs]
+        srcs = [v for a in flat for v in ((_NO_F32, a) if a.dtype == np.uint16 else (a, _NO_U16))]
         tail = [yoff, xoff] + [v for lo_hi in cols for v in lo_hi] + [v for o in offs for v in o]
         m0, m1 = rows
         floats = (m1 - m0) * kern.shape.period[0] * out.shape[1]  # out is (rows, columns·C) here
@@ -459,6 +488,14 @@ class CPUExecutor:
         if self._lut is None:
             self._lut = np.arange(1 << 16, dtype=np.uint16).view(np.float16).astype(np.float32)
         return self._lut
+
+
+# placeholders for the arguments a call does not use (a source's other storage, an op's missing operands)
+_NO_F32 = np.zeros((1, 1), np.float32)
+_NO_U16 = np.zeros((1, 1), np.uint16)
+_NO_F32_1D = np.zeros(1, np.float32)
+_RESAMPLE_DIGEST = source_digest(resample_source())
+_POINTWISE_DIGEST = source_digest(pointwise_source())
 
 
 def _inputs(plan: Plan, images) -> list[np.ndarray]:

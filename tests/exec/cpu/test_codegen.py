@@ -18,13 +18,23 @@ from pyramid_cli.exec import cpu  # noqa: E402
 def test_kernel_source_is_canonical_and_unrolled():
     _, a = planned("gauss7", (9, 9), "paper")
     _, b = planned("bartlett", (40, 3), "paper")
-    texts = {cpu.kernel_source(generate.shape(ps), (False,)) for ps in a.passes + b.passes}
+    texts = {cpu.kernel_source(generate.shape(ps)) for ps in a.passes + b.passes}
     assert len(texts) == 2
     _, ds = planned("doosabin", (8, 8))
-    text = cpu.kernel_source(generate.shape(ds.passes[0]), (False,))
+    text = cpu.kernel_source(generate.shape(ds.passes[0]))
     assert "cache=True" in text and "v0_3 = t0[" in text and "if C == 4:" in text  # RGBA unrolled
     assert "np.float32(0.25)" in text and "np.float32(0.75)" in text  # one vertical (¼, ¾) sum per row phase
-    assert "lut[" not in text and "lut[" in cpu.kernel_source(generate.shape(ds.passes[0]), (True,))
+    # one text for float32 and float16 sources: a half row goes through the table once, into a scratch row
+    assert "def kernel(out, s0, h0, lut, half, C," in text and text.count("lut[") == text.count("= lut[hr[g]]") > 0
+
+
+def test_resampling_and_pointwise_passes_share_one_kernel_each():
+    from pyramid_cli.exec.cpu import codegen
+
+    assert "if axis == 0:" in codegen.resample_source()
+    text = codegen.pointwise_source()
+    for op, code in codegen.POINTWISE_CODES.items():
+        assert f"op == {code}:  # {op}" in text and codegen.POINTWISE_EXPR[op] in text
 
 
 def test_phase_terms_expand_taps_exactly():

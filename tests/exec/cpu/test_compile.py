@@ -89,6 +89,33 @@ def test_a_second_process_compiles_nothing(tmp_path):
     assert runs[1] == {"compiles": 0, "cache_loads": shapes, "value": pytest.approx(1.0, abs=1e-6)}
 
 
+LOADER = r"""
+import json, sys
+import numpy as np
+from pyramid_cli.exec import cpu
+from pyramid_cli.workflows import pyramids
+p = pyramids.blur_plan((40, 50), 5, strategy="fused")
+with cpu.CPUExecutor(threads=1) as ex:
+    ex.prepare(p, np.float16)
+    out = ex.run_outputs(p, [np.ones((40, 50, 4), np.float16)])[0]
+    print(json.dumps({"compiles": ex.compiles, "cache_loads": ex.cache_loads, "value": float(out.mean()),
+                      "full_setup": "numba.np.linalg" in sys.modules or "scipy" in sys.modules}))
+"""
+
+
+@pytest.mark.slow
+def test_a_cache_load_skips_numbas_full_setup(cache_folder):
+    """Loading compiled kernels needs numba's runtime, not its whole library of implementations (about 0.15 s
+    of imports and registrations in a fresh process): a process that only loads never imports them."""
+    with cpu.CPUExecutor(threads=1) as ex:  # the kernels on disk (compiled once on a machine)
+        ex.prepare(pyramids.blur_plan((40, 50), 5, strategy="fused"))
+    p = subprocess.run([sys.executable, "-c", LOADER], capture_output=True, text=True, cwd=ROOT, timeout=300,
+                       env=dict(os.environ, **{cpu.CACHE_ENV: str(cache_folder)}))
+    assert p.returncode == 0, p.stderr[-2000:]
+    got = json.loads(p.stdout.strip().splitlines()[-1])
+    assert got == {"compiles": 0, "cache_loads": 2, "value": pytest.approx(1.0, abs=1e-6), "full_setup": False}
+
+
 def test_an_unwritable_cache_folder_falls_back(tmp_path):
     """A cache path that cannot be a folder (here: a file) still runs, compiling into a private folder."""
     blocker = tmp_path / "not-a-folder"

@@ -157,6 +157,41 @@ def test_kernels_are_compiled_once_per_shape(cache_folder):
     assert sources and all("def kernel(" in f.read_text() for f in sources)
 
 
+@pytest.mark.parametrize("make", [lambda: pyramids.blur_plan((37, 61), 5, strategy="fused"),
+                                  lambda: pyramids.mip_plan((96, 90), strategy="fused")], ids=["blur5", "mip"])
+def test_a_blur_and_a_mip_plan_run_on_at_most_two_kernels(ex, make):
+    """A run loads one or two kernels from the cache, not one per pass shape and storage: half and float32
+    sources share a kernel, and every resampling pass (both axes) shares one."""
+    p = make()
+    kinds = {type(ps).__name__ for ps in p.passes}
+    with cpu.CPUExecutor(threads=1) as fresh:
+        fresh.prepare(p, np.float16)  # a half file's first pass reads float16, the others float32
+        fresh.prepare(p, np.float32)
+        x = random_image(p.images[p.inputs[0]].size, 4, 5)
+        half, full = (fresh.run_outputs(p, [x.astype(d)]) for d in (np.float16, np.float32))
+        assert len(fresh._kernels) == len(fresh.kernel_digests(p)) <= 2
+        assert fresh.uncached(p, np.float16) == fresh.uncached(p) == 0
+    assert len(kinds) == (2 if "ResamplePass" in kinds else 1)  # the mip plan has both kinds of pass
+    want = [o for o in ex.run_outputs(p, [x.astype(np.float16).astype(np.float32)])]
+    for h, f, w in zip(half, full, want, strict=True):
+        np.testing.assert_array_equal(h, w)  # a half input reads exactly its float32 values
+        assert f.shape == w.shape
+
+
+def test_dead_intermediates_are_reused_and_live_ones_are_not(ex):
+    """A run writes a later target into a dead intermediate of its shape (the way up into the way down),
+    never into an image still to be read or returned."""
+    size = (64, 96)
+    x = random_image(size, 3, 8)
+    sigma, _, _ = pyramids.blur_plan_sigma(size, 5.0, strategy="fused")  # two ways up, blended at the end
+    np.testing.assert_allclose(ex.run(sigma, x), emulate.run(sigma, x), rtol=0, atol=1e-5)
+    lap = pyramids.levels_plan(size, 3, laplacian=True, strategy="fused")
+    outs = ex.run_outputs(lap, [x])
+    for o, want in zip(outs, emulate.run_outputs(lap, [x]), strict=True):
+        np.testing.assert_allclose(o, want, rtol=0, atol=1e-5)
+    assert not any(np.shares_memory(a, b) for i, a in enumerate(outs) for b in outs[i + 1:])
+
+
 @pytest.mark.parametrize("border", slow_beyond(BORDERS))
 def test_cpu_plans_fuse_each_step_and_equal_reference(ex, border):
     """The "fused" strategy (the CPU executor's): one pass per written step, the same numbers at every pixel."""
