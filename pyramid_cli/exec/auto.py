@@ -17,30 +17,27 @@ from pyramid_cli.plan import backend_cost
 from pyramid_cli.plan.backend_cost import BackendCosts, Estimate
 from pyramid_cli.plan.cost import format_seconds
 from pyramid_cli.plan.model import Plan, PointwisePass, ResamplePass
-from pyramid_cli.plan.shapes import shape, sources
+from pyramid_cli.plan.shapes import shape
 
 
-def cpu_kernels(plan: Plan, half: bool | None = False) -> tuple[int, int]:
-    """(kernels loaded from the disk cache, kernels compiled) before the CPU executor can run ``plan``, its
-    inputs stored as float16 (``half``), float32, or either (None: a kernel of either kind on disk counts).
-    Kernels this process has loaded already count as neither."""
+def cpu_kernels(plan: Plan) -> tuple[int, int]:
+    """(kernels loaded from the disk cache, kernels compiled) before the CPU executor can run ``plan``: one
+    kernel per pass shape (float32 and float16 sources alike), one for every resampling pass, one for every
+    pointwise pass (:meth:`~pyramid_cli.exec.cpu.CPUExecutor.kernel_digests`). Kernels this process has
+    loaded already count as neither."""
     from pyramid_cli.exec.cpu import codegen
     from pyramid_cli.exec.cpu.compile import cache_dir, loaded, on_disk, source_digest
 
-    folder = cache_dir()
-    kernels = set()  # each kernel: the digests of its variants (any one will do)
+    texts = set()
     for ps in plan.passes:
         if isinstance(ps, ResamplePass):
-            kernels.add((source_digest(codegen.resample_source(ps.axis)),))
+            texts.add(codegen.resample_source())
         elif isinstance(ps, PointwisePass):
-            kernels.add((source_digest(codegen.pointwise_source(ps.op, ps.param)),))
+            texts.add(codegen.pointwise_source())
         else:
-            variants = (False, True) if half is None else (half,)
-            kernels.add(tuple(source_digest(codegen.kernel_source(shape(ps), tuple(h and s in plan.inputs
-                                                                                for s in sources(ps))))
-                              for h in variants))
-    todo = [k for k in kernels if not any(loaded(d) for d in k)]
-    compiles = sum(not any(on_disk(folder, d) for d in k) for k in todo)
+            texts.add(codegen.kernel_source(shape(ps)))
+    todo = [d for d in map(source_digest, texts) if not loaded(d)]
+    compiles = sum(not on_disk(cache_dir(), d) for d in todo)
     return len(todo) - compiles, compiles
 
 
@@ -51,7 +48,7 @@ def gl_programs(plan: Plan) -> int:
 
 
 def estimates(cpu_plan: Plan | None, gl_plan: Plan | None, channels: int, *, jobs: int = 1, threads: int | None = None,
-              half: bool = False, gl_opened: bool = False, costs: BackendCosts | None = None,
+              gl_opened: bool = False, costs: BackendCosts | None = None,
               texture_bytes=None) -> dict[str, Estimate]:
     """Each backend's :class:`~pyramid_cli.plan.backend_cost.Estimate` of ``jobs`` runs of its plan (the
     CPU executor's ``cpu_plan``, GL's ``gl_plan``; None leaves that backend out) on inputs of ``channels``."""
@@ -59,7 +56,7 @@ def estimates(cpu_plan: Plan | None, gl_plan: Plan | None, channels: int, *, job
     out = {}
     if cpu_plan is not None:
         try:
-            loads, compiles = cpu_kernels(cpu_plan, half)
+            loads, compiles = cpu_kernels(cpu_plan)
         except Exception:  # noqa: BLE001 - an estimate only: assume every kernel is loaded from the cache
             loads, compiles = len(cpu_plan.passes), 0
         out["cpu"] = backend_cost.cpu_estimate(costs.cpu, cpu_plan, channels, jobs=jobs, threads=threads, loads=loads,

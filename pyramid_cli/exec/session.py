@@ -319,7 +319,6 @@ class Session:
         size = tuple(sizes[0])
         channels = size[2] if len(size) > 2 else 4
         rc = tuple(tuple(s[:2]) for s in sizes)
-        half = None if dtype is None else np.dtype(dtype) == np.float16
         try:
             cpu_plan, gl_plan = work.plan(rc, "fused"), work.plan(rc, "cost")
         except Exception:  # noqa: BLE001 - the run reports a job that cannot be planned
@@ -330,8 +329,7 @@ class Session:
             return
         from pyramid_cli.exec.gl import texture_size
 
-        found = auto.estimates(cpu_plan, gl_plan, channels, jobs=max(1, count), threads=self.threads,
-                               half=half, costs=costs,
+        found = auto.estimates(cpu_plan, gl_plan, channels, jobs=max(1, count), threads=self.threads, costs=costs,
                                texture_bytes=lambda stored: texture_size(stored)[0] * texture_size(stored)[1] * 16)
         chosen = min(found, key=lambda b: found[b].seconds)
         self.estimates = found
@@ -491,7 +489,7 @@ class Session:
             if p is not None:
                 from pyramid_cli.exec.auto import cpu_kernels
 
-                compiles = cpu_kernels(p, half)[1]
+                compiles = cpu_kernels(p)[1]
             ex.start(p, np.float16 if half else np.float32, compiles)
         except Exception:  # noqa: BLE001 - an optimisation only: the run decides and reports
             pass
