@@ -44,12 +44,12 @@ NOMINAL_JOB = (Blur(levels=4), (1080, 1920, 4))
 
 def spare_core() -> bool:
     """Whether a core is idle for loading in the background: the last minute's load average below the cores
-    this process may use, less one. On a busy machine the thread only takes turns with the decoder (measured
+    this process may use, less a half. On a busy machine the thread only takes turns with the decoder (measured
     0.3–0.6 s slower than loading after the read on two loaded cores), so the executor is made when first used."""
     from pyramid_cli.exec.cpu.executor import default_threads
 
     try:
-        return os.getloadavg()[0] <= default_threads() - 1
+        return os.getloadavg()[0] < default_threads() - 0.5
     except OSError:  # no load average here
         return True
 
