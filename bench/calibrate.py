@@ -6,6 +6,11 @@
                                            #   to bench/results/calibration-latest.json)
     python bench/calibrate.py --quick      # two sizes, few repetitions: a smoke run (seconds)
 
+Then what ``auto`` weighs (``bench/calibrate_backends.py``): both backends' fixed and per-pixel costs,
+stored by ``--write`` in the cache folder for ``auto`` on this machine (with the pass model just
+fitted), and by ``--ship`` also as the package's defaults (``pyramid_cli/plan/backend_costs.json``);
+``--no-backends`` skips them.
+
 Method. Synthetic single passes run on the real :class:`~pyramid_cli.exec.gl.GLExecutor`,
 built with :class:`pyramid_cli.plan.Builder` from literal masks whose taps are
 k bilinear (2×2 blocks of equal weights, like ``[1 1; 1 1]/4``) or k single-texel
@@ -257,6 +262,9 @@ def main(argv=None) -> int:
                     f"and {RAW_JSON.relative_to(ROOT)}")
     ap.add_argument("--quick", action="store_true", help="two sizes, few repetitions (a smoke run)")
     ap.add_argument("--no-validate", action="store_true", help="skip timing the named filters' recipes")
+    ap.add_argument("--no-backends", action="store_true", help="skip measuring what auto weighs")
+    ap.add_argument("--ship", action="store_true", help="with --write: also write auto's constants as the "
+                    "package's defaults")
     args = ap.parse_args(argv)
 
     from pyramid_cli.exec.gl import GLExecutor
@@ -333,6 +341,12 @@ def main(argv=None) -> int:
            "cores": info["cores"], "date": model.date,
            "command": "python bench/calibrate.py --write" + (" --quick" if args.quick else ""),
            "residual": residual, "samples": len(points)}
+    backends = None
+    if not args.no_backends:
+        import calibrate_backends
+
+        backends = calibrate_backends.measure(sys.modules[__name__], args.quick, passes=doc)
+        calibrate_backends.report(backends)
     if not args.write:
         print("\n(not written: pass --write to update the model)")
         print(json.dumps(doc, indent=1, ensure_ascii=False))
@@ -345,6 +359,8 @@ def main(argv=None) -> int:
     RAW_JSON.write_text(json.dumps({"model": doc, "machine": info, "points": points, "validation": validation},
                                    indent=1, ensure_ascii=False) + "\n", encoding="utf-8")
     print(f"\nwrote {MODEL_JSON.relative_to(ROOT)} and {RAW_JSON.relative_to(ROOT)}")
+    if backends is not None:
+        print("wrote " + " and ".join(calibrate_backends.store(backends, args.ship)))
     return 0
 
 

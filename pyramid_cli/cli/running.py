@@ -34,12 +34,12 @@ def drop(msg: str) -> None:
 
 
 def open_session(opts: dict, reporter):
-    """The :class:`~pyramid_cli.exec.session.Session` of --backend, --precision and --threads (-v says which)."""
+    """The :class:`~pyramid_cli.exec.session.Session` of --backend, --precision and --threads (-v says which, once
+    chosen: ``auto`` chooses when the first job is known, with each backend's estimate)."""
     from pyramid_cli.exec.session import Session
 
-    session = Session(opts["backend"], opts["precision"], threads=opts["threads"], warn=reporter.warn)
-    reporter.detail(f"executor {session.name} ({session.why})")
-    return session
+    return Session(opts["backend"], opts["precision"], threads=opts["threads"], warn=reporter.warn,
+                   note=reporter.detail)
 
 
 def read_write(opts: dict):

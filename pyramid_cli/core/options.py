@@ -7,7 +7,7 @@ from pyramid_cli.core.border import BORDER_NAMES
 
 BACKENDS = ("auto", "gl", "cpu", "reference")
 BACKEND_HELP = {
-    "auto": "the fastest exact executor here: GL on a hardware GPU, else the CPU executor",
+    "auto": "the exact executor estimated to finish this job first here (GL or the CPU executor)",
     "gl": "OpenGL through headless EGL (a GPU, or Mesa's llvmpipe); never falls back",
     "cpu": "the CPU executor of plans",
     "reference": "the float64 oracle of the paper's formulas (slow, obvious, exact)",

@@ -8,13 +8,23 @@ runs :class:`~pyramid_cli.jobs.work.Work` values on it. Backend names mean one t
   run there, the error says so (exit 6 / 5) instead of running elsewhere;
 - ``cpu``: the CPU executor of plans;
 - ``reference``: the float64 oracle of the paper's formulas (:mod:`pyramid_cli.reference.filters`);
-- ``auto``: the fastest exact executor here (:func:`choose`), with one warning when it
-  has to move an image to the CPU (no EGL, or an image GL cannot hold).
+- ``auto``: the executor estimated to finish this job first (:mod:`pyramid_cli.exec.auto`),
+  with one warning when it has to move an image to the CPU (no EGL, or an image GL cannot hold).
+
+``auto`` decides once it knows the job: at :meth:`Session.decide` (the run layer calls it with
+the first input's size and the batch's length), else at the first :meth:`~Session.plan`,
+:meth:`~Session.run` or :meth:`~Session.prepare`. No GL context is opened to decide (the
+machine's renderer is cached, :func:`pyramid_cli.exec.gl.context.machine_gl`); one is opened only
+to run on GL. On the CPU executor, :meth:`Session.prepare_async` imports numba and loads the
+plan's kernels in a background thread while the caller reads the input; the first run waits for it.
 """
 
 from __future__ import annotations
 
+import importlib.util
+import os
 import sys
+import threading
 from collections.abc import Callable
 
 import numpy as np
@@ -24,8 +34,29 @@ from pyramid_cli.core.errors import BackendError, DataError
 from pyramid_cli.exec.base import Executor
 from pyramid_cli.exec.emulate import Emulator, rounded
 from pyramid_cli.exec.gl.context import is_software_renderer
-from pyramid_cli.jobs.work import Work
+from pyramid_cli.jobs.work import Blur, Work
 from pyramid_cli.plan.model import Plan
+
+# What auto estimates when asked before any job is known (the demo's and the API's first call decide better).
+NOMINAL_JOB = (Blur(levels=4), (1080, 1920, 4))
+
+
+
+def spare_core() -> bool:
+    """Whether a core is idle for loading in the background: the last minute's load average below the cores
+    this process may use, less a half. On a busy machine the thread only takes turns with the decoder (measured
+    0.3–0.6 s slower than loading after the read on two loaded cores), so the executor is made when first used."""
+    from pyramid_cli.exec.cpu.executor import default_threads
+
+    try:
+        return os.getloadavg()[0] < default_threads() - 0.5
+    except OSError:  # no load average here
+        return True
+
+
+def _numba_installed() -> bool:
+    """Whether numba can be found (not imported: that costs 0.2 s and happens when the CPU executor is made)."""
+    return "numba" in sys.modules or importlib.util.find_spec("numba") is not None
 
 
 def _compiled_cpu(threads: int | None) -> Executor | None:
@@ -51,19 +82,142 @@ def _cpu_executor(threads: int | None, warn=None, required: bool = False) -> Exe
     return Emulator()
 
 
+class LoadingCPU:
+    """The compiled CPU executor while it is made in a background thread (numba imported, a plan's
+    kernels loaded or compiled): what a caller asks before running (its strategy, dtypes, texture
+    needs, name) is answered at once; running, or anything else, waits for the thread.
+
+    Parameters
+    ----------
+    threads : int, optional
+        The executor's threads (:class:`~pyramid_cli.exec.cpu.CPUExecutor`).
+    """
+
+    backend = "cpu"
+    strategy = "fused"
+    work_dtype = np.dtype(np.float32)
+    max_texture_size = None
+    host_textures = False
+
+    def __init__(self, threads: int | None = None):
+        from pyramid_cli.exec.cpu.executor import default_threads
+
+        self.threads = max(1, int(threads)) if threads else default_threads()
+        self._ready: Executor | None = None
+        self._error: BaseException | None = None
+        self._thread: threading.Thread | None = None
+        self.pending = 0  # kernels the background thread compiles (what announce_compiles would say)
+
+    @staticmethod
+    def texture_bytes(extent: tuple[int, int]) -> int:
+        """No textures beside the pictures: 0."""
+        return 0
+
+    @property
+    def name(self) -> str:
+        """``cpu (numba X, N thread(s))``, from numba's installed metadata (not imported for it)."""
+        if self._ready is not None:
+            return self._ready.name
+        from importlib import metadata
+
+        try:
+            version = metadata.version("numba")
+        except metadata.PackageNotFoundError:
+            return self.result().name
+        return f"cpu (numba {version}, {self.threads} thread(s))"
+
+    @property
+    def started(self) -> bool:
+        """Whether the background thread was started (or the executor made)."""
+        return self._thread is not None or self._ready is not None
+
+    def start(self, plan: Plan | None = None, dtype=np.float32, compiles: int = 0) -> None:
+        """Make the executor, and load ``plan``'s kernels for inputs of ``dtype``, in a background thread
+        (``compiles``: how many of them are not on disk). Once only; the thread's errors come at :meth:`result`,
+        except those of loading the plan's kernels, which the run reports itself."""
+        if self.started:
+            return
+        self.pending = compiles
+
+        def work() -> None:
+            try:
+                from pyramid_cli.exec.cpu import CPUExecutor
+
+                executor = CPUExecutor(threads=self.threads)
+            except BaseException as e:  # noqa: BLE001 - handed to the caller at result()
+                self._error = e
+                return
+            try:
+                if plan is not None:
+                    executor.prepare(plan, dtype)
+            except Exception:  # noqa: BLE001, S110 - the run compiles it again and reports the error
+                pass
+            self._ready = executor
+
+        self._thread = threading.Thread(target=work, name="pyramid-cpu-load")
+        self._thread.start()
+
+    def result(self) -> Executor:
+        """The executor: waits for the background thread (made here when none was started)."""
+        if self._thread is not None:
+            self._thread.join()
+            self._thread = None
+            self.pending = 0
+        if self._error is not None:
+            raise self._error
+        if self._ready is None:
+            from pyramid_cli.exec.cpu import CPUExecutor
+
+            self._ready = CPUExecutor(threads=self.threads)
+        return self._ready
+
+    def run_outputs(self, plan: Plan, images, dtype=np.float32) -> list[np.ndarray]:
+        """:meth:`~pyramid_cli.exec.cpu.CPUExecutor.run_outputs`, once the executor is ready."""
+        return self.result().run_outputs(plan, images, dtype)
+
+    def run(self, plan: Plan, image) -> np.ndarray:
+        """:meth:`~pyramid_cli.exec.cpu.CPUExecutor.run`, once the executor is ready."""
+        return self.result().run(plan, image)
+
+    def prepare(self, plan: Plan, dtype=np.float32) -> None:
+        """:meth:`~pyramid_cli.exec.cpu.CPUExecutor.prepare`, once the executor is ready."""
+        self.result().prepare(plan, dtype)
+
+    def uncached(self, plan: Plan, dtype=np.float32) -> int:
+        """Kernels still to compile: while the background thread runs, those it is compiling."""
+        if self._thread is not None and self._thread.is_alive():
+            return self.pending
+        return self.result().uncached(plan, dtype)
+
+    def close(self) -> None:
+        """Wait for the background thread, then close the executor."""
+        if self._thread is not None:
+            self._thread.join()
+            self._thread = None
+        if self._ready is not None:
+            self._ready.close()
+
+    def __getattr__(self, name: str):  # anything else the executor has (compiles, cache_loads, info, …)
+        if name.startswith("__") or name in ("_ready", "_error", "_thread"):
+            raise AttributeError(name)
+        return getattr(self.result(), name)
+
+
 class Session:
     """One executor for many jobs (one GL context, compiled programs, pooled memory).
 
     Parameters
     ----------
     backend : {"auto", "gl", "cpu", "reference"}
-        Where plans run (see the module notes); ``auto`` picks the fastest exact one.
+        Where plans run (see the module notes); ``auto`` picks the one estimated to finish first.
     precision : {"float", "half"}
         GL intermediate textures: RGBA32F (exact) or RGBA16F.
     threads : int, optional
         CPU executor threads (default: the machine's cores).
     warn : callable, optional
         Receives one-line warnings (default: printed to standard error).
+    note : callable, optional
+        Receives one line when the executor is chosen: ``executor NAME (WHY)`` (``-v``).
 
     Examples
     --------
@@ -75,71 +229,181 @@ class Session:
     """
 
     def __init__(self, backend: str = "auto", precision: str = "float", *, threads: int | None = None,
-                 warn: Callable[[str], None] | None = None):
+                 warn: Callable[[str], None] | None = None, note: Callable[[str], None] | None = None):
         options.check("backend", backend, options.BACKENDS)
         options.check("precision", precision, options.PRECISIONS)
         self.backend = backend
         self.precision = precision
         self.threads = threads
         self._warn = warn or (lambda msg: print(f"pyramid: warning: {msg}", file=sys.stderr))
+        self._note = note
         self._executor: Executor | None = None
         self._cpu: Executor | None = None
-        self.why = ""          # why this executor, in one line (for -v)
+        self._why = ""
         self.ran = ""          # the executor that ran the last job
-        self._choose()
+        self.estimates: dict = {}  # auto: each backend's Estimate of the job it decided on
+        self._decided = False
+        if backend != "auto":
+            self._choose_named()
 
     # ------------------------------------------------------------ choice
-    def _choose(self) -> None:
+    def _choose_named(self) -> None:
         if self.backend == "reference":
-            self.why = "asked for: the float64 oracle of the paper's formulas"
+            self._why = "asked for: the float64 oracle of the paper's formulas"
+        elif self.backend == "cpu":
+            if not _numba_installed():
+                _cpu_executor(self.threads, required=True)  # raises with the reason and the fix
+            self._executor = self._cpu = LoadingCPU(self.threads)
+            self._why = "asked for"
+        else:
+            from pyramid_cli.exec import gl
+
+            executor = gl.GLExecutor(precision=self.precision)
+            executor.open()  # BackendError (exit 6) now, before any input is read
+            self._executor = executor
+            self._why = "asked for"
+        self._chosen()
+
+    def _chosen(self) -> None:
+        self._decided = True
+        if self._note is not None:
+            self._note(f"executor {self.name} ({self._why})")
+
+    @property
+    def decided(self) -> bool:
+        """Whether the executor is chosen (``auto`` chooses at the first job, see the module)."""
+        return self._decided
+
+    def decide(self, work: Work | None = None, sizes=(), count: int = 1, dtype=None) -> None:
+        """Choose ``auto``'s executor for ``count`` jobs of ``work`` on inputs of ``sizes`` ((rows, columns) or
+        (rows, columns, channels) each; 4 channels when not said) stored as ``dtype`` (float16, float32, or None
+        when not known). Once per session: later calls do nothing. Without ``work``, a nominal job decides
+        (:data:`NOMINAL_JOB`). Opens no GL context and imports no numba."""
+        if self._decided:
             return
-        if self.backend == "cpu":
-            self._executor = self._cpu = _cpu_executor(self.threads, required=True)
-            self.why = "asked for"
+        from pyramid_cli.exec.gl import context
+
+        key = context.driver_key()
+        gl = context.machine_gl(key=key)
+        if not gl["ok"]:
+            self._use_cpu()
+            self._why = f"auto: no GL here ({gl['reason']})"
+            self._warn(f"{gl['reason']}; running on the CPU")
+        elif not _numba_installed():
+            self._use_gl(gl)
+            self._why = f"auto: GL renderer {gl['renderer']} (the compiled CPU executor needs numba)"
+        else:
+            try:
+                self._estimate(work, sizes, count, dtype, gl, key)
+            except Exception as e:  # noqa: BLE001 - a broken calibration file must not stop the run
+                software = is_software_renderer(gl["renderer"])
+                self._use_cpu() if software else self._use_gl(gl)
+                self._why = (f"auto: no estimate ({type(e).__name__}: {e}); "
+                             + ("GL is a software renderer: the CPU executor" if software else "a GPU: GL"))
+        self._chosen()
+
+    def _estimate(self, work, sizes, count, dtype, gl: dict, key: str) -> None:
+        from pyramid_cli.exec import auto
+        from pyramid_cli.plan import backend_cost
+
+        costs = backend_cost.load(key)
+        renderer = gl["renderer"]
+        if not auto.calibrated_for(costs, renderer):
+            self._use_gl(gl)
+            self._why = (f"auto: GL renderer {renderer}, not calibrated here (make calibrate measures it against "
+                         "the CPU executor)")
             return
+        nominal = work is None or not sizes
+        if nominal:
+            work, sizes = NOMINAL_JOB[0], [NOMINAL_JOB[1]]
+        size = tuple(sizes[0])
+        channels = size[2] if len(size) > 2 else 4
+        rc = tuple(tuple(s[:2]) for s in sizes)
+        try:
+            cpu_plan, gl_plan = work.plan(rc, "fused"), work.plan(rc, "cost")
+        except Exception:  # noqa: BLE001 - the run reports a job that cannot be planned
+            cpu_plan = gl_plan = None
+        if cpu_plan is None or gl_plan is None:  # nothing to compute (or the run will say why not)
+            self._use_cpu()
+            self._why = "auto: no plan to estimate; the CPU executor, which sets nothing up before it runs"
+            return
+        from pyramid_cli.exec.gl import texture_size
+
+        found = auto.estimates(cpu_plan, gl_plan, channels, jobs=max(1, count), threads=self.threads, costs=costs,
+                               texture_bytes=lambda stored: texture_size(stored)[0] * texture_size(stored)[1] * 16)
+        chosen = min(found, key=lambda b: found[b].seconds)
+        self.estimates = found
+        if chosen == "gl":
+            self._use_gl(gl)
+        else:
+            self._use_cpu()
+        self._why = auto.line(found, {"gl": f"gl ({renderer})"}, chosen)
+        if nominal:
+            self._why += f" for a nominal job ({NOMINAL_JOB[1][1]}×{NOMINAL_JOB[1][0]} blur)"
+
+    def _use_gl(self, info: dict) -> None:
         from pyramid_cli.exec import gl
 
-        executor = gl.GLExecutor(precision=self.precision)
-        try:
-            executor.open()
-        except BackendError as e:
-            if self.backend == "gl":
-                raise
+        self._executor = gl.GLExecutor(precision=self.precision, info=info)
+
+    def _use_cpu(self) -> None:
+        if _numba_installed():
+            self._executor = self._cpu = LoadingCPU(self.threads)
+        else:
             self._executor = self._cpu = _cpu_executor(self.threads, self._warn)
-            self.why = f"auto: no GL here ({e.message})"
-            self._warn(f"{e.message}; running on the CPU")
-            return
-        renderer = executor.renderer
-        if self.backend == "auto" and is_software_renderer(renderer):
-            compiled = _compiled_cpu(self.threads)
-            if compiled is not None:
-                executor.close()
-                self._executor = self._cpu = compiled
-                self.why = f"auto: GL is a software renderer ({renderer}); the compiled CPU executor is faster"
-                return
-        self._executor = executor
-        self.why = "asked for" if self.backend == "gl" else f"auto: GL renderer {renderer}"
+
+    def _ready(self) -> Executor | None:
+        """The chosen executor (a nominal choice when none was made); auto's GL context opened, or the CPU
+        executor instead, with a warning, when it cannot be (the cache said it could: it is forgotten)."""
+        if not self._decided:
+            self.decide()
+        ex = self._executor
+        if self.backend == "auto" and ex is not None and ex.backend == "gl" and not ex.opened:
+            try:
+                ex.open()
+            except BackendError as e:
+                from pyramid_cli.exec.gl import context
+
+                context.forget()
+                self._warn(f"{e.message}; running on the CPU")
+                self._why = f"auto: no GL here ({e.message})"
+                self._use_cpu()
+        return self._executor
+
+    @property
+    def why(self) -> str:
+        """Why this executor, in one line (for -v)."""
+        if not self._decided:
+            self.decide()
+        return self._why
 
     @property
     def name(self) -> str:
         """The executor this session runs on, e.g. ``gl (llvmpipe …)`` or ``cpu (…)``."""
+        if not self._decided:
+            self.decide()
         return _name(self._executor)
 
     @property
     def on_gl(self) -> bool:
         """Whether this session runs on the GL executor."""
+        if not self._decided:
+            self.decide()
         return self._executor is not None and self._executor.backend == "gl"
 
     @property
     def executor(self) -> Executor | None:
         """The executor (GLExecutor, the CPU executor, the emulator, or None for the reference)."""
-        return self._executor
+        return self._ready()
 
     # ------------------------------------------------------------ running
     def plan(self, work: Work, sizes, executor=None) -> Plan | None:
         """``work``'s plan for inputs of ``sizes``, as the executor wants it planned (its ``strategy``:
-        the GL executor's calibrated cost model by default, one fused pass per filter on the CPU)."""
-        strategy = (executor or self._executor).strategy
+        the GL executor's calibrated cost model by default, one fused pass per filter on the CPU).
+        ``auto`` decides here when it has not yet (for this one job)."""
+        if not self._decided:
+            self.decide(work, sizes)
+        strategy = (executor or self._ready()).strategy
         return work.plan(tuple(tuple(s[:2]) for s in sizes), strategy)
 
     def run(self, work: Work, images, dtype=np.float32) -> list[np.ndarray]:
@@ -153,7 +417,10 @@ class Session:
             raise ValueError(f"{work.label} takes {work.n_inputs} image(s), got {len(images)}")
         work.check(tuple(im.shape[:2] for im in images))
         kept = [images[0]] if work.keeps_input else []
-        if self._executor is None:
+        if not self._decided:
+            shapes = [np.shape(im) if np.ndim(im) > 2 else (*np.shape(im)[:2], 1) for im in images]
+            self.decide(work, shapes, dtype=np.asarray(images[0]).dtype)
+        if self._ready() is None:
             self.ran = "reference"
             return kept + [rounded(o, dtype) for o in work.reference(images)]
         p = self.plan(work, [im.shape for im in images])
@@ -164,11 +431,12 @@ class Session:
 
     def run_plan(self, p: Plan, images, dtype=np.float32, work: Work | None = None) -> list[np.ndarray]:
         """Every output of a plan, on this session's executor (the reference cannot run plans)."""
-        if self._executor is None:
+        executor = self._ready()
+        if executor is None:
             raise BackendError("the reference backend runs jobs, not plans")
         images = list(images) if isinstance(images, (list, tuple)) else [images]
         try:
-            outs = self._executor.run_outputs(p, images, dtype)
+            outs = executor.run_outputs(p, images, dtype)
             self.ran = self.name
             return outs
         except DataError as e:  # GL cannot hold this image (texture limit, allocation failure)
@@ -177,7 +445,7 @@ class Session:
             self._warn(f"{e.message}; running this image on the CPU")
         if self._cpu is None:
             self._cpu = _cpu_executor(self.threads, self._warn)
-        if self._cpu.strategy != self._executor.strategy and work is not None:
+        if self._cpu.strategy != executor.strategy and work is not None:
             p = self.plan(work, [im.shape for im in images], self._cpu)
         outs = self._cpu.run_outputs(p, images, dtype)
         self.ran = _name(self._cpu)
@@ -186,22 +454,45 @@ class Session:
     def uncached(self, work: Work, images, dtype=np.float32) -> int:
         """Kernels the CPU executor must compile before it can run ``work`` on ``images`` (0 elsewhere):
         a first run on a machine compiles them once, about a second each."""
-        if self._executor is None:
+        if self._ready() is None:
             return 0
         p = self.plan(work, [im.shape for im in images])
         half = any(np.asarray(im).dtype == np.float16 for im in images)
         return self._executor.uncached(p, np.float16 if half else np.float32) if p is not None else 0
 
     def prepare(self, work: Work, sizes) -> None:
-        """Get ready to run ``work`` on inputs of ``sizes`` (GL: compile, allocate); never fails."""
-        if self._executor is None:
-            return
+        """Get ready to run ``work`` on inputs of ``sizes`` (GL: compile, allocate; the CPU: load the kernels);
+        never fails."""
         try:
+            if self._ready() is None:
+                return
             p = self.plan(work, sizes)
             if p is not None:
                 self._executor.prepare(p)
         except (BackendError, DataError):
             pass  # the run itself reports it, or falls back
+
+    def prepare_async(self, work: Work, sizes, count: int = 1, dtype=None) -> None:
+        """Decide (:meth:`decide`) and, on the CPU executor, import numba and load ``work``'s kernels for
+        inputs of ``sizes`` in a background thread, so that it overlaps the caller's reading of the input
+        where a core is idle for it (:func:`spare_core`); the first run waits for it. GL prepares nothing
+        here (its context belongs to the calling thread: :meth:`prepare` compiles and allocates there).
+        Never fails: the run reports what goes wrong."""
+        try:
+            self.decide(work, sizes, count, dtype)
+            ex = self._executor
+            if not isinstance(ex, LoadingCPU) or ex.started or not spare_core():
+                return
+            p = work.plan(tuple(tuple(s[:2]) for s in sizes), ex.strategy)
+            half = dtype is not None and np.dtype(dtype) == np.float16
+            compiles = 0
+            if p is not None:
+                from pyramid_cli.exec.auto import cpu_kernels
+
+                compiles = cpu_kernels(p)[1]
+            ex.start(p, np.float16 if half else np.float32, compiles)
+        except Exception:  # noqa: BLE001 - an optimisation only: the run decides and reports
+            pass
 
     def close(self) -> None:
         for ex in {id(e): e for e in (self._executor, self._cpu) if e is not None}.values():
@@ -218,4 +509,4 @@ def _name(executor: Executor | None) -> str:
     return "reference" if executor is None else executor.name
 
 
-__all__ = ["Session", "is_software_renderer"]
+__all__ = ["LoadingCPU", "NOMINAL_JOB", "Session", "is_software_renderer"]

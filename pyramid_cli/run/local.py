@@ -46,6 +46,9 @@ def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: R
     ``jobs`` threads beside the work (:func:`pyramid_cli.run.batch.run`); a cluster's workers run their chunks
     with it too. With ``mip_tile`` each output is one tiled MIP-mapped file."""
     ro, wo = read, write
+    first = io.read_shape(job_list[0].input) if job_list else None
+    if first is not None:  # auto decides for the whole list (a cluster worker's chunk too); numba loads meanwhile
+        session.prepare_async(work, [first], count=len(job_list))
 
     def prepare(job):
         shape = io.read_shape(job.input)

@@ -76,6 +76,10 @@ def process(paths: list[str], template: str | None, work: Work, session: Session
         from pyramid_cli.run.sequence import drop_missing
 
         job_list = drop_missing(job_list, keep_going, reporter.warn)
+    if session is not None and cluster is None and job_list:  # auto decides for the batch; numba loads meanwhile
+        first = _header(job_list[0].input, keep_half=not mip_tile)
+        if first is not None:
+            session.prepare_async(work, [first[0]], count=len(job_list), dtype=first[1])
     if (not many and len(job_list) == 1 and cluster is None and frames is None
             and not (skip_existing and batch.is_fresh(job_list[0]))):
         from pyramid_cli.run.stream import run_job
@@ -112,6 +116,17 @@ def process(paths: list[str], template: str | None, work: Work, session: Session
     return report
 
 
+def _header(path: str, keep_half: bool):
+    """(shape, dtype the pixels will arrive as) from ``path``'s header, or None (the read reports why)."""
+    if io.read_shape(path) is None:  # not a regular, readable picture (a FIFO would block the stream)
+        return None
+    try:
+        with io.open_stream(path, keep_half=keep_half) as st:
+            return st.shape, st.dtype
+    except Exception:  # noqa: BLE001 - an optimisation only: the read reports every error
+        return None
+
+
 def level_path(pattern: str, level: int) -> str:
     """``pattern`` with ``{level}`` filled in (levels and bands written one file each)."""
     if "{level}" not in pattern:
@@ -136,6 +151,8 @@ def write_levels_files(input_path: str, pattern: str, work: Levels | Laplacian, 
         raise UsageError("--memory streams one file per level (not --multipart or --sheet, which hold every level)")
     if not multipart and not sheet:
         shape = io.read_shape(input_path)
+        if shape is not None:
+            session.prepare_async(work, [shape])  # auto decides for this job; numba loads meanwhile
         p = session.plan(work, [shape[:2]]) if shape is not None and session.executor is not None else None
         if p is not None or memory is not None:
             from pyramid_cli.run.stream import run_levels

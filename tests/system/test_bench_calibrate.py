@@ -72,10 +72,32 @@ def test_synthetic_passes_have_the_fetches_they_claim():
 @pytest.mark.gl
 def test_quick_calibration_prints_a_model_and_writes_nothing(gl_executor):
     before = (ROOT / "pyramid_cli" / "plan" / cost.MODEL_FILE).read_text()
-    r = subprocess.run([sys.executable, str(ROOT / "bench" / "calibrate.py"), "--quick", "--no-validate"],
+    r = subprocess.run([sys.executable, str(ROOT / "bench" / "calibrate.py"), "--quick", "--no-validate",
+                        "--no-backends"],
                        capture_output=True, text=True, timeout=120, cwd=ROOT)
     assert r.returncode == 0, r.stderr[-2000:]
     doc = json.loads(r.stdout[r.stdout.index("\n{") + 1:])
     assert cost.from_dict(doc).pass_s > 0 and set(cost.FIELDS) <= set(doc)
     assert "residual: rms" in r.stdout and "not written" in r.stdout
     assert (ROOT / "pyramid_cli" / "plan" / cost.MODEL_FILE).read_text() == before
+
+
+_spec_b = importlib.util.spec_from_file_location("bench_calibrate_backends", ROOT / "bench" / "calibrate_backends.py")
+calibrate_backends = importlib.util.module_from_spec(_spec_b)
+_spec_b.loader.exec_module(calibrate_backends)
+
+
+def test_backend_constants_are_stored_for_auto_in_the_cache_folder(monkeypatch, tmp_path):
+    """What ``make calibrate`` stores is what auto reads on this machine (for this driver), and the jobs the CPU
+    constants are fitted on all plan."""
+    from pyramid_cli.exec.gl.context import driver_key
+    from pyramid_cli.plan import backend_cost
+
+    monkeypatch.setenv("PYRAMID_CACHE_HOME", str(tmp_path))
+    doc = {**backend_cost.shipped_dict(), "driver_key": driver_key()}
+    doc["gl"] = {**doc["gl"], "program_s": 0.5}
+    written = calibrate_backends.store(doc, ship=False)
+    assert written == [str(backend_cost.machine_file())] and backend_cost.machine_file().is_relative_to(tmp_path)
+    assert backend_cost.load(driver_key()).gl.program_s == 0.5
+    jobs = calibrate_backends.real_jobs(quick=True)
+    assert {c for *_, c, _ in jobs} == {1, 3, 4} and all(w.plan([(h, wd)], "fused") for w, h, wd, _, _ in jobs)

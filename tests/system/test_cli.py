@@ -105,18 +105,24 @@ def test_half_exr_blur_stays_half_and_rounds_once(gl, tmp_path, channels):
     np.testing.assert_allclose(got, want, rtol=2 ** -11, atol=1e-7)
 
 
-def test_cpu_backend_does_not_prepare_gl_work(tmp_path, monkeypatch):
-    """Reading the header and planning ahead only pays off on GL: the CPU backend skips both."""
-    from pyramid_cli import imageio as io
+def test_cpu_backend_loads_its_kernels_while_the_input_decodes(tmp_path, monkeypatch):
+    """The header is read first and the session prepares in the background (numba and the plan's kernels
+    for a half input) before the pixels are read; the run waits for it."""
+    from pyramid_cli.exec.session import Session
 
-    def refuse(path):
-        raise AssertionError("read_shape called on the CPU backend")
+    calls = []
+    real = Session.prepare_async
 
-    monkeypatch.setattr(io, "read_shape", refuse)
+    def spy(self, work, sizes, count=1, dtype=None):
+        calls.append((work.label, [tuple(s) for s in sizes], count, np.dtype(dtype) if dtype is not None else None))
+        return real(self, work, sizes, count, dtype)
+
+    monkeypatch.setattr(Session, "prepare_async", spy)
     src = tmp_path / "in.exr"
-    write_exr(src, np.random.default_rng(6).random((9, 7, 3)))
+    write_exr(src, np.random.default_rng(6).random((9, 7, 3)), "half")
     r = invoke("blur", "--backend", "cpu", "--levels", "2", "-q", str(src), str(tmp_path / "o.exr"))
     assert r.exit_code == 0, r.output
+    assert calls[0] == ("blur", [(9, 7, 3)], 1, np.dtype(np.float16))
 
 
 @pytest.mark.parametrize("backend", ["cpu", "reference"])

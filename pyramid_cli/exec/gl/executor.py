@@ -135,6 +135,9 @@ class GLExecutor:
     precision : {"float", "half"}
         Format of intermediate and target textures: RGBA32F (exact, default) or
         RGBA16F (half the memory traffic; saturates at 65504).
+    info : dict, optional
+        What the context will say of itself (:func:`~pyramid_cli.exec.gl.context.machine_gl`, cached):
+        then :attr:`name`, :attr:`renderer` and :attr:`max_texture_size` answer without making it.
 
     The context is created on first use; :meth:`close` (or ``with``) releases it. It is an
     :class:`~pyramid_cli.exec.base.Executor`.
@@ -144,7 +147,7 @@ class GLExecutor:
     strategy = "cost"  # the calibrated cost model's plans (pyramid_cli.plan.lower)
     work_dtype = np.dtype(np.float32)
 
-    def __init__(self, precision: str = "float"):
+    def __init__(self, precision: str = "float", info: dict | None = None):
         if precision not in PRECISIONS:
             raise ValueError(f"precision must be one of {sorted(PRECISIONS)}, not {precision!r}")
         self.precision = precision
@@ -157,7 +160,7 @@ class GLExecutor:
         self._tiling = False  # inside run_tiled: its one-pass plans are not tiled again
         self.compiles = 0  # programs built so far (the cache's misses)
         self._clock: _Clock | None = None
-        self._info: dict = {}
+        self._info: dict = dict(info) if info else {}
         self._depth = 0
 
     # ------------------------------------------------------------ context
@@ -174,6 +177,11 @@ class GLExecutor:
                 self._info = context_info(ctx)
             self._ctx = ctx
         return self._ctx
+
+    @property
+    def opened(self) -> bool:
+        """Whether the context exists (made by :meth:`open` or the first GL work)."""
+        return self._ctx is not None
 
     @contextmanager
     def current(self):
@@ -197,12 +205,13 @@ class GLExecutor:
 
     @property
     def max_texture_size(self) -> int:
-        """GL_MAX_TEXTURE_SIZE of the context (made now if there is none yet)."""
-        self.open()
+        """GL_MAX_TEXTURE_SIZE of the context (made now if there is none yet and ``info`` did not say)."""
+        if "max_texture_size" not in self._info:
+            self.open()
         return self._info["max_texture_size"]
 
     def info(self) -> dict:
-        """What the context says of itself (:func:`~pyramid_cli.exec.gl.context.context_info`)."""
+        """What the context says of itself (:func:`~pyramid_cli.exec.gl.context.context_info`; made now)."""
         self.open()
         return dict(self._info)
 
