@@ -139,15 +139,18 @@ class Pyramid:
 
 def pyramids(args) -> list[Pyramid]:
     """This checkout's ``pyramid`` (or ``--pyramid CMD``) and one more per ``--pyramid-tree``."""
-    here = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])))
+    # PYTHONSAFEPATH: `python -m` would put the working folder first on sys.path, ahead of PYTHONPATH, and
+    # time the checkout the bench was started from under every label (Python 3.11+; 3.10 has no -m from elsewhere)
+    here = dict(os.environ, PYTHONSAFEPATH="1",
+                PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])))
     out = [Pyramid("pyramid", shlex.split(args.pyramid), here if args.pyramid == DEFAULT_PYRAMID else None,
                    str(ROOT) if args.pyramid == DEFAULT_PYRAMID else None)]
     for tree in args.pyramid_tree or []:
         t = Path(tree).resolve()
         if not (t / "pyramid_cli").is_dir():
             raise SystemExit(f"peers: --pyramid-tree {tree}: no pyramid_cli/ there")
-        out.append(Pyramid(f"pyramid@{t.name}", shlex.split(DEFAULT_PYRAMID), dict(os.environ, PYTHONPATH=str(t)),
-                           str(t)))
+        env = dict(os.environ, PYTHONSAFEPATH="1", PYTHONPATH=str(t))
+        out.append(Pyramid(f"pyramid@{t.name}", shlex.split(DEFAULT_PYRAMID), env, str(t)))
     return out
 
 
