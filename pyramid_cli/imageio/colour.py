@@ -8,10 +8,14 @@ code boundary).
 
 from __future__ import annotations
 
+import hashlib
 import math
 from functools import cache
 
 import numpy as np
+
+from pyramid_cli.core import cache as disk_cache
+from pyramid_cli.core.fingerprint import sources
 
 # 8x8 Bayer matrix for ordered dither.
 _BAYER8 = np.array(
@@ -156,7 +160,43 @@ def srgb8_tables() -> tuple[np.ndarray, np.ndarray]:
     code k (sRGB in float64, ×255, round half up). A float32's top 20 bits (sign, exponent,
     11 mantissa bits) pick a bucket narrower than the gap between thresholds, so the code
     is the bucket's code plus one comparison.
+
+    Computing them takes about 40 ms, a fixed cost of every process that writes 8 bits; they are kept in the
+    cache folder (:mod:`pyramid_cli.core.cache`, ``tables/``) under the digest of this code and numpy's
+    version, with a SHA-256 of their bytes: an entry that does not match is computed again.
     """
+    entry = _tables_entry()
+    cached = _read_tables(entry)
+    if cached is not None:
+        return cached
+    thresholds, codes = _compute_srgb8_tables()
+    disk_cache.write("tables", entry, _SRGB8_HEAD + hashlib.sha256(thresholds.tobytes() + codes.tobytes()).digest()
+                + thresholds.tobytes() + codes.tobytes())
+    return thresholds, codes
+
+
+_SRGB8_HEAD = b"srgb8-tables-1\n"
+_SRGB8_SIZES = (255 * 4, 1 << 20)  # bytes of the thresholds (float32) and of the codes (uint8)
+
+
+def _tables_entry() -> str:
+    return f"srgb8-{disk_cache.key(sources('imageio'), np.__version__)}.bin"
+
+
+def _read_tables(entry: str) -> tuple[np.ndarray, np.ndarray] | None:
+    data = disk_cache.read("tables", entry)
+    head, t_size, c_size = len(_SRGB8_HEAD), *_SRGB8_SIZES
+    if data is None or len(data) != head + 32 + t_size + c_size or not data.startswith(_SRGB8_HEAD):
+        return None
+    body = data[head + 32:]
+    if hashlib.sha256(body).digest() != data[head:head + 32]:
+        return None
+    thresholds = np.frombuffer(body[:t_size], dtype=np.float32).copy()
+    codes = np.frombuffer(body[t_size:], dtype=np.uint8).copy()
+    return thresholds, codes
+
+
+def _compute_srgb8_tables() -> tuple[np.ndarray, np.ndarray]:
     def code(bits: np.ndarray) -> np.ndarray:
         x = bits.astype(np.uint32).view(np.float32).astype(np.float64)
         return np.clip(np.floor(linear_to_srgb(x) * 255.0 + 0.5), 0, 255)
