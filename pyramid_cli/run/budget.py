@@ -26,7 +26,7 @@ import os
 import re
 from dataclasses import dataclass
 
-from pyramid_cli.core.errors import UsageError
+from pyramid_cli.core.errors import DataError, UsageError
 
 _UNITS = {"": 1, "B": 1, "K": 1 << 10, "M": 1 << 20, "G": 1 << 30, "T": 1 << 40}
 MIB = 1 << 20
@@ -101,6 +101,11 @@ class Budget:
                     f"at least {format_size(FLOOR)}")
         return (f"{head}: {HARD_FRACTION:.0%} of the {format_size(lim.left)} left under the {lim.kind} limit of "
                 f"{format_size(lim.size)} ({lim.where}) after {format_size(RESERVE[lim.kind])} kept back")
+
+    def refusal(self, err: DataError) -> DataError:
+        """``err``, a job refused for not fitting this budget, naming what set the budget when a limit did (a
+        container's limit is not the user's choice: the one line says where it came from)."""
+        return err if self.limit is None else DataError(f"{err.message}; {self.describe()}")
 
     def to_json(self) -> dict:
         """``{"budget": bytes, "source": kind, "limit": bytes, "left": bytes, "where": text}`` (no limit's keys

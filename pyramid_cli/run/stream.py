@@ -407,6 +407,9 @@ def _decide(in_path: str, work, session, memory: int | None, read, reporter):
         executor = executor_of(session)
         choice = choose(plan, c, budget, in_bytes=st.dtype.itemsize, out_bytes=4, where=in_path,
                         keeps_input=work.keeps_input, prefer=speed_band(plan, executor), **costs(executor))
+    except DataError as exc:
+        st.close()
+        raise given.refusal(exc) from None
     except BaseException:
         st.close()
         raise

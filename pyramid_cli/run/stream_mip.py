@@ -12,7 +12,7 @@ import os
 
 import numpy as np
 
-from pyramid_cli.core.errors import OutputError, UsageError
+from pyramid_cli.core.errors import DataError, OutputError, UsageError
 from pyramid_cli.run.budget import resolve
 from pyramid_cli.run.overlap import overlapped
 from pyramid_cli.run.stream import MIN_BAND, choose_mip, costs, executor_of, read_step
@@ -185,7 +185,10 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
         # no preference for bands here (stream.speed_band): measured, fresh processes interleaved, a 4K 8-bit PNG's
         # .tx took 2.32 CPU seconds and 445 MiB streamed against 1.77 s and 388 MiB whole (level 0 and the
         # coarser levels are kept until level 0's header is known, so bands save little): it streams when it must
-        choice = choose_mip(plan, c, budget, level0=h * w * c * st.dtype.itemsize, **kw)
+        try:
+            choice = choose_mip(plan, c, budget, level0=h * w * c * st.dtype.itemsize, **kw)
+        except DataError as exc:
+            raise given.refusal(exc) from None
         reporter.detail(f"{in_path}: {choice.describe()}")
         if not choice.streams:
             return False

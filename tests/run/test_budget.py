@@ -235,6 +235,12 @@ def test_a_run_says_its_budget_and_is_refused_when_nothing_fits(root, tmp_path, 
     assert "memory budget 614.4 KiB: 60% of the 129.0 MiB left under the cgroup v2 limit of 129.0 MiB" in r.output
     assert "/sys/fs/cgroup/job/memory.max" in r.output and "over the budget of 614.4 KiB" in r.output
     assert not (tmp_path / "out.exr").exists()
+    for command in (["blur", "--levels", "5"], ["mipmap"]):  # without -v, the refusal's one line names the limit
+        r = invoke(*command, "--backend", "cpu", src, tmp_path / "out.exr")
+        lines = [line for line in r.output.splitlines() if line.strip()]
+        assert r.exit_code == 5 and len(lines) == 1, r.output
+        assert "over the budget of 614.4 KiB" in lines[0] and "under the cgroup v2 limit of 129.0 MiB" in lines[0]
+        assert not (tmp_path / "out.exr").exists()
 
 
 def test_cgroup_v1_mounted_at_the_container_s_own_cgroup(root):
