@@ -16,27 +16,18 @@ from pyramid_cli.exec.gl.context import is_software_renderer
 from pyramid_cli.plan import backend_cost
 from pyramid_cli.plan.backend_cost import BackendCosts, Estimate
 from pyramid_cli.plan.cost import format_seconds
-from pyramid_cli.plan.model import Plan, PointwisePass, ResamplePass
+from pyramid_cli.plan.model import Plan, ResamplePass
 from pyramid_cli.plan.shapes import shape
 
 
 def cpu_kernels(plan: Plan) -> tuple[int, int]:
-    """(kernels loaded from the disk cache, kernels compiled) before the CPU executor can run ``plan``: one
-    kernel per pass shape (float32 and float16 sources alike), one for every resampling pass, one for every
-    pointwise pass (:meth:`~pyramid_cli.exec.cpu.CPUExecutor.kernel_digests`). Kernels this process has
-    loaded already count as neither."""
-    from pyramid_cli.exec.cpu import codegen
-    from pyramid_cli.exec.cpu.compile import cache_dir, loaded, on_disk, source_digest
+    """(kernels loaded from the disk cache, kernels compiled) before the CPU executor can run ``plan``
+    (:func:`~pyramid_cli.exec.cpu.executor.kernel_digest` of each pass). Kernels this process has loaded
+    already count as neither."""
+    from pyramid_cli.exec.cpu.compile import cache_dir, loaded, on_disk
+    from pyramid_cli.exec.cpu.executor import kernel_digest
 
-    texts = set()
-    for ps in plan.passes:
-        if isinstance(ps, ResamplePass):
-            texts.add(codegen.resample_source())
-        elif isinstance(ps, PointwisePass):
-            texts.add(codegen.pointwise_source())
-        else:
-            texts.add(codegen.kernel_source(shape(ps)))
-    todo = [d for d in map(source_digest, texts) if not loaded(d)]
+    todo = [d for d in {kernel_digest(ps) for ps in plan.passes} if not loaded(d)]
     compiles = sum(not on_disk(cache_dir(), d) for d in todo)
     return len(todo) - compiles, compiles
 

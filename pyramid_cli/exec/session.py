@@ -297,7 +297,10 @@ class Session:
                 self._estimate(work, sizes, count, dtype, gl, key)
             except Exception as e:  # noqa: BLE001 - a broken calibration file must not stop the run
                 software = is_software_renderer(gl["renderer"])
-                self._use_cpu() if software else self._use_gl(gl)
+                if software:
+                    self._use_cpu()
+                else:
+                    self._use_gl(gl)
                 self._why = (f"auto: no estimate ({type(e).__name__}: {e}); "
                              + ("GL is a software renderer: the CPU executor" if software else "a GPU: GL"))
         self._chosen()
@@ -327,10 +330,10 @@ class Session:
             self._use_cpu()
             self._why = "auto: no plan to estimate; the CPU executor, which sets nothing up before it runs"
             return
-        from pyramid_cli.exec.gl import texture_size
+        from pyramid_cli.exec.gl import GLExecutor
 
         found = auto.estimates(cpu_plan, gl_plan, channels, jobs=max(1, count), threads=self.threads, costs=costs,
-                               texture_bytes=lambda stored: texture_size(stored)[0] * texture_size(stored)[1] * 16)
+                               texture_bytes=GLExecutor.texture_bytes)
         chosen = min(found, key=lambda b: found[b].seconds)
         self.estimates = found
         if chosen == "gl":

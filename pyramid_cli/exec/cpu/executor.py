@@ -186,18 +186,8 @@ class CPUExecutor:
         process loads from the disk cache (or compiles), whatever the inputs store (float32 or float16)."""
         digests = set()
         for ps in plan.passes:
-            if isinstance(ps, ResamplePass):
-                digests.add(_RESAMPLE_DIGEST)
-            elif isinstance(ps, PointwisePass):
-                digests.add(_POINTWISE_DIGEST)
-            else:
-                hit = self._by_pass.get(id(ps))
-                if hit is not None and hit[0] is ps:
-                    digests.add(hit[1].digest)
-                    continue
-                s = shape(ps)
-                k = self._kernels.get(s)
-                digests.add(k.digest if k is not None else source_digest(kernel_source(s)))
+            hit = self._by_pass.get(id(ps))
+            digests.add(hit[1].digest if hit is not None and hit[0] is ps else kernel_digest(ps))
         return digests
 
     def uncached(self, plan: Plan, dtype=np.float32) -> int:
@@ -496,6 +486,16 @@ _NO_U16 = np.zeros((1, 1), np.uint16)
 _NO_F32_1D = np.zeros(1, np.float32)
 _RESAMPLE_DIGEST = source_digest(resample_source())
 _POINTWISE_DIGEST = source_digest(pointwise_source())
+
+
+def kernel_digest(ps) -> str:
+    """The digest of the source of the kernel a pass runs on: one per pass shape (float32 and float16 sources
+    alike), one for every resampling pass, one for every pointwise pass. Pure Python: numba is not imported."""
+    if isinstance(ps, ResamplePass):
+        return _RESAMPLE_DIGEST
+    if isinstance(ps, PointwisePass):
+        return _POINTWISE_DIGEST
+    return source_digest(kernel_source(shape(ps)))
 
 
 def _inputs(plan: Plan, images) -> list[np.ndarray]:
