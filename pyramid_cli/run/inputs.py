@@ -3,14 +3,14 @@
 from __future__ import annotations
 
 from pyramid_cli import imageio as io
-from pyramid_cli.run.report import NAN_HINT, Reporter
+from pyramid_cli.run.report import Reporter, nonfinite_kept
 from pyramid_cli.run.settings import ReadOptions
 
 
 def read_input(path: str, read: ReadOptions, reporter: Reporter, keep_half: bool = False,
                hash_source: bool = False) -> io.Image:
     """``path`` decoded by ``read`` (:func:`pyramid_cli.imageio.read_image`); NaN/Inf kept in float pixels are
-    counted and warned about (:data:`~pyramid_cli.run.report.NAN_HINT`).
+    counted and warned about (:func:`~pyramid_cli.run.report.nonfinite_kept`).
 
     ``keep_half`` keeps half pixels as half; ``hash_source`` hashes the stored pixels as they are read
     (a MIP map's ``oiio:SHA-1``).
@@ -20,7 +20,7 @@ def read_input(path: str, read: ReadOptions, reporter: Reporter, keep_half: bool
     integer = image.spec.pixel_type in ("uint8", "uint16") and not image.spec.channel_pixel_types
     bad = io.count_nonfinite(image.pixels) if read.nan == "keep" and not integer else 0  # decoded codes are finite
     if bad:
-        reporter.warn(f"{path}: {bad} NaN/Inf value(s) kept; they spread through the filter ({NAN_HINT})")
+        reporter.warn(nonfinite_kept(path, bad))
     return image
 
 

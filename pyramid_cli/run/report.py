@@ -14,6 +14,11 @@ from dataclasses import dataclass, field
 NAN_HINT = "--nan zero or --nan fail to change that"
 
 
+def nonfinite_kept(path: str, count: int) -> str:
+    """The warning for ``count`` NaN/Inf values of ``path`` kept (``--nan keep``), whole or streamed."""
+    return f"{path}: {count} NaN/Inf value(s) kept; they spread through the filter ({NAN_HINT})"
+
+
 @dataclass
 class Reporter:
     """What a run says: results on standard output, warnings and -v lines on standard error.
@@ -82,4 +87,4 @@ def wrote_line(path: str, width: int, height: int, levels: int | None, executor:
     return f"wrote {path} ({width}×{height}{f', {levels} MIP levels' if levels else ''}, {executor})"
 
 
-__all__ = ["NAN_HINT", "Reporter", "announce_compiles", "wrote_line"]
+__all__ = ["NAN_HINT", "Reporter", "announce_compiles", "wrote_line", "nonfinite_kept"]

@@ -31,6 +31,7 @@ from pyramid_cli.core.errors import DataError, UsageError
 from pyramid_cli.plan import Plan
 from pyramid_cli.run.budget import available_memory, default_memory, format_size, parse_size, resolve
 from pyramid_cli.run.overlap import DEPTH, overlapped
+from pyramid_cli.run.report import nonfinite_kept
 
 MIN_BAND = 8            # rows: dithering's Bayer pattern and most tile heights are multiples of 8
 COPIES = 3              # a band held, its next rows, and the transient concatenation of both
@@ -307,6 +308,13 @@ def read_step(plan: Plan, band: int) -> int:
     return max(MIN_BAND, -(-band * rows // anchor))
 
 
+def open_input(path: str, read):
+    """An :class:`~pyramid_cli.imageio.ImageStream` of ``path`` as ``read`` (ReadOptions) asks, half kept half."""
+    from pyramid_cli import imageio as io
+
+    return io.open_stream(path, colorspace=read.colorspace, alpha=read.alpha, nan=read.nan, keep_half=True)
+
+
 def stream_file(in_path: str, out_path: str | list[str], work, session, choice: Choice | None = None, *,
                 budget: int, read=None, write=None, reporter=None, stream=None, attributes: dict | None = None
                 ) -> Choice:
@@ -324,7 +332,7 @@ def stream_file(in_path: str, out_path: str | list[str], work, session, choice: 
     paths = [out_path] if isinstance(out_path, (str, os.PathLike)) else list(out_path)
     owned = stream is None
     if owned:
-        stream = io.open_stream(in_path, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan, keep_half=True)
+        stream = open_input(in_path, ro)
     try:
         h, w, c = stream.shape
         work.check(((h, w),), where=in_path)
@@ -371,8 +379,7 @@ def stream_file(in_path: str, out_path: str | list[str], work, session, choice: 
                             f"thread), encoding and writing {writer.busy:.2f}, each on a thread of its own")
         session.ran = session.name
         if reporter is not None and stream.nonfinite and ro.nan == "keep":
-            reporter.warn(f"{in_path}: {stream.nonfinite} NaN/Inf value(s) kept; they spread through the filter "
-                          "(--nan zero or --nan fail to change that)")
+            reporter.warn(nonfinite_kept(in_path, stream.nonfinite))
         return choice
     finally:
         if owned:
@@ -384,7 +391,6 @@ STREAMABLE = ("apply", "blur")  # single-image jobs of one output (Work.label); 
 
 def _decide(in_path: str, work, session, memory: int | None, read, reporter):
     """(open stream, choice) when ``work`` on ``in_path`` streams, else None (it runs whole, as before)."""
-    from pyramid_cli import imageio as io
     from pyramid_cli.run.settings import ReadOptions
 
     if session is None or session.executor is None:
@@ -396,7 +402,7 @@ def _decide(in_path: str, work, session, memory: int | None, read, reporter):
     budget = given.size
     if reporter is not None:
         reporter.detail(f"{in_path}: {given.describe()}")
-    st = io.open_stream(in_path, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan, keep_half=True)
+    st = open_input(in_path, ro)
     try:
         h, w, c = st.shape
         work.check(((h, w),), where=in_path)
@@ -465,5 +471,5 @@ def run_levels(in_path: str, paths: list[str], work, session, *, memory: int | N
 
 
 __all__ = ["Choice", "choose", "choose_mip", "estimate", "parse_size", "default_memory", "available_memory",
-           "stream_file", "format_size", "run_job", "run_levels", "costs", "executor_of", "read_step", "speed_band",
-           "MIN_BAND", "STREAM_PIXELS", "BAND_PIXELS"]
+           "stream_file", "open_input", "format_size", "run_job", "run_levels", "costs", "executor_of", "read_step",
+           "speed_band", "MIN_BAND", "STREAM_PIXELS", "BAND_PIXELS"]

@@ -15,7 +15,8 @@ import numpy as np
 from pyramid_cli.core.errors import DataError, OutputError, UsageError
 from pyramid_cli.run.budget import resolve
 from pyramid_cli.run.overlap import overlapped
-from pyramid_cli.run.stream import MIN_BAND, choose_mip, costs, executor_of, read_step
+from pyramid_cli.run.report import nonfinite_kept
+from pyramid_cli.run.stream import MIN_BAND, choose_mip, costs, executor_of, open_input, read_step
 
 
 class _Kept:
@@ -171,11 +172,8 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
     executor = executor_of(session)
     emu = executor.work_dtype == np.float64
 
-    def open_input():
-        return io.open_stream(in_path, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan, keep_half=True)
-
     with contextlib.ExitStack() as stack:
-        st = stack.enter_context(open_input())
+        st = stack.enter_context(open_input(in_path, ro))
         h, w, c = st.shape
         work.check(((h, w),), where=in_path)
         plan = session.plan(work, [(h, w)])
@@ -212,7 +210,7 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
             if _constant(work, stats):
                 return _write_constant(work, session, stats, shapes[0], tile, in_path, out_path, info, options,
                                        reporter)
-            st = stack.enter_context(open_input())
+            st = stack.enter_context(open_input(in_path, ro))
         kept = _Kept(shapes[1:], stack.enter_context(_scratch(out_path)) if choice.spill else None,
                      beside=out_path)
         stack.callback(kept.close)
@@ -265,8 +263,7 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
             writer.append_level(lambda r0, r1, i=i: kept.rows(i, r0, r1))
     session.ran = session.name
     if st.nonfinite and ro.nan == "keep":
-        reporter.warn(f"{in_path}: {st.nonfinite} NaN/Inf value(s) kept; they spread through the filter "
-                      "(--nan zero or --nan fail to change that)")
+        reporter.warn(nonfinite_kept(in_path, st.nonfinite))
     reporter.result(f"wrote {out_path} ({w}×{h}, {len(shapes)} MIP levels, {session.ran}, streamed in bands of "
                     f"{choice.band} rows{', the input read once' if once else ''})")
     return True
