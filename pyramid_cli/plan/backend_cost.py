@@ -115,11 +115,6 @@ def cpu_estimate(c: CPUCosts, plan: Plan, channels: int, *, jobs: int = 1, threa
 def pool_bytes(plan: Plan, texture_bytes) -> int:
     """Bytes of the textures one run of ``plan`` puts in the GL executor's pool (held at once, reused by
     size as :meth:`~pyramid_cli.exec.gl.GLExecutor.prepare` does); ``texture_bytes(stored)`` per image."""
-    last: dict[int, int] = {}
-    for i, ps in enumerate(plan.passes):
-        for s in ps.sources():
-            last[s] = i
-    keep = set(plan.outputs)
     free: dict[int, int] = {}
     total = 0
 
@@ -133,9 +128,9 @@ def pool_bytes(plan: Plan, texture_bytes) -> int:
         return size
 
     held = {k: acquire(k) for k in plan.inputs}
-    for i, ps in enumerate(plan.passes):
+    for ps, done in zip(plan.passes, plan.releases(), strict=True):
         held[ps.target] = acquire(ps.target)
-        for s in [s for s, j in last.items() if j == i and s not in keep]:
+        for s in done:
             size = held.pop(s, None)
             if size is not None:
                 free[size] = free.get(size, 0) + 1

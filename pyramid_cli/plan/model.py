@@ -300,6 +300,20 @@ class Plan:
     def fetches(self) -> float:
         return sum(p.fetches for p in self.passes)
 
+    def releases(self) -> list[list[int]]:
+        """For each pass, the images no later pass reads and the plan does not return: what an executor may
+        free (or reuse) once that pass has run."""
+        keep = set(self.outputs)
+        last_read: dict[int, int] = {}
+        for i, ps in enumerate(self.passes):
+            for s in ps.sources():
+                last_read[s] = i
+        out: list[list[int]] = [[] for _ in self.passes]
+        for s, i in last_read.items():
+            if s not in keep:
+                out[i].append(s)
+        return out
+
     @property
     def fetches_per_output_pixel(self) -> float:
         """Fetches weighted by each pass's stored size relative to the output (docs/design.md §5)."""

@@ -11,3 +11,20 @@ def test_a_planned_chain_checks_and_reads_its_input():
     assert all(ps.target < len(p.images) for ps in p.passes)
     assert list(p.inputs) == [0] and p.outputs[-1] == p.passes[-1].target and p.border == "clamp"
 
+
+
+def test_releases_name_each_image_once_after_its_last_read():
+    """Plan.releases: every image a pass reads and the plan does not return is released once, at the pass that
+    reads it last (what every executor frees or reuses); inputs too, returned images never."""
+    from pyramid_cli.workflows.pyramids import levels_plan
+
+    for p in (plan(parse("doosabin *^ (box4 *v g)"), (17, 13)), levels_plan((37, 29), 3)):
+        released = p.releases()
+        assert len(released) == len(p.passes)
+        flat = [s for done in released for s in done]
+        assert len(flat) == len(set(flat)) and not set(flat) & set(p.outputs)
+        read = {s for ps in p.passes for s in ps.sources()}
+        assert set(flat) == read - set(p.outputs) and 0 in flat
+        for i, done in enumerate(released):
+            for s in done:
+                assert s in p.passes[i].sources() and all(s not in ps.sources() for ps in p.passes[i + 1:])

@@ -316,11 +316,7 @@ class CPUExecutor:
         for k, a in zip(plan.inputs, arrays, strict=True):
             stored[k] = np.ascontiguousarray(a.view(np.uint16) if a.dtype == np.float16 else a)
         half = {k for k, a in zip(plan.inputs, arrays, strict=True) if a.dtype == np.float16}
-        last_read = {}
-        for i, ps in enumerate(plan.passes):
-            for s in ps.sources():
-                last_read[s] = i
-        keep = set(plan.outputs)
+        released = plan.releases()
         spare: dict[tuple, list[np.ndarray]] = {}  # this run's dead intermediates, by shape, for later targets
 
         def retire(k: int) -> None:
@@ -334,8 +330,8 @@ class CPUExecutor:
                 if ps.source in half:
                     src = self._half_lut()[src]
                 stored[ps.target] = self._resample(plan, ps, np.ascontiguousarray(src))
-                if last_read[ps.source] == i and ps.source not in keep:
-                    retire(ps.source)
+                for s in released[i]:
+                    retire(s)
                 continue
             srcs = sources(ps)
             target = plan.images[ps.target]
@@ -350,9 +346,8 @@ class CPUExecutor:
                 kern = self.kernel(ps)
                 self._run_pass(plan, ps, kern, out, [stored[s] for s in srcs], srcs)
             stored[ps.target] = out
-            for s in set(srcs):
-                if last_read[s] == i and s not in keep:
-                    retire(s)
+            for s in released[i]:
+                retire(s)
         results = []
         for k in plan.outputs:
             im = plan.images[k]

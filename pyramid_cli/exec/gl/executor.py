@@ -526,20 +526,6 @@ class GLExecutor:
         target.fbo.read_into(buf, viewport=viewport, components=4, dtype=dtype)
         out[...] = buf[:, :, :n]
 
-    @staticmethod
-    def _releases(plan: Plan) -> list[list[int]]:
-        """For each pass, the images no later pass reads and the plan does not return (their textures go back)."""
-        keep = set(plan.outputs)
-        last_read: dict[int, int] = {}
-        for i, ps in enumerate(plan.passes):
-            for s in ps.sources():
-                last_read[s] = i
-        out: list[list[int]] = [[] for _ in plan.passes]
-        for s, i in last_read.items():
-            if s not in keep:
-                out[i].append(s)
-        return out
-
     def profile(self, plan: Plan, images, dtype=np.float32, per_pass: bool = True) -> dict:
         """Run ``plan`` once, timed: upload, the passes and read-back, with ``ctx.finish()`` between.
 
@@ -576,7 +562,7 @@ class GLExecutor:
         with self.current():
             self.programs(plan)
             held = {k: self._acquire(texture_size(plan.images[k].stored), "f4") for k in plan.inputs}
-            for ps, done in zip(plan.passes, self._releases(plan), strict=True):
+            for ps, done in zip(plan.passes, plan.releases(), strict=True):
                 held[ps.target] = self._acquire(texture_size(plan.images[ps.target].stored), dtype)
                 for s in done:
                     self._release(held.pop(s))
@@ -594,7 +580,7 @@ class GLExecutor:
         held: dict[int, _Target] = {k: self._upload(a) for k, a in zip(plan.inputs, inputs, strict=True)}
         if clock:
             clock.lap(ctx, "upload")
-        for ps, prog, done in zip(plan.passes, programs, self._releases(plan), strict=True):
+        for ps, prog, done in zip(plan.passes, programs, plan.releases(), strict=True):
             target_image = plan.images[ps.target]
             stored = target_image.stored
             tex_size = texture_size(stored)
