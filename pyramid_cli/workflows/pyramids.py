@@ -130,6 +130,20 @@ def level_border(border: str) -> str:
     return LEVEL_BORDER[border]
 
 
+def folds_alike(weights, sizes) -> bool:
+    """Does clamp fold every read of a MIP chain of ``sizes`` as mirror does? Yes when no read of any level
+    reaches more than one texel past an edge (both fold −1 to 0 and n to n − 1): box, box4 and quadratic at
+    exact halvings (power-of-two sizes), or the bilinear reads of ``--resize``. Then the chain built with
+    the clamp border has the mirror fold's weights, and :func:`mip_plan` keeps its passes as they were."""
+    for (h, w), (h2, w2) in zip(sizes[:-1], sizes[1:], strict=True):
+        for axis, (n, m) in enumerate(((h, h2), (w, w2))):
+            if n != m:
+                starts, table = axis_table(weights[axis], n, m)
+                if min(starts) < -1 or max(st + len(row) for st, row in zip(starts, table, strict=True)) > n + 1:
+                    return False
+    return True
+
+
 @lru_cache(maxsize=32)  # batches re-use a plan per image size
 def mip_plan(size: tuple[int, int], analysis: str = catalogue.MIP_ANALYSIS_DEFAULT, border: str = "clamp",
              strategy: str = "cost", resize: bool = False) -> Plan:
@@ -145,11 +159,15 @@ def mip_plan(size: tuple[int, int], analysis: str = catalogue.MIP_ANALYSIS_DEFAU
 
     ``border`` is how a lookup reads past the edges (the file's ``wrapmodes``); the levels are built
     with :func:`pyramid_cli.workflows.pyramids.level_border` of it, inside the texture's domain: ``clamp`` and
-    ``zero`` build mirrored (every level keeps level 0's mean), ``wrap`` periodically, ``mirror`` mirrored.
+    ``zero`` build mirrored (every level keeps level 0's mean), ``wrap`` periodically, ``mirror`` mirrored;
+    a ``clamp`` chain that :func:`folds_alike` keeps the clamp border, whose weights are then the same.
     """
     weights = mip_axis_weights(analysis)
     down = steps(one_step(analysis, Op.DOWN))
-    b = Builder(size, strategy, level_border(border))
+    build = level_border(border)
+    if border == "clamp" and folds_alike(weights, mip_sizes((ceil2(size[0]), ceil2(size[1])) if resize else size)):
+        build = border  # the same weights: a power-of-two chain keeps its passes (and its outputs) bit for bit
+    b = Builder(size, strategy, build)
     outs, current = [], 0
     if resize:
         for axis, n in enumerate(size):
@@ -181,7 +199,7 @@ def mip_plan(size: tuple[int, int], analysis: str = catalogue.MIP_ANALYSIS_DEFAU
         outs.append(current)
     text = f"mipmap: {len(sizes) - 1} level(s) to 1×1, maketx's sizes, {analysis} ⊗↓"
     text += ", level 0 resized to powers of two" if resize else ""
-    if level_border(border) != border:
+    if build != border:
         text += f", built inside the domain (edges folded by mirror; lookups read {border})"
     return b.build(text, outputs=outs)
 
