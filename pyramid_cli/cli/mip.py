@@ -17,8 +17,9 @@ from pyramid_cli.core.errors import UsageError
 @click.option("--tile", type=click.IntRange(8, 4096), default=64, show_default=True,
               help="Tile size (TIFF/.tx tiles must be a multiple of 16).")
 @click.option("--wrap", metavar="MODE[,MODE]",
-              help="maketx's wrap modes, black|clamp|periodic|mirror (s,t): how the filters read past the edges "
-                   "and the file's wrapmodes. Sets --border (black=zero, periodic=wrap).")
+              help="maketx's wrap modes, black|clamp|periodic|mirror (s,t): how lookups read past the edges "
+                   "(the file's wrapmodes). Levels build periodically or mirrored under periodic and mirror, "
+                   "inside the domain (mirrored) under clamp and black. Sets --border (black=zero, periodic=wrap).")
 @click.option("--swrap", metavar="MODE", help="The s (horizontal) wrap mode; must equal t's.")
 @click.option("--twrap", metavar="MODE", help="The t (vertical) wrap mode; must equal s's.")
 @click.option("--constant-color-detect", "constant_detect", is_flag=True,
@@ -29,8 +30,8 @@ from pyramid_cli.core.errors import UsageError
 @click.option("--round", "rounding", type=click.Choice(["down", "up"]), default="down", show_default=True,
               help="Level sizes. down: maketx's and OpenEXR's max(1, ⌊n/2⌋); a level that is not exactly half "
                    "the one above is resampled with the --analysis filter's own kernel stretched to the ratio, "
-                   "so every level covers the whole texture domain and keeps the mean (exactly under --wrap "
-                   "periodic or mirror). up: ⌈n/2⌉, the analysis pyramid's levels (an odd size is padded by the "
+                   "so every level covers the whole texture domain and keeps the mean (under every --wrap). "
+                   "up: ⌈n/2⌉, the analysis pyramid's levels (an odd size is padded by the "
                    "border, so coarse levels cover a little more than the image and lookups drift toward the "
                    "top left).")
 @click.option("--resize", is_flag=True, help="maketx's --resize: level 0 resampled up to the next power of two "
@@ -58,7 +59,8 @@ def mipmap(ctx: click.Context, paths, analysis, tile, wrap, swrap, twrap, consta
 
     Level sizes are maketx's max(1, ⌊n/2⌋): a level that halves exactly runs the
     paper's filter, any other is resampled with the same filter's kernel so that it
-    covers the whole texture domain (see `pyramid plan --mipmap`); --round up keeps the
+    covers the whole texture domain and keeps level 0's mean under every wrap mode (clamp
+    and black build inside the domain; see `pyramid plan --mipmap`); --round up keeps the
     analysis pyramid's ⌈n/2⌉ instead. --wrap (maketx's names) and --border (ours) say
     the same thing; different s and t modes are refused.
 

@@ -22,8 +22,10 @@ class TextureLevels(Levels):
     ``rounding`` "down" (the default): maketx's and OpenEXR's level sizes ``max(1, ⌊n/2⌋)``;
     levels that halve exactly use the paper's ``analysis`` filter, the others are resampled with
     the same filter's continuous kernel so that every level covers the whole texture domain
-    (:mod:`pyramid_cli.plan.resample`, :func:`pyramid_cli.workflows.pyramids.mip_plan`). "up": the analysis pyramid's
-    sizes ``⌈n/2⌉`` (odd sizes padded by the border), :class:`Levels` as it is.
+    (:mod:`pyramid_cli.plan.resample`, :func:`pyramid_cli.workflows.pyramids.mip_plan`); ``border`` is how lookups
+    read past the edges (the file's ``wrapmodes``), and under ``clamp`` and ``zero`` the levels are built inside
+    the domain by the mirror fold, so each keeps level 0's mean (:func:`pyramid_cli.workflows.pyramids.level_border`).
+    "up": the analysis pyramid's sizes ``⌈n/2⌉`` (odd sizes padded by the border), :class:`Levels` as it is.
     ``constant_detect``: an image whose pixels are all the same becomes one tile of that colour
     before the levels are made (:func:`shrink_constant`).
     """
