@@ -173,7 +173,6 @@ def write_levels_files(input_path: str, pattern: str, work: Levels | Laplacian, 
     work.check((image.pixels.shape[:2],), where=input_path)
     announce_compiles(session, work, [image.pixels], reporter)
     stack = session.run(work, [image.pixels])
-    reporter.detail(f"{io.describe_rules(image.spec)}; executor {session.ran}")
     images = [io.Image(px, image.spec) for px in stack]
     options = wo.for_inputs([input_path])
     if laplacian:
@@ -181,6 +180,8 @@ def write_levels_files(input_path: str, pattern: str, work: Levels | Laplacian, 
         for im in images:
             im.spec.attributes["pyramid:synthesis"] = work.synthesis
             im.spec.attributes["pyramid:border"] = work.border
+    first = pattern if multipart else level_path(pattern, 0)
+    reporter.detail(f"{io.describe_rules(image.spec, first, **options)}; executor {session.ran}")
     if multipart:
         io.write_levels(pattern, images, mode="multipart", **options)
         written = [pattern]
@@ -228,7 +229,8 @@ def collapse_files(inputs: list[str], output_path: str, session: Session, *, syn
     ro, wo, reporter = read or ReadOptions(), write or WriteOptions(), reporter or Reporter()
     paths = batch.expand(list(inputs))
     if len(paths) == 1:
-        bands = io.read_parts(paths[0], colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan)
+        bands = io.read_parts(paths[0], colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan,
+                              colorconfig=ro.colorconfig)
     else:
         bands = [read_input(p, ro, reporter) for p in sorted(paths, key=_level_key)]
     if len(bands) < 2:

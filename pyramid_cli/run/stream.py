@@ -312,7 +312,8 @@ def open_input(path: str, read):
     """An :class:`~pyramid_cli.imageio.ImageStream` of ``path`` as ``read`` (ReadOptions) asks, half kept half."""
     from pyramid_cli import imageio as io
 
-    return io.open_stream(path, colorspace=read.colorspace, alpha=read.alpha, nan=read.nan, keep_half=True)
+    return io.open_stream(path, colorspace=read.colorspace, alpha=read.alpha, nan=read.nan, keep_half=True,
+                          colorconfig=read.colorconfig)
 
 
 def stream_file(in_path: str, out_path: str | list[str], work, session, choice: Choice | None = None, *,
@@ -421,6 +422,10 @@ def _decide(in_path: str, work, session, memory: int | None, read, reporter):
         raise
     if reporter is not None:
         reporter.detail(f"{in_path}: {choice.describe()}")
+        if choice.streams:
+            from pyramid_cli import imageio as io
+
+            reporter.detail(io.describe_rules(st.info))
     if not choice.streams:
         st.close()
         return None
