@@ -29,7 +29,17 @@ from pyramid_cli.imageio.formats import (
     output_pixel_type,
 )
 from pyramid_cli.imageio.image import Image, ImageInfo, default_channel_names
-from pyramid_cli.imageio.ocio import convert, equivalent, holds, is_linear, kind, label, output_space, short_name
+from pyramid_cli.imageio.ocio import (
+    convert,
+    describe,
+    equivalent,
+    holds,
+    is_linear,
+    kind,
+    label,
+    output_space,
+    short_name,
+)
 
 # Attributes that describe the file's layout rather than the image; they are
 # recomputed by OpenImageIO for each file, so copying them could only conflict.
@@ -129,6 +139,16 @@ def check_output_path(out_path: str, force: bool, inputs) -> str:
             if _is_same_file(out_path, os.fspath(inp)):
                 raise OutputError(f"refusing to overwrite input {out_path} (use --force)")
     return fmt
+
+
+def describe_output(path: str | os.PathLike[str], info: ImageInfo, *, pixel_type: str | None = None,
+                    colorspace: str | None = None, **_ignored) -> str:
+    """How ``-v`` says what an output of ``info``'s image stores: ``"output o.png: uint8, sRGB … (option)"``
+    (options as :func:`~pyramid_cli.imageio.write.write_image`'s)."""
+    out_path = os.fspath(path)
+    out_type = output_pixel_type(format_from_path(out_path), pixel_type or info.pixel_type)
+    space = output_colorspace(out_path, info, out_type, colorspace)
+    return f"output {out_path}: {out_type}, {describe(space, 'option' if colorspace else '', info.colorconfig)}"
 
 
 def check_write_options(path: str | os.PathLike[str], pixel_type: str | None = None,

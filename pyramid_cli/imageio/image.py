@@ -128,18 +128,14 @@ def info_for_array(path: str | os.PathLike[str], nchannels: int, channel_names: 
                      alpha_channel=alpha, colorspace="linear", alpha_mode="premultiplied" if alpha >= 0 else "none")
 
 
-def describe_rules(info: ImageInfo, output: str | None = None, **write_options) -> str:
-    """One line saying which colour and alpha rule is in force for ``info`` (and the space of ``output``).
+def describe_rules(info: ImageInfo) -> str:
+    """One line saying which colour and alpha rule is in force for ``info``
+    (:func:`~pyramid_cli.imageio.encode.describe_output` says an output's).
 
     Parameters
     ----------
     info : ImageInfo
         As returned in :attr:`Image.spec`.
-    output : str, optional
-        An output path: the line ends with the colour space it is stored in.
-    write_options
-        :func:`~pyramid_cli.imageio.write.write_image`'s options for ``output`` (``pixel_type``,
-        ``colorspace``; others are ignored).
 
     Returns
     -------
@@ -169,13 +165,4 @@ def describe_rules(info: ImageInfo, output: str | None = None, **write_options) 
             alpha = f"premultiplied alpha (channel {name}): used as stored"
         else:
             alpha = f"alpha (channel {name}) treated as an ordinary channel"
-    line = f"{info.path}: {info.format} {info.pixel_type}, {colour}; {alpha}"
-    if output is not None:
-        from pyramid_cli.imageio.encode import output_colorspace
-        from pyramid_cli.imageio.formats import format_from_path, output_pixel_type
-
-        out_type = output_pixel_type(format_from_path(output), write_options.get("pixel_type") or info.pixel_type)
-        space = output_colorspace(output, info, out_type, write_options.get("colorspace"))
-        how = "option" if write_options.get("colorspace") else ""
-        line += f"; output {output}: {out_type}, {describe(space, how, info.colorconfig)}"
-    return line
+    return f"{info.path}: {info.format} {info.pixel_type}, {colour}; {alpha}"

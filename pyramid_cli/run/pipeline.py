@@ -181,7 +181,8 @@ def write_levels_files(input_path: str, pattern: str, work: Levels | Laplacian, 
             im.spec.attributes["pyramid:synthesis"] = work.synthesis
             im.spec.attributes["pyramid:border"] = work.border
     first = pattern if multipart else level_path(pattern, 0)
-    reporter.detail(f"{io.describe_rules(image.spec, first, **options)}; executor {session.ran}")
+    reporter.detail(f"{io.describe_rules(image.spec)}; {io.describe_output(first, image.spec, **options)}; "
+                    f"executor {session.ran}")
     if multipart:
         io.write_levels(pattern, images, mode="multipart", **options)
         written = [pattern]
