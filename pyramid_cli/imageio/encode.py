@@ -30,12 +30,14 @@ from pyramid_cli.imageio.formats import (
 )
 from pyramid_cli.imageio.image import Image, ImageInfo, default_channel_names
 from pyramid_cli.imageio.ocio import (
+    BUILTIN,
     convert,
     describe,
     equivalent,
     holds,
     is_linear,
     kind,
+    known,
     label,
     output_space,
     short_name,
@@ -325,6 +327,11 @@ def _output_spec(info: ImageInfo, fmt: str, out_type: str, names: list[str], alp
     elif isinstance(old_cs, str) or encoding != short_name("srgb" if out_type in ("uint8", "uint16") else "linear",
                                                            cfg):
         spec.attribute("oiio:ColorSpace", label(encoding, cfg))
+    name = spec.get_string_attribute("oiio:ColorSpace")
+    if fmt == "openexr" and name and not known(name, BUILTIN):
+        # OpenImageIO's EXR writer keeps only the names its built-in config knows, as colorInteropID: a
+        # studio config's name is written there itself (the reader takes oiio:ColorSpace from it)
+        spec.attribute("colorInteropID", name)
     if mode == "straight" or (mode == "none" and alpha_channel >= 0) or (
             alpha_channel >= 0 and fmt not in ASSOCIATED_CAPABLE):
         # The values handed over are exactly what is to be stored: stop

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from helpers.colour import ocio as oiio_convert
+from helpers.colour import studio_config
 from pyramid_cli.core.errors import UsageError
 from pyramid_cli.imageio import colour, ocio
-from tests.helpers.colour import ocio as oiio_convert
-from tests.helpers.colour import studio_config
 
 
 @pytest.fixture(scope="module")
