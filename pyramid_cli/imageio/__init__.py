@@ -85,7 +85,13 @@ if TYPE_CHECKING:  # what each name is, for readers and checkers; loaded on firs
         streams_to,
     )
     from pyramid_cli.imageio.colour import count_nonfinite, linear_to_srgb, srgb_to_linear
-    from pyramid_cli.imageio.encode import check_write_options, describe_output, encoded_rows, stores_half_unchanged
+    from pyramid_cli.imageio.encode import (
+        check_write_options,
+        describe_output,
+        encoded_rows,
+        pixels_in,
+        stores_half_unchanged,
+    )
     from pyramid_cli.imageio.formats import oiio_version, output_pixel_type
     from pyramid_cli.imageio.image import Image, ImageInfo, describe_rules, info_for_array
     from pyramid_cli.imageio.ocio import check_names as check_colorspaces
@@ -108,7 +114,7 @@ _HOMES = {
     **dict.fromkeys(["BandWriter", "ImageStream", "open_stream", "stream_writer", "stream_writers", "streams_to"],
                     "pyramid_cli.imageio.bands"),
     **dict.fromkeys(["count_nonfinite", "linear_to_srgb", "srgb_to_linear"], "pyramid_cli.imageio.colour"),
-    **dict.fromkeys(["check_write_options", "describe_output", "encoded_rows", "stores_half_unchanged"],
+    **dict.fromkeys(["check_write_options", "describe_output", "encoded_rows", "pixels_in", "stores_half_unchanged"],
                     "pyramid_cli.imageio.encode"),
     **dict.fromkeys(["oiio_version", "output_pixel_type"], "pyramid_cli.imageio.formats"),
     **dict.fromkeys(["Image", "ImageInfo", "describe_rules", "info_for_array"], "pyramid_cli.imageio.image"),
@@ -161,6 +167,7 @@ __all__ = [
     "oiio_version",
     "open_stream",
     "output_pixel_type",
+    "pixels_in",
     "read_image",
     "read_parts",
     "read_shape",

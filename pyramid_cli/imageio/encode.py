@@ -143,6 +143,27 @@ def check_output_path(out_path: str, force: bool, inputs) -> str:
     return fmt
 
 
+def pixels_in(image: Image, space: str) -> np.ndarray:
+    """``image``'s pixels converted from the linear space they are in to ``space`` (float32, premultiplied by
+    alpha as the image is: an encoded space is converted on straight colour); data is never converted."""
+    info, px = image.spec, np.array(image.pixels, dtype=np.float32)
+    target = short_name(space, info.colorconfig)
+    how = _encoding(info, target)
+    if how == "none":
+        return px
+    colour = colour_mask(px.shape[2], info.alpha_channel, info.channel_names)
+    straight = image.premultiplied and not is_linear(target, info.colorconfig)
+    if straight:
+        unpremultiply(px, info.alpha_channel, colour)
+    if how == "srgb":
+        px[..., colour] = linear_to_srgb(px[..., colour])
+    else:
+        px[..., colour] = convert(px[..., colour], info.linear_space, target, info.colorconfig)
+    if straight:
+        premultiply(px, info.alpha_channel, colour)
+    return px
+
+
 def describe_output(path: str | os.PathLike[str], info: ImageInfo, *, pixel_type: str | None = None,
                     colorspace: str | None = None, **_ignored) -> str:
     """How ``-v`` says what an output of ``info``'s image stores: ``"output o.png: uint8, sRGB … (option)"``

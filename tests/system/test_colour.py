@@ -200,3 +200,16 @@ def test_errors_name_the_nearest_spaces_and_the_configs_message(folder):
     r = invoke("apply", *CPU, "--tocolorspace", "ACEScct", "[1] * g", src, folder / "e_out.png")
     assert r.exit_code == 2 and "cannot be stored in PNG" in r.output
     assert not (folder / "e_out.exr").exists() and not (folder / "e_out.png").exists()
+
+
+def test_diff_compares_in_a_named_space(folder):
+    """``pyramid diff --tocolorspace`` decodes both files and converts them to one space: an ACEScg EXR and the
+    sRGB PNG made of it agree within a code there, and differ grossly as stored."""
+    inside = ocio(rgb(10) * 0.9 + 0.05, "lin_rec709_scene", "ACEScg")  # within the sRGB gamut
+    src = write(folder / "diff_cg.exr", inside, "float", oiio__ColorSpace="ACEScg")
+    run("apply", *CPU, "[1] * g", src, folder / "cg_id.png")
+    r = invoke("diff", "--tocolorspace", "srgb", "--fail", "0.0045", src, folder / "cg_id.png")
+    assert r.exit_code == 0, r.output
+    assert invoke("diff", "--fail", "0.0045", src, folder / "cg_id.png").exit_code == 2  # idiff: failure
+    r = invoke("diff", "--tocolorspace", "srgbb", src, folder / "cg_id.png")
+    assert r.exit_code == 2 and "nearest:" in r.output
