@@ -23,9 +23,17 @@ from functools import cache
 import numpy as np
 import OpenImageIO as oiio
 
+from pyramid_cli.core import cache as disk_cache
 from pyramid_cli.core.errors import UsageError
 
 BUILTIN = "ocio://default"
+
+# The built-in config's Rec.709 pair by the names files and options use most, known without loading the
+# config (about 25 ms): an sRGB PNG in and out never loads it (tests/imageio/test_ocio.py checks the table).
+BUILTIN_REC709 = {"Linear Rec.709 (sRGB)": "linear", "sRGB Encoded Rec.709 (sRGB)": "srgb"}
+_BUILTIN_NAMES = {"linear": "Linear Rec.709 (sRGB)", "lin_rec709_scene": "Linear Rec.709 (sRGB)",
+                  "srgb": "sRGB Encoded Rec.709 (sRGB)", "srgb_rec709_scene": "sRGB Encoded Rec.709 (sRGB)",
+                  **{name: name for name in BUILTIN_REC709}}
 
 # The Rec.709 pair by their OpenImageIO names: the labels written for "linear" and "srgb".
 LABELS = {"linear": "lin_rec709_scene", "srgb": "srgb_rec709_scene"}
@@ -66,6 +74,8 @@ def _names(path: str) -> tuple[tuple[str, ...], tuple[str, ...]]:
 
 @cache
 def _canonical(path: str, name: str) -> str | None:
+    if path == BUILTIN and name in _BUILTIN_NAMES:
+        return _BUILTIN_NAMES[name]
     config = _load(path)
     spaces, known = _names(path)
     got = config.resolve(name)
@@ -109,7 +119,8 @@ def _shown(path: str) -> str:
 def check_names(*names: str | None, colorconfig: str | None = None) -> None:
     """Refuse (UsageError, exit 2) before any work a config that does not load or a name it does not know
     (``None`` and ``"auto"`` are not names)."""
-    load(colorconfig)
+    if config_path(colorconfig) != BUILTIN:
+        load(colorconfig)
     for name in names:
         if name is not None and name != "auto":
             canonical(name, colorconfig)
@@ -133,6 +144,8 @@ def _rec709(path: str) -> dict[str, str | None]:
 
 @cache
 def _kind(path: str, space: str) -> str:
+    if path == BUILTIN and space in BUILTIN_REC709:
+        return BUILTIN_REC709[space]
     config = _load(path)
     if config.isData(space):
         return "data"
@@ -233,6 +246,23 @@ def convert(values: np.ndarray, src: str, dst: str, colorconfig: str | None = No
 
 @cache
 def _holds(fmt: str, ext: str, pixel_type: str, space: str, path: str) -> bool:
+    """:func:`_probe`, kept in the cache folder (``colour/``) under OpenImageIO's version and the config's
+    identity (its file's size and time): one probe per machine, not per process."""
+    try:
+        st = os.stat(path)
+        identity: tuple = (path, st.st_size, st.st_mtime_ns)
+    except OSError:
+        identity = (path,)
+    entry = f"holds-{disk_cache.key(oiio.__version__, identity, fmt, ext, pixel_type, space)}"
+    known_answer = disk_cache.read("colour", entry)
+    if known_answer in (b"0", b"1"):
+        return known_answer == b"1"
+    answer = _probe(fmt, ext, pixel_type, space, path)
+    disk_cache.write("colour", entry, b"1" if answer else b"0")
+    return answer
+
+
+def _probe(fmt: str, ext: str, pixel_type: str, space: str, path: str) -> bool:
     """Write a 2×2 file labelled ``space``, read it back: does our ``auto`` read find the same space?"""
     with tempfile.TemporaryDirectory(prefix="pyramid-colour-") as tmp:
         name = os.path.join(tmp, f"probe.{ext}")

@@ -33,7 +33,7 @@ from pyramid_cli.imageio.formats import (
     pixel_type_name,
 )
 from pyramid_cli.imageio.image import ALPHA_NAMES, Image, ImageInfo, default_channel_names
-from pyramid_cli.imageio.ocio import canonical, convert, input_space, kind, load, working_space
+from pyramid_cli.imageio.ocio import check_names, convert, input_space, kind, working_space
 
 
 def _find_alpha(spec: oiio.ImageSpec, names: list[str]) -> int:
@@ -121,9 +121,7 @@ def read_image(path: str | os.PathLike[str], *, colorspace: str = "auto",
 
 def check_colorspace(colorspace: str, colorconfig: str | None = None) -> None:
     """Refuse (UsageError, exit 2) a config that does not load or a space it does not know."""
-    load(colorconfig)
-    if colorspace != "auto":
-        canonical(colorspace, colorconfig)
+    check_names(colorspace, colorconfig=colorconfig)
 
 
 def describe_spec(spec: oiio.ImageSpec, fmt: str, p: str, colorspace: str, alpha: str,

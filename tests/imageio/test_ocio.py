@@ -26,6 +26,18 @@ def test_names_aliases_and_roles_resolve_to_the_configs_spaces():
     assert ocio.working_space("Raw") == "Raw" and ocio.working_space("lin_ap0") == "ACES2065-1"
 
 
+def test_the_builtin_names_known_without_loading_are_the_configs():
+    import OpenImageIO as oiio
+
+    config = oiio.ColorConfig(ocio.BUILTIN)
+    for name, short in ocio.BUILTIN_REC709.items():
+        assert config.resolve(ocio.LABELS[short]) == name and config.resolve(short) == name
+    ocio._canonical.cache_clear()
+    ocio._kind.cache_clear()
+    assert ocio._canonical(ocio.BUILTIN, "srgb") == "sRGB Encoded Rec.709 (sRGB)"  # the table
+    assert ocio._kind(ocio.BUILTIN, "Linear Rec.709 (sRGB)") == "linear"
+
+
 def test_an_unknown_space_names_the_nearest_and_a_bad_config_gives_ocios_message(tmp_path, studio):
     with pytest.raises(UsageError, match=r"unknown colour space 'acescgg'.*nearest: ACEScg") as e:
         ocio.canonical("acescgg")
