@@ -75,7 +75,6 @@ def blur(paths, levels: int, analysis: str, synthesis: str, quasi: bool, sigma: 
       pyramid blur 'plate.####.exr' -o 'soft.####.exr' --cluster local:4
       pyramid blur --levels 5 --memory 2G -v painting_32k.exr soft_32k.exr
       pyramid blur -v --levels 3 plate_acescg.exr preview.png     # ACEScg → sRGB Rec.709 PNG, via OCIO
-      pyramid blur --colorspace ACEScct --tocolorspace ACEScg grade.exr soft_cg.exr
     """
     from pyramid_cli.jobs.work import blur_work
 

@@ -136,7 +136,9 @@ def blend_files(a_path: str, b_path: str, mask_path: str, output_path: str, sess
                          warn=reporter.warn, nan_hint=NAN_HINT)
     work = Blend(levels=levels, analysis=analysis, synthesis=synthesis, border=border,
                  allow_mixed_lattice=allow_mixed_lattice)
-    images = [a.pixels, b.pixels, mask]
+    # B in A's linear space (both linear: one matrix), so that the blend mixes like with like
+    b_pixels = io.pixels_in(b, a.spec.linear_space) if b.spec.linear_space != a.spec.linear_space else b.pixels
+    images = [a.pixels, b_pixels, mask]
     work.check(tuple(im.shape[:2] for im in images), where=a_path)
     for message in work.warnings(a.pixels.shape[:2]):
         reporter.warn(message)

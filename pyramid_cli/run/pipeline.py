@@ -195,7 +195,8 @@ def write_levels_files(input_path: str, pattern: str, work: Levels | Laplacian, 
         panel = contact_sheet([im.pixels if not laplacian or k == len(images) - 1 else im.pixels + 0.5
                                for k, im in enumerate(images)])
         info = io.ImageInfo(path=sheet, format="png", pixel_type="uint8", channel_names=["R", "G", "B"],
-                            alpha_channel=-1, colorspace="srgb", alpha_mode="none")
+                            alpha_channel=-1, colorspace="srgb", alpha_mode="none",
+                            linear_space=image.spec.linear_space, colorconfig=image.spec.colorconfig)
         io.write_image(sheet, io.Image(panel, info), pixel_type="uint8")
         written.append(sheet)
     for path in written:

@@ -133,7 +133,7 @@ def test_the_identity_keeps_pixels_and_label(folder, name, pixel_type, label):
 
 
 def test_whole_and_streamed_give_the_same_bytes(folder):
-    tall = np.random.default_rng(6).random((512, 16, 3)).astype(np.float32)  # bands cost less than the whole
+    tall = np.random.default_rng(6).random((128, 16, 3)).astype(np.float32)  # bands cost less than the whole
     src = write(folder / "stream_cct.exr", ocio(tall, "ACEScg", "ACEScct"), "half", oiio__ColorSpace="ACEScct")
     run("blur", *CPU, "--levels", "2", src, folder / "whole.exr")
     out = run("blur", *CPU, "-v", "--levels", "2", "--memory", "40K", src, folder / "bands.exr")
@@ -213,3 +213,16 @@ def test_diff_compares_in_a_named_space(folder):
     assert invoke("diff", "--fail", "0.0045", src, folder / "cg_id.png").exit_code == 2  # idiff: failure
     r = invoke("diff", "--tocolorspace", "srgbb", src, folder / "cg_id.png")
     assert r.exit_code == 2 and "nearest:" in r.output
+
+
+def test_blend_mixes_two_spaces_in_one(folder):
+    """An ACEScct plate blended with an sRGB PNG: B is brought into A's linear space first (a constant mask of 0
+    gives B, converted to A's space)."""
+    a = write(folder / "blend_a.exr", ocio(rgb(11), "ACEScg", "ACEScct"), "float", oiio__ColorSpace="ACEScct")
+    stored = codes(rgb(12)).astype(np.uint8)
+    b = write(folder / "blend_b.png", stored, "uint8")
+    m = write(folder / "blend_m.exr", np.zeros((N, N, 1), np.float32), "float")
+    run("blend", *CPU, a, b, m, folder / "blend_out.exr")
+    got, label = read(folder / "blend_out.exr")
+    assert np.abs(got - ocio(stored / 255.0, "srgb_rec709_scene", "ACEScct")).max() < 1e-4
+    assert layer.equivalent(label, "ACEScct")
