@@ -177,6 +177,8 @@ def write_levels_files(input_path: str, pattern: str, work: Levels | Laplacian, 
     options = wo.for_inputs([input_path])
     if laplacian:
         options["pixel_type"] = wo.pixel_type or "float"
+        # band-pass detail is signed linear light: it stays in the space it was computed in
+        options["colorspace"] = wo.tocolorspace or image.spec.linear_space
         for im in images:
             im.spec.attributes["pyramid:synthesis"] = work.synthesis
             im.spec.attributes["pyramid:border"] = work.border

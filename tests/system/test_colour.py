@@ -12,7 +12,7 @@ import numpy as np
 import OpenImageIO as oiio
 import pytest
 
-from helpers.cli import invoke, run_cli
+from helpers.cli import invoke
 from helpers.colour import ocio, studio_config
 from helpers.images import write
 from pyramid_cli.imageio import ocio as layer
@@ -178,8 +178,7 @@ def test_a_studio_config_through_ocio_and_colorconfig(folder, monkeypatch):
                folder / "x.exr")
     assert r.exit_code == 2 and "nearest: plate_log" in r.output and "studio.ocio" in r.output
     monkeypatch.setenv("OCIO", str(config))
-    r = run_cli("apply", *CPU, "--tocolorspace", "studio_texture", "h_Bartlett ⊗ g", src, folder / "tex.png")
-    assert r.returncode == 0, r.stderr
+    run("apply", *CPU, "--tocolorspace", "studio_texture", "h_Bartlett ⊗ g", src, folder / "tex.png")
     got, label = read(folder / "tex.png")
     from pyramid_cli.api import apply
 
@@ -222,7 +221,20 @@ def test_blend_mixes_two_spaces_in_one(folder):
     stored = codes(rgb(12)).astype(np.uint8)
     b = write(folder / "blend_b.png", stored, "uint8")
     m = write(folder / "blend_m.exr", np.zeros((N, N, 1), np.float32), "float")
-    run("blend", *CPU, a, b, m, folder / "blend_out.exr")
+    run("blend", "--backend", "reference", a, b, m, folder / "blend_out.exr")
     got, label = read(folder / "blend_out.exr")
     assert np.abs(got - ocio(stored / 255.0, "srgb_rec709_scene", "ACEScct")).max() < 1e-4
     assert layer.equivalent(label, "ACEScct")
+
+
+def test_laplacian_bands_stay_in_linear_light(folder):
+    """Band-pass levels of an ACEScct plate are signed linear detail: written in ACEScg, labelled so, and they
+    collapse back to the plate (in its own space again)."""
+    src = write(folder / "cct_for_laplacian.exr", ocio(rgb(13), "ACEScg", "ACEScct"), "float",
+                oiio__ColorSpace="ACEScct")
+    run("levels", "--backend", "reference", "--laplacian", "--levels", "2", src, folder / "lap_{level}.exr")
+    labels = [read(folder / f"lap_{k}.exr")[1] for k in range(3)]
+    assert all(layer.equivalent(label, "ACEScg") for label in labels)
+    run("collapse", "--backend", "reference", "--tocolorspace", "ACEScct", folder / "lap_*.exr",
+        folder / "lap_back.exr")
+    assert np.abs(read(folder / "lap_back.exr")[0] - read(src)[0]).max() < 1e-4
