@@ -422,10 +422,6 @@ def _decide(in_path: str, work, session, memory: int | None, read, reporter):
         raise
     if reporter is not None:
         reporter.detail(f"{in_path}: {choice.describe()}")
-        if choice.streams:
-            from pyramid_cli import imageio as io
-
-            reporter.detail(io.describe_rules(st.info))
     if not choice.streams:
         st.close()
         return None
@@ -448,6 +444,9 @@ def run_job(job, work, session, *, memory: int | None, read=None, write=None, re
     if decided is None:
         return False
     st, choice = decided
+    if reporter is not None:
+        options = write.for_inputs([]) if hasattr(write, "for_inputs") else dict(write or {})
+        reporter.detail(f"{io.describe_rules(st.info)}; {io.describe_output(job.output, st.info, **options)}")
     with st:
         stream_file(job.input, job.output, work, session, choice, budget=choice.budget, read=read, write=write,
                     reporter=reporter, stream=st)
