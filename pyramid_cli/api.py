@@ -552,30 +552,38 @@ def blend(a, b, mask, *, levels: int | None = None, analysis: str = catalogue.DE
 
 # ------------------------------------------------------------------ files
 def read_image(path: str | os.PathLike[str], *, colorspace: str = "auto", alpha: str = "auto",
-               nan: str = "keep") -> io.Image:
+               nan: str = "keep", colorconfig: str | None = None) -> io.Image:
     """Read an image file into linear-light float32 pixels (alpha premultiplied) and its metadata.
 
-    ``colorspace``, ``alpha`` and ``nan`` are the CLI's ``--colorspace``, ``--alpha`` and
-    ``--nan``; see :func:`pyramid_cli.imageio.read_image`. The result's ``pixels`` is H×W×C.
+    ``colorspace``, ``alpha``, ``nan`` and ``colorconfig`` are the CLI's ``--colorspace``, ``--alpha``,
+    ``--nan`` and ``--colorconfig``; see :func:`pyramid_cli.imageio.read_image`. The result's ``pixels``
+    is H×W×C, in the linear space ``spec.linear_space`` names.
     """
-    return io.read_image(path, colorspace=colorspace, alpha=alpha, nan=nan)
+    return io.read_image(path, colorspace=colorspace, alpha=alpha, nan=nan, colorconfig=colorconfig)
 
 
 def write_image(path: str | os.PathLike[str], image, *, like: io.Image | None = None,
                 pixel_type: str | None = None, colorspace: str | None = None, alpha: str | None = None,
                 dither: bool = False, compression: str | None = None, force: bool = False,
-                channel_names: list[str] | None = None) -> None:
+                channel_names: list[str] | None = None, tocolorspace: str | None = None,
+                colorconfig: str | None = None) -> None:
     """Write an :class:`~pyramid_cli.imageio.Image` (like its source) or an array of linear pixels, atomically.
 
     An array is stored like ``like`` (an image from :func:`read_image`: its type,
     channels, colour and alpha rules and metadata) or, without it, as float where the
     format allows with channels named by count (Y, YA, RGB, RGBA, or ``channel_names``).
-    ``pixel_type`` etc. are the CLI's options.
+    ``pixel_type`` etc. are the CLI's options; ``tocolorspace`` (or its older name ``colorspace``) is
+    the space stored, ``colorconfig`` the OpenColorIO config of an array's names.
     """
+    if tocolorspace is not None and colorspace is not None and tocolorspace != colorspace:
+        raise ValueError(f"tocolorspace={tocolorspace!r} and colorspace={colorspace!r}: give one")
+    colorspace = tocolorspace if tocolorspace is not None else colorspace
     if not isinstance(image, io.Image):
         pixels = as_pixels(image)
         pixels = pixels if pixels.ndim == 3 else pixels[:, :, None]
         info = like.spec if like is not None else io.info_for_array(path, pixels.shape[2], channel_names)
+        if colorconfig is not None and like is None:
+            info.colorconfig = colorconfig
         if len(info.channel_names) != pixels.shape[2]:
             raise ValueError(f"{pixels.shape[2]} channel(s) cannot be stored like {len(info.channel_names)}")
         image = io.Image(np.ascontiguousarray(pixels, dtype=np.float32), info)
@@ -603,7 +611,7 @@ def process_files(work: Work, inputs: Sequence[str], output: str | None = None, 
     from pyramid_cli.run.report import Reporter
     from pyramid_cli.run.settings import ReadOptions, WriteOptions
 
-    read_keys = {"colorspace", "alpha", "nan"}
+    read_keys = {"colorspace", "alpha", "nan", "colorconfig"}
     ro = ReadOptions(**{k: v for k, v in io_options.items() if k in read_keys})
     wo = WriteOptions(**{k: v for k, v in io_options.items() if k not in read_keys})
     paths = [*inputs, output] if template is None else list(inputs)

@@ -40,13 +40,16 @@ from pyramid_cli.core.errors import UsageError
               "channels, or append channels of zeros up to N.")
 @click.option("--monochrome-detect", "monochrome_detect", is_flag=True, help="maketx's flag: an RGB image (no "
               "alpha) whose three channels are equal at every pixel becomes a one-channel (Y) texture.")
+@click.option("--colorconvert", nargs=2, metavar="IN OUT", help="maketx's --colorconvert: the source is in colour "
+              "space IN, the texture in OUT (names of the colour config, --colorconfig or $OCIO); filtering stays "
+              "in linear light. Recorded in the SHA-1's appended text and Exif:ImageHistory, as maketx does.")
 @border_option
 @io_options
 @batch_options
 @memory_option
 @click.pass_context
 def mipmap(ctx: click.Context, paths, analysis, tile, wrap, swrap, twrap, constant_detect, fill_holes, rounding,
-           resize, nchannels, monochrome_detect, border, **opts) -> None:
+           resize, nchannels, monochrome_detect, colorconvert, border, **opts) -> None:
     """Write a tiled MIP-mapped texture down to 1×1 (what maketx makes, with better filters).
 
     OpenEXR (.exr) holds the levels as its own MIP levels, TIFF (.tx, .tif) as
@@ -74,6 +77,7 @@ def mipmap(ctx: click.Context, paths, analysis, tile, wrap, swrap, twrap, consta
       pyramid mipmap 'tex/albedo.<UDIM>.exr' -o 'tx/albedo.<UDIM>.tx.exr'
       pyramid mipmap --fill bake.png bake.tx                    # pad UV islands first: no dark bleeding
       pyramid mipmap --memory 2G -v matte_32k.exr matte_32k.tx.exr   # streamed: level 0 band by band
+      pyramid mipmap --colorconvert sRGB ACEScg albedo.png albedo.tx.exr   # maketx's spelling, through OCIO
     """
     from pyramid_cli.jobs.texture import TextureLevels
     from pyramid_cli.workflows.mip import border_for_wrap, parse_wrap
@@ -86,9 +90,13 @@ def mipmap(ctx: click.Context, paths, analysis, tile, wrap, swrap, twrap, consta
             raise UsageError(f"--border {border} contradicts --wrap {','.join(modes)} (which reads as --border "
                              f"{wanted}); give one of them")
         border = wanted
+    if colorconvert:
+        if opts["colorspace"] != "auto" or opts["tocolorspace"] is not None:
+            raise UsageError("--colorconvert IN OUT names both spaces: give it or --colorspace/--tocolorspace")
+        opts["colorspace"], opts["tocolorspace"] = colorconvert
     work = TextureLevels(levels=None, analysis=analysis, border=border, constant_detect=constant_detect,
                          rounding=rounding, resize=resize, nchannels=nchannels, monochrome_detect=monochrome_detect,
-                         fill=fill_holes)
+                         fill=fill_holes, colorconvert=tuple(colorconvert) if colorconvert else None)
     run_paths(paths, work, opts, mip_tile=tile)  # refuses a TIFF tile that is not a multiple of 16
 
 

@@ -3,6 +3,7 @@ job with maketx's level sizes and the settings maketx takes."""
 
 from __future__ import annotations
 
+import shlex
 from dataclasses import dataclass
 
 from pyramid_cli.core import catalogue
@@ -37,6 +38,7 @@ class TextureLevels(Levels):
     nchannels: int | None = None   # maketx's --nchannels: keep or pad to this many channels (:func:`channel_plan`)
     monochrome_detect: bool = False  # maketx's --monochrome-detect: R = G = B everywhere → one channel
     fill: bool = False        # pull-push texels of alpha < 1 first (pyramid_cli.run.methods_files.fill_texture)
+    colorconvert: tuple[str, str] | None = None  # maketx's --colorconvert IN OUT (the read and write do it)
 
     @property
     def keeps_input(self) -> bool:  # type: ignore[override]
@@ -57,11 +59,14 @@ class TextureLevels(Levels):
     @property
     def filter_name(self) -> str:
         """The filter, rule and whatever else changes the texels, as the SHA-1's appended text and
-        ImageHistory name them: ``quadratic``, ``quadratic/up``, ``quadratic/resize/nchannels=1/fill`` …
+        ImageHistory name them: ``quadratic``, ``quadratic/up``, ``quadratic/resize/nchannels=1/fill``,
+        ``quadratic/colorconvert=sRGB ACEScg`` …
         (the hash is of the source's pixels, so two files that differ below must differ here)."""
         flags = (["up"] if self.rounding == "up" else []) + (["resize"] if self.resize else [])
         flags += [f"nchannels={self.nchannels}"] if self.nchannels is not None else []
         flags += (["monochrome-detect"] if self.monochrome_detect else []) + (["fill"] if self.fill else [])
+        if self.colorconvert is not None:  # as a shell would read it back: maketx's ImageHistory is its command line
+            flags.append("colorconvert=" + " ".join(shlex.quote(n) for n in self.colorconvert))
         return "/".join([self.analysis, *flags])
 
     def count(self, size) -> int:
