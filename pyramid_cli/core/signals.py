@@ -14,6 +14,11 @@ weak-reference callback or a ctypes callback runs (llvmlite frees its LLVM objec
 ``sys.unraisablehook`` that ``install`` sets catches exactly those, prints nothing, and sends the
 signal again a moment later, once the finaliser has returned.
 
+Nor should it raise inside an import: a C extension that runs Python code while it initialises (OpenImageIO's
+nanobind enums, numba) aborts the process on an exception it did not expect (SIGABRT and a "Critical
+nanobind error" traceback, not exit 143). A signal that arrives while a module is being imported is sent
+again a moment later, until it finds the import done.
+
 Nor should it raise into a library that keeps state across a call: an exception thrown into
 numba's compiler in mid-compile leaves it inconsistent, and its clean-up then fails with a
 traceback of its own. Code that calls such a library runs it under :func:`deferred`, which holds
@@ -73,7 +78,22 @@ def _handler(signum, frame):  # noqa: ARG001 - the signal module's signature
     if _depth:
         _held.append(signum)
         return
+    if _importing(frame):
+        _redeliver(signum)
+        return
     raise Interrupted(signum)
+
+
+_IMPORT_MACHINERY = ("<frozen importlib._bootstrap>", "<frozen importlib._bootstrap_external>")
+
+
+def _importing(frame) -> bool:
+    """Whether the main thread was stopped inside an import (a module's body, or an extension's init)."""
+    while frame is not None:
+        if frame.f_code.co_filename in _IMPORT_MACHINERY:
+            return True
+        frame = frame.f_back
+    return False
 
 
 @contextlib.contextmanager
@@ -99,18 +119,23 @@ def deferred() -> Iterator[None]:
 REDELIVER_S = 0.02  # how long after a swallowed signal it is sent again
 
 
+def _redeliver(signum: int) -> None:
+    """Send ``signum`` again in :data:`REDELIVER_S`, as a first signal (from a timer thread: the handler only
+    runs in the main thread, between its bytecodes)."""
+    _received.clear()
+    timer = threading.Timer(REDELIVER_S, os.kill, (os.getpid(), signum))
+    timer.daemon = True
+    timer.start()
+
+
 def _unraisable(previous):
     def hook(unraisable) -> None:
         exc = unraisable.exc_value
         if not isinstance(exc, Interrupted):
             previous(unraisable)
             return
-        # Raised inside a finaliser and swallowed: deliver it again as a first signal once the
-        # finaliser is done (a timer thread, since the handler only runs in the main thread).
-        _received.clear()
-        timer = threading.Timer(REDELIVER_S, os.kill, (os.getpid(), exc.signum))
-        timer.daemon = True
-        timer.start()
+        # Raised inside a finaliser and swallowed: deliver it again once the finaliser is done.
+        _redeliver(exc.signum)
     hook.pyramid_redelivers = True
     return hook
 

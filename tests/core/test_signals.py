@@ -9,3 +9,35 @@ def test_a_keyboard_interrupt_exits_130_and_says_interrupted():
     assert signals.exit_code(KeyboardInterrupt()) == 128 + signal.SIGINT == 130
     assert signals.describe(KeyboardInterrupt()) == "interrupted"
     assert set(signals.HANDLED) == {"SIGINT", "SIGTERM", "SIGHUP"}
+
+
+def test_a_signal_during_an_import_is_raised_once_the_import_is_done(tmp_path):
+    """SIGTERM while a module body runs (an extension's init runs Python code: OpenImageIO's nanobind enums
+    abort on an exception there) waits for the import to finish, then stops the run as exit 143 would."""
+    import subprocess
+    import sys
+    import textwrap
+
+    (tmp_path / "slow_module.py").write_text(textwrap.dedent("""
+        import os, signal, time
+        os.kill(os.getpid(), signal.SIGTERM)
+        end = time.monotonic() + 0.3
+        while time.monotonic() < end:   # bytecodes run here: a handler that raised would stop the import
+            pass
+        DONE = True
+    """))
+    script = textwrap.dedent("""
+        import sys, time
+        from pyramid_cli.core import signals
+        signals.install()
+        try:
+            import slow_module
+            print("imported", slow_module.DONE, flush=True)
+            time.sleep(5)
+            print("not interrupted")
+        except signals.Interrupted as e:
+            print("interrupted", e.signum, "in import" if "slow_module" not in sys.modules else "after import")
+    """)
+    r = subprocess.run([sys.executable, "-c", script], cwd=tmp_path, capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split("\n")[:2] == ["imported True", f"interrupted {int(signal.SIGTERM)} after import"], r.stdout
