@@ -345,8 +345,7 @@ def _output_spec(info: ImageInfo, fmt: str, out_type: str, names: list[str], alp
     old_cs = info.attributes.get("oiio:ColorSpace")
     if isinstance(old_cs, str) and equivalent(old_cs, encoding, cfg):
         spec.attribute("oiio:ColorSpace", old_cs)
-    elif isinstance(old_cs, str) or encoding != short_name("srgb" if out_type in ("uint8", "uint16") else "linear",
-                                                           cfg):
+    else:  # every output names the space its pixels are in, unlabelled inputs' too
         spec.attribute("oiio:ColorSpace", label(encoding, cfg))
     name = spec.get_string_attribute("oiio:ColorSpace")
     if fmt == "openexr" and name and not known(name, BUILTIN):

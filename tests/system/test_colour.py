@@ -132,6 +132,19 @@ def test_the_identity_keeps_pixels_and_label(folder, name, pixel_type, label):
     assert got_label == read(src)[1]
 
 
+@pytest.mark.parametrize("name, pixel_type, space", [("bare.exr", "float", "linear"), ("bare.tif", "uint8", "srgb"),
+                                                      ("bare16.tif", "uint16", "srgb")])
+def test_an_unlabelled_input_gives_a_labelled_output(folder, name, pixel_type, space):
+    """A file without ``oiio:ColorSpace`` is read in its type's default space; what is written says so."""
+    stored = rgb(6) if pixel_type == "float" else codes(rgb(6)).astype(np.uint8)
+    src = write(folder / name, stored, pixel_type)
+    assert read(src)[1] == ""
+    out = folder / f"out_{name}"
+    run("apply", *CPU, "[1] * g", src, out)
+    label = read(out)[1]
+    assert label and layer.equivalent(label, space), label
+
+
 def test_whole_and_streamed_give_the_same_bytes(folder):
     tall = np.random.default_rng(6).random((128, 16, 3)).astype(np.float32)  # bands cost less than the whole
     src = write(folder / "stream_cct.exr", ocio(tall, "ACEScg", "ACEScct"), "half", oiio__ColorSpace="ACEScct")
