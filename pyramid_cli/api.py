@@ -452,7 +452,7 @@ def fill(array, *, mask=None, holes: str | None = None, levels: int | None = Non
         the holes (2–3× the error) and warns (MixedLatticeWarning).
     weight_scale, sweeps : int or (int, int)
         The weight scale K (1 … 2²⁰) and the membrane smoothing sweeps (0 … 64), one for every
-        level or a pair (level 1, the coarser levels). The defaults ((16, 2) and (2, 8)) beat
+        level or a pair (level 1, the coarser levels). The defaults ((16, 2) and (1, 4)) beat
         ``oiiotool --fillholes`` on the project's test images; Gortler's classic pull-push, the
         former default, is ``analysis="box4", weight_scale=4, sweeps=0``.
     keep_alpha : bool

@@ -30,7 +30,7 @@ and ``R_k`` the smoothing sweeps of level k:
 
 ``K`` and ``R`` are given for level 1 and for every coarser level (``(K_1, K_≥2)``, ``(R_1, R_≥2)``): a
 weight curve per level. A known pixel of weight 1 comes out as ``p₀ + 0·S(…) = c`` exactly: level 0 is
-never swept. The defaults (quadratic ⊗↓, Doo-Sabin ⊗↑, ``K`` = (16, 2), ``R`` = (2, 8)) were chosen by
+never swept. The defaults (quadratic ⊗↓, Doo-Sabin ⊗↑, ``K`` = (16, 2), ``R`` = (1, 4)) were chosen by
 measurement against ``oiiotool --fillholes`` (``bench/fill_cases.py``, docs/tutorials/fill-and-blend.md);
 the former defaults (box4 ⊗↓, ``K`` = 4, ``R`` = 0) stay reachable through the options.
 
