@@ -23,8 +23,8 @@ from pyramid_cli.reference import methods as methods_reference
 from pyramid_cli.workflows import methods
 
 BORDERS = ["clamp", "mirror", "wrap", "zero"]
-FILTERS = [("quadratic", "doosabin"), ("box4", "doosabin"), ("box", "doosabin"), ("quadratic", "cubic"), ("cubic", "fourpoint"),
-           ("box4", "midpoint")]
+FILTERS = [("quadratic", "doosabin"), ("box4", "doosabin"), ("box", "doosabin"), ("quadratic", "cubic"),
+           ("cubic", "fourpoint"), ("box4", "midpoint")]
 ATOL = 1e-5  # float32 against float64, as every executor test
 CLASSIC = {"analysis": "box4", "weight_scale": 4, "sweeps": 0}  # Gortler's pull-push, the former defaults
 
