@@ -418,15 +418,18 @@ def mipmap(array, *, analysis: str = catalogue.MIP_ANALYSIS_DEFAULT, border: str
 
 
 def fill(array, *, mask=None, holes: str | None = None, levels: int | None = None,
-         analysis: str = catalogue.DEFAULT_ANALYSIS, synthesis: str = catalogue.DEFAULT_SYNTHESIS,
+         analysis: str = catalogue.FILL_ANALYSIS, synthesis: str = catalogue.FILL_SYNTHESIS,
+         weight_scale: int | tuple[int, int] = catalogue.FILL_SCALE,
+         sweeps: int | tuple[int, int] = catalogue.FILL_SWEEPS,
          keep_alpha: bool = False, border: str = "clamp", backend: str = "auto",
          session: Session | None = None) -> np.ndarray:
     """Fill holes by pull-push (Kraus, "The Pull-Push Algorithm Revisited", GRAPP 2009).
 
     Known pixels are pulled down the analysis pyramid as premultiplied colours with their
-    weights (a coarse weight is 4× the filtered weight, clamped to 1), then each level is
+    weights (a coarse weight is ``weight_scale``× the filtered weight, clamped to 1), then each level is
     composited over the expanded coarser one by its weight (§4 ⊗↓ and §5 ⊗↑ filters of
-    Kraus & Strengert 2007). Pixels of weight 1 come out unchanged; holes get a smooth
+    Kraus & Strengert 2007) and, at levels 1 and coarser, smoothed by ``sweeps`` membrane sweeps
+    (:mod:`pyramid_cli.workflows.methods`). Pixels of weight 1 come out unchanged; holes get a smooth
     interpolation of what surrounds them.
 
     Parameters
@@ -444,9 +447,14 @@ def fill(array, *, mask=None, holes: str | None = None, levels: int | None = Non
     levels : int, optional
         Pull steps; default down to 1×1 (so every hole is filled, however large).
     analysis, synthesis : str
-        The pull's ⊗↓ filter (default the 4×4 box, §4.2) and the push's ⊗↑ filter (default
-        Doo-Sabin, §5.3), or one-step expressions. A pair on two lattices fills from beside the
-        holes (2–3× the error) and warns (MixedLatticeWarning).
+        The pull's ⊗↓ filter (default the biquadratic B-spline, §4.3) and the push's ⊗↑ filter
+        (default Doo-Sabin, §5.3), or one-step expressions. A pair on two lattices fills from beside
+        the holes (2–3× the error) and warns (MixedLatticeWarning).
+    weight_scale, sweeps : int or (int, int)
+        The weight scale K (1 … 2²⁰) and the membrane smoothing sweeps (0 … 64), one for every
+        level or a pair (level 1, the coarser levels). The defaults ((16, 2) and (1, 4)) beat
+        ``oiiotool --fillholes`` on the project's test images; Gortler's classic pull-push, the
+        former default, is ``analysis="box4", weight_scale=4, sweeps=0``.
     keep_alpha : bool
         With ``holes="alpha"``: return the input's alpha beside the filled colours, which are
         then straight (not multiplied by alpha), instead of an opaque image.
@@ -487,7 +495,8 @@ def fill(array, *, mask=None, holes: str | None = None, levels: int | None = Non
     pixels = as_pixels(array)
     colour, weight, premultiplied = fill_inputs(pixels, holes, None if mask is None else as_pixels(mask, "mask"),
                                                 warn=_warn_mask)
-    work = Fill(levels=levels, analysis=analysis, synthesis=synthesis, premultiplied=premultiplied, border=border)
+    work = Fill(levels=levels, analysis=analysis, synthesis=synthesis, premultiplied=premultiplied, border=border,
+                weight_scale=weight_scale, sweeps=sweeps)
     _warn_work(work, pixels.shape[:2])
     (out,) = _run(work, [colour, weight], session, backend)
     return fill_output(out, pixels, holes, keep_alpha=keep_alpha)

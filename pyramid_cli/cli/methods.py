@@ -9,7 +9,31 @@ import click
 from pyramid_cli.cli.params import border_option, choice, io_options, mixed_lattice_option
 from pyramid_cli.cli.running import drop, make_reporter, open_session, read_write
 from pyramid_cli.core import catalogue
-from pyramid_cli.core.options import MAX_LEVELS
+from pyramid_cli.core.options import MAX_LEVELS, MAX_SWEEPS, MAX_WEIGHT_SCALE
+
+
+def _pair(values: tuple[int, int]) -> str:
+    return ",".join(str(v) for v in values)
+
+
+class LevelPair(click.ParamType):
+    """One integer (every level) or two, ``N,M`` (level 1, the coarser levels), each from ``lo`` to ``hi``."""
+
+    name = "N[,M]"
+
+    def __init__(self, lo: int, hi: int):
+        self.lo, self.hi = lo, hi
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, tuple):
+            return value
+        try:
+            v = tuple(int(x) for x in str(value).split(","))
+        except ValueError:
+            v = ()
+        if len(v) not in (1, 2) or not all(self.lo <= x <= self.hi for x in v):
+            self.fail(f"{value!r} is not one or two integers N,M from {self.lo} to {self.hi}", param, ctx)
+        return v * 2 if len(v) == 1 else v
 
 
 @click.command()
@@ -23,23 +47,30 @@ from pyramid_cli.core.options import MAX_LEVELS
                    "pixel with a NaN/Inf is a hole.")
 @click.option("--levels", "-m", type=click.IntRange(0, MAX_LEVELS), default=None,
               help="Pull steps (default: down to 1×1, so every hole is filled).")
-@click.option("--analysis", default=catalogue.DEFAULT_ANALYSIS, show_default=True,
+@click.option("--analysis", default=catalogue.FILL_ANALYSIS, show_default=True,
               help=f"The pull's filter: {', '.join(catalogue.ANALYSIS_FILTERS)}, or a ⊗↓ expression.")
-@click.option("--synthesis", default=catalogue.DEFAULT_SYNTHESIS, show_default=True,
+@click.option("--synthesis", default=catalogue.FILL_SYNTHESIS, show_default=True,
               help=f"The push's filter: {', '.join(catalogue.SYNTHESIS_FILTERS)}, or a ⊗↑ expression.")
+@click.option("--weight-scale", type=LevelPair(1, MAX_WEIGHT_SCALE), default=_pair(catalogue.FILL_SCALE),
+              show_default=True, help="K: a coarse pixel's weight is K × its filtered weight, clamped to 1; at level 1 "
+              "and at the coarser levels (one number: every level; Gortler's classic: 4).")
+@click.option("--sweeps", type=LevelPair(0, MAX_SWEEPS), default=_pair(catalogue.FILL_SWEEPS), show_default=True,
+              help="Membrane smoothing sweeps in the push at level 1 and at the coarser levels (0: the classic "
+                   "pull-push). The classic fill, the former default: --analysis box4 --weight-scale 4 --sweeps 0.")
 @click.option("--keep-alpha", is_flag=True, help="Keep the input's alpha and store the filled colours beside it "
               "unassociated (straight), instead of an opaque image: a PNG keeps its cut-out with colour under it.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object (pixels filled, levels, executor).")
 @mixed_lattice_option
 @border_option
 @io_options
-def fill(input_path, output_path, mask, holes, levels, analysis, synthesis, keep_alpha, as_json, allow_mixed_lattice,
-         border, **opts) -> None:
+def fill(input_path, output_path, mask, holes, levels, analysis, synthesis, weight_scale, sweeps, keep_alpha, as_json,
+         allow_mixed_lattice, border, **opts) -> None:
     """Fill holes from the pixels around them by pull-push (Kraus, GRAPP 2009).
 
     The known pixels are pulled down the analysis pyramid as premultiplied colours with
-    their weights, then every level is composited over the expanded coarser one: holes of
-    any size get a smooth fill, pixels of full weight stay bit for bit. The output is
+    their weights, then every level is composited over the expanded coarser one and, at the
+    coarse levels, smoothed by membrane sweeps: holes of any size get a smooth fill, pixels
+    of full weight stay bit for bit. The output is
     opaque (alpha 1, as oiiotool --fillholes writes it) unless --keep-alpha. An image
     without a known pixel is bad pixel data (exit 5). Filters
     on two lattices fill from beside the holes and are warned about.
@@ -50,6 +81,7 @@ def fill(input_path, output_path, mask, holes, levels, analysis, synthesis, keep
       pyramid fill --mask valid.png plate.exr patched.exr    # holes where the mask is 0
       pyramid fill --holes nan depth.exr depth_filled.exr    # holes at NaN/Inf pixels
       pyramid fill --analysis box --json in.exr out.exr
+      pyramid fill --analysis box4 --weight-scale 4 --sweeps 0 in.exr out.exr   # the classic fill
       pyramid fill --keep-alpha decal.png decal_dilated.png    # colour under the cut-out
     """
     from pyramid_cli.run.methods_files import fill_file
@@ -60,8 +92,8 @@ def fill(input_path, output_path, mask, holes, levels, analysis, synthesis, keep
     ro, wo = read_write(opts)
     with open_session(opts, reporter) as session:
         info = fill_file(input_path, output_path, session, mask=mask, holes=holes, levels=levels, analysis=analysis,
-                         synthesis=synthesis, keep_alpha=keep_alpha, border=border,
-                         allow_mixed_lattice=allow_mixed_lattice, read=ro, write=wo, reporter=reporter)
+                         synthesis=synthesis, weight_scale=weight_scale, sweeps=sweeps, keep_alpha=keep_alpha,
+                         border=border, allow_mixed_lattice=allow_mixed_lattice, read=ro, write=wo, reporter=reporter)
     if as_json:
         click.echo(json.dumps(info, ensure_ascii=False))
 

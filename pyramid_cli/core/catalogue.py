@@ -196,3 +196,12 @@ SYNTHESIS_FILTERS = ("nearest", "midpoint", "doosabin", "cubic", "fourpoint")
 DEFAULT_ANALYSIS = "box4"       # the analysis (⊗↓) of blur, levels, laplacian, fill and blend unless told
 DEFAULT_SYNTHESIS = "doosabin"  # their synthesis (⊗↑)
 MIP_ANALYSIS_DEFAULT = "quadratic"
+# fill's defaults (pull-push with membrane sweeps, pyramid_cli.workflows.methods), chosen by measurement against
+# oiiotool --fillholes (docs/tutorials/fill-and-blend.md): the biquadratic B-spline pull and Doo-Sabin push (one
+# lattice), the weight scale K of level 1 and of the coarser levels (a weight curve per level) and the smoothing
+# sweeps at level 1 and at the coarser levels. Gortler's classic pull-push, the former defaults: box4, K = 4 at
+# every level, no sweeps.
+FILL_ANALYSIS = "quadratic"
+FILL_SYNTHESIS = DEFAULT_SYNTHESIS
+FILL_SCALE = (16, 2)
+FILL_SWEEPS = (1, 4)

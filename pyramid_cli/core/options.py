@@ -22,6 +22,8 @@ ALPHA_MODES = ("auto", *STORED_ALPHA)                 # --alpha: auto follows th
 NAN_POLICIES = ("keep", "zero", "fail")
 STRATEGIES = ("cost", "paper", "fused")
 MAX_LEVELS = 16  # the most pyramid levels: --levels ranges, the API's checks, the sigma limits
+MAX_WEIGHT_SCALE = 1 << 20  # fill --weight-scale: beyond this K is ∞ in float32 (any weight makes a coarse pixel known)
+MAX_SWEEPS = 64  # fill --sweeps
 
 
 def check(name: str, value: str, choices) -> str:
@@ -33,4 +35,4 @@ def check(name: str, value: str, choices) -> str:
 
 __all__ = ["BACKENDS", "BACKEND_HELP", "BORDERS", "PRECISIONS", "PIXEL_TYPES", "ENCODINGS", "STORED_ALPHA",
            "COLORSPACES", "ALPHA_MODES",
-           "NAN_POLICIES", "STRATEGIES", "MAX_LEVELS", "check"]
+           "NAN_POLICIES", "STRATEGIES", "MAX_LEVELS", "MAX_WEIGHT_SCALE", "MAX_SWEEPS", "check"]

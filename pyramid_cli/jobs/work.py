@@ -278,15 +278,27 @@ class Collapse(Work):
 @dataclass(frozen=True, kw_only=True)
 class Fill(Work):
     """Pull-push hole filling (Kraus 2009, :mod:`pyramid_cli.workflows.methods`): inputs colours and weights
-    (:func:`pyramid_cli.workflows.methods.fill_inputs` makes them from an image), output the filled colours."""
+    (:func:`pyramid_cli.workflows.methods.fill_inputs` makes them from an image), output the filled colours.
+    ``weight_scale`` is the pull's weight scale K and ``sweeps`` the push's smoothing sweeps, each one number
+    or a pair (level 1, every coarser level)."""
 
     levels: int | None = None
-    analysis: str = catalogue.DEFAULT_ANALYSIS
-    synthesis: str = catalogue.DEFAULT_SYNTHESIS
+    analysis: str = catalogue.FILL_ANALYSIS
+    synthesis: str = catalogue.FILL_SYNTHESIS
     premultiplied: bool = True
+    weight_scale: int | tuple[int, int] = catalogue.FILL_SCALE
+    sweeps: int | tuple[int, int] = catalogue.FILL_SWEEPS
     allow_mixed_lattice: bool = False
     n_inputs = 2
     label = "fill"
+
+    def __post_init__(self) -> None:
+        from pyramid_cli.workflows.methods import fill_options
+
+        super().__post_init__()
+        scale, sweeps = fill_options(self.weight_scale, self.sweeps)  # refused (exit 2) when made
+        object.__setattr__(self, "weight_scale", scale)
+        object.__setattr__(self, "sweeps", sweeps)
 
     def warnings(self, size=None):
         return _lattice_warnings(self, None, "fill")
@@ -295,7 +307,7 @@ class Fill(Work):
         from pyramid_cli.workflows.methods import fill_plan
 
         return fill_plan(tuple(sizes[0][:2]), self.levels, self.analysis, self.synthesis, self.premultiplied,
-                         self.border, strategy)
+                         self.border, strategy, self.weight_scale, self.sweeps)
 
     def reference(self, images):
         import numpy as np
@@ -306,7 +318,8 @@ class Fill(Work):
         if self.premultiplied:
             with np.errstate(divide="ignore", invalid="ignore"):
                 colour = np.where(weight > 0, colour / np.where(weight > 0, weight, 1), 0.0)
-        return [methods_reference.fill(colour, weight, self.levels, self.analysis, self.synthesis, self.border)]
+        return [methods_reference.fill(colour, weight, self.levels, self.analysis, self.synthesis, self.border,
+                                       self.weight_scale, self.sweeps)]
 
 
 @dataclass(frozen=True, kw_only=True)

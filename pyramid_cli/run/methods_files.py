@@ -47,8 +47,9 @@ def _read_mask(path: str, shape: tuple[int, ...], ro: ReadOptions, reporter: Rep
 
 
 def fill_file(input_path: str, output_path: str, session: Session, *, mask: str | None = None,
-              holes: str | None = None, levels: int | None = None, analysis: str = catalogue.DEFAULT_ANALYSIS,
-              synthesis: str = catalogue.DEFAULT_SYNTHESIS, keep_alpha: bool = False, border: str = "clamp",
+              holes: str | None = None, levels: int | None = None, analysis: str = catalogue.FILL_ANALYSIS,
+              synthesis: str = catalogue.FILL_SYNTHESIS, weight_scale: int = catalogue.FILL_SCALE,
+              sweeps: int = catalogue.FILL_SWEEPS, keep_alpha: bool = False, border: str = "clamp",
               allow_mixed_lattice: bool = False, read: ReadOptions | None = None, write: WriteOptions | None = None,
               reporter: Reporter | None = None) -> dict:
     """Pull-push fill of one image file (:func:`pyramid_cli.api.fill`); returns what ``--json`` prints.
@@ -79,7 +80,7 @@ def fill_file(input_path: str, output_path: str, session: Session, *, mask: str 
     # the weights are checked, and what they hold said, above
     colour, weight, premultiplied = fill_inputs(px, holes, weights, alpha, where=input_path, warn=lambda _: None)
     work = Fill(levels=levels, analysis=analysis, synthesis=synthesis, premultiplied=premultiplied, border=border,
-                allow_mixed_lattice=allow_mixed_lattice)
+                weight_scale=weight_scale, sweeps=sweeps, allow_mixed_lattice=allow_mixed_lattice)
     for message in work.warnings(px.shape[:2]):
         reporter.warn(message)
     announce_compiles(session, work, [colour, weight], reporter)
@@ -93,7 +94,7 @@ def fill_file(input_path: str, output_path: str, session: Session, *, mask: str 
     info = {"output": output_path, "width": w, "height": h, "holes": holes, "known": int(np.sum(w0 >= 1)),
             "partial": int(np.sum((w0 > 0) & (w0 < 1))), "empty": int(np.sum(w0 <= 0)),
             "levels": _levels(work, px.shape[:2]), "analysis": analysis, "synthesis": synthesis,
-            "border": border, "executor": session.ran}
+            "weight_scale": weight_scale, "sweeps": sweeps, "border": border, "executor": session.ran}
     reporter.detail(f"{io.describe_rules(image.spec)}; executor {session.ran}")
     reporter.result(f"wrote {output_path} ({w}×{h}, {info['empty']} empty and {info['partial']} partial pixel(s) "
                     f"filled, {session.ran})")

@@ -7,24 +7,32 @@ executor (emulator, CPU, GL) runs the whole method without read-back between lev
 float64 oracle, written from the papers' equations and not from these plans, is
 :mod:`pyramid_cli.reference.methods`.
 
-**Pull-push** (Gortler et al., "The Lumigraph", SIGGRAPH 1996; corrected and normalised in
-M. Kraus, "The Pull-Push Algorithm Revisited", GRAPP 2009,
-https://www.scitepress.org/papers/2009/17726/17726.pdf). Level 0 holds premultiplied colours
-``p₀ = w₀·c`` and weights ``w₀ ∈ [0, 1]``. With ``A`` the analysis filter (normalised: its
-weights sum to 1), ``S`` the synthesis filter and ``K = 4`` (the fine pixels one coarse pixel
-covers in 2-D: Gortler's pull filter ``h̃ = [½ 1 ½]²`` sums to 4):
+**Pull-push** (Gortler et al., "The Lumigraph", SIGGRAPH 1996; on the GPU, Strengert, Kraus & Ertl,
+"Pyramid Methods in GPU-Based Image Processing", VMV 2006; normalised in M. Kraus, "The Pull-Push
+Algorithm Revisited", GRAPP 2009, https://www.scitepress.org/papers/2009/17726/17726.pdf). Level 0 holds
+premultiplied colours ``p₀ = w₀·c`` and weights ``w₀ ∈ [0, 1]``. With ``A`` the analysis filter
+(normalised: its weights sum to 1), ``S`` the synthesis filter, ``K_k`` the weight scale of level k (a
+coarse pixel covers 2×2 fine ones: Gortler's pull filter ``h̃ = [½ 1 ½]²`` sums to 4, the classic ``K``)
+and ``R_k`` the smoothing sweeps of level k:
 
-- pull, k = 0 … m−1:  ``W = A(w_k)``, ``P = A(p_k)``, ``w_{k+1} = min(1, K·W)``,
+- pull, k = 0 … m−1:  ``W = A(w_k)``, ``P = A(p_k)``, ``w_{k+1} = min(1, K_{k+1}·W)``,
   ``p_{k+1} = P · w_{k+1} / W`` (0 where W = 0): the weighted mean colour ``P/W`` carried with
   the clamped weight (``pull_weight``, ``pull_colour``);
 - the coarsest level: ``c̄_m = p_m / w_m`` (``divide``);
 - push, k = m−1 … 0: ``c̄_k = p_k + (1 − w_k)·S(c̄_{k+1})`` (``over``): each level composited
-  over the expanded, already complete coarser one by its own weight.
+  over the expanded, already complete coarser one by its own weight; then, at levels 1 … m−1,
+  ``R_k`` times ``c̄_k ← p_k + (1 − w_k)·B(c̄_k)`` with ``B`` the 3×3 Bartlett mask (a ``bartlett ⊗``
+  pass and ``over``): damped Jacobi sweeps of the membrane (Laplace) equation in the holes with the
+  known part held, so the push hands each finer level a continuation of the known pixels closer to the
+  harmonic one instead of their blurred mean: the coarse-to-fine relaxation of multigrid surface
+  interpolation (Terzopoulos, "Image Analysis Using Multigrid Relaxation Methods", IEEE PAMI 8(2), 1986),
+  started from the pull-push pyramid. ``R = 0`` and one ``K`` at every level is the classic pull-push.
 
-A known pixel of weight 1 comes out as ``p₀ + 0·S(…) = c`` exactly. (Only the 2009 paper's
-abstract, which stresses "the correct normalization of the employed filters", could be retrieved
-for this implementation: the equations are Gortler et al.'s in premultiplied form, with the
-normalisation their pull filter implies; ``K`` was also checked by measurement, see README.)
+``K`` and ``R`` are given for level 1 and for every coarser level (``(K_1, K_≥2)``, ``(R_1, R_≥2)``): a
+weight curve per level. A known pixel of weight 1 comes out as ``p₀ + 0·S(…) = c`` exactly: level 0 is
+never swept. The defaults (quadratic ⊗↓, Doo-Sabin ⊗↑, ``K`` = (16, 2), ``R`` = (1, 4)) were chosen by
+measurement against ``oiiotool --fillholes`` (``bench/fill_cases.py``, docs/tutorials/fill-and-blend.md);
+the former defaults (box4 ⊗↓, ``K`` = 4, ``R`` = 0) stay reachable through the options.
 
 **Blending** (Burt & Adelson,
 "A Multiresolution Spline With Application to Image Mosaics", ACM ToG 2(4), 1983):
@@ -45,14 +53,18 @@ from pyramid_cli.core import catalogue
 from pyramid_cli.core.errors import DataError, UsageError
 from pyramid_cli.core.expr import Op, steps
 from pyramid_cli.core.geometry import level_sizes, mip_levels, reduced
+from pyramid_cli.core.options import MAX_SWEEPS, MAX_WEIGHT_SCALE
 from pyramid_cli.core.parse import one_step
 from pyramid_cli.plan.lower import Builder
 from pyramid_cli.plan.model import Plan
 from pyramid_cli.workflows.pyramids import run_steps
 
-PULL_SCALE = 4           # K: a coarse pixel covers 2×2 fine ones (Gortler's h̃ = [½ 1 ½]² sums to 4)
-FILL_ANALYSIS = catalogue.DEFAULT_ANALYSIS    # Kraus 2009 builds on the paper's 4×4 box analysis and …
-FILL_SYNTHESIS = catalogue.DEFAULT_SYNTHESIS  # … the Doo-Sabin (biquadratic B-spline) synthesis, as the blur does
+PULL_SCALE = 4           # the classic K: a coarse pixel covers 2×2 fine ones (Gortler's h̃ = [½ 1 ½]² sums to 4)
+FILL_SCALE = catalogue.FILL_SCALE          # the default K and …
+FILL_SWEEPS = catalogue.FILL_SWEEPS        # … smoothing sweeps, (level 1, coarser levels), by measurement
+FILL_ANALYSIS = catalogue.FILL_ANALYSIS    # the biquadratic B-spline ⊗↓ (§4.3) and …
+FILL_SYNTHESIS = catalogue.FILL_SYNTHESIS  # … the Doo-Sabin (biquadratic B-spline) ⊗↑, one lattice
+SWEEP_FILTER = "bartlett"  # B of a sweep: the 3×3 binomial mask (§3.2)
 HOLES = ("alpha", "mask", "nan")
 
 
@@ -60,16 +72,21 @@ HOLES = ("alpha", "mask", "nan")
 @lru_cache(maxsize=32)  # batches re-use a plan per image size
 def fill_plan(size: tuple[int, int], levels: int | None = None, analysis: str = FILL_ANALYSIS,
               synthesis: str = FILL_SYNTHESIS, premultiplied: bool = True, border: str = "clamp",
-              strategy: str = "cost") -> Plan:
+              strategy: str = "cost", scale: tuple[int, int] = FILL_SCALE,
+              sweeps: tuple[int, int] = FILL_SWEEPS) -> Plan:
     """Pull-push as one job. Inputs: 0 the colours (premultiplied by the weights when
     ``premultiplied``, else multiplied in the plan), 1 the weights (the same channel count: every
     pass is per channel). Output: the filled colours ``c̄₀``.
 
-    ``levels`` pull steps (default: down to 1×1, :func:`pyramid_cli.core.geometry.mip_levels`).
+    ``levels`` pull steps (default: down to 1×1, :func:`pyramid_cli.core.geometry.mip_levels`);
+    ``scale`` the weight scale ``K`` of level 1 and of every coarser level; ``sweeps`` the smoothing
+    sweeps at level 1 and at every coarser level but the coarsest.
     """
+    scale, sweeps = fill_options(scale, sweeps)
     m = mip_levels(size) if levels is None else levels
     down = steps(one_step(analysis, Op.DOWN))
     up = steps(one_step(synthesis, Op.UP))
+    smooth = steps(one_step(SWEEP_FILTER, Op.CONV))
     sizes = level_sizes(size, m)
     b = Builder(size, strategy, border)
     w = [b.add_input(size)]
@@ -77,13 +94,38 @@ def fill_plan(size: tuple[int, int], levels: int | None = None, analysis: str = 
     for k in range(m):
         big_w = run_steps(b, w[k], down)
         big_p = run_steps(b, p[k], down)
-        w.append(b.pointwise("pull_weight", [big_w], f"w{k + 1} = min(1, {PULL_SCALE}·A(w{k}))", PULL_SCALE))
-        p.append(b.pointwise("pull_colour", [big_p, big_w], f"p{k + 1} = A(p{k})·w{k + 1}/A(w{k})", PULL_SCALE))
+        kk = scale[min(k, 1)]
+        w.append(b.pointwise("pull_weight", [big_w], f"w{k + 1} = min(1, {kk}·A(w{k}))", kk))
+        p.append(b.pointwise("pull_colour", [big_p, big_w], f"p{k + 1} = A(p{k})·w{k + 1}/A(w{k})", kk))
     c = b.pointwise("divide", [p[m], w[m]], f"c{m} = p{m}/w{m}")
     for k in range(m - 1, -1, -1):
         expanded = run_steps(b, c, up, crop=sizes[k])
         c = b.pointwise("over", [p[k], w[k], expanded], f"c{k} = p{k} + (1 − w{k})·S(c{k + 1})")
-    return b.build(f"fill: pull-push, {m} level(s), {analysis} ⊗↓ / {synthesis} ⊗↑", outputs=[c])
+        for i in range(sweeps[min(k, 2) - 1] if k > 0 else 0):
+            c = b.pointwise("over", [p[k], w[k], run_steps(b, c, smooth)], f"c{k} = p{k} + (1 − w{k})·B(c{k}), "
+                            f"sweep {i + 1}")
+    return b.build(f"fill: pull-push, {m} level(s), {analysis} ⊗↓ / {synthesis} ⊗↑, K = {scale[0]}/{scale[1]}, "
+                   f"sweeps {sweeps[0]}/{sweeps[1]}", outputs=[c])
+
+
+def fill_options(scale: int | tuple[int, int], sweeps: int | tuple[int, int]) -> tuple[tuple[int, int], ...]:
+    """The weight scales and sweep counts as (level 1, coarser levels) pairs (one number: both), checked.
+
+    Raises
+    ------
+    UsageError
+        A weight scale outside 1 … :data:`~pyramid_cli.core.options.MAX_WEIGHT_SCALE`, sweeps outside
+        0 … :data:`~pyramid_cli.core.options.MAX_SWEEPS`, or more than two of either.
+    """
+    pairs = []
+    for name, value, lo, hi in (("weight scale", scale, 1, MAX_WEIGHT_SCALE), ("sweeps", sweeps, 0, MAX_SWEEPS)):
+        v = tuple(value) if isinstance(value, (tuple, list)) else (value, value)
+        v = v * 2 if len(v) == 1 else v
+        if len(v) != 2 or not all(isinstance(x, (int, np.integer)) and lo <= x <= hi for x in v):
+            raise UsageError(f"the {name} must be one integer from {lo} to {hi}, or two (level 1, coarser levels), "
+                             f"not {value!r}")
+        pairs.append(tuple(int(x) for x in v))
+    return tuple(pairs)
 
 
 @lru_cache(maxsize=32)
@@ -246,4 +288,5 @@ def mask_channels(mask: np.ndarray, image: np.ndarray, where: str = "",
 
 
 __all__ = ["fill_plan", "blend_plan", "blend_levels", "fill_inputs", "fill_output", "mask_weights", "mask_channels",
-           "PULL_SCALE", "FILL_ANALYSIS", "FILL_SYNTHESIS", "HOLES", "BLEND_COARSEST"]
+           "fill_options", "PULL_SCALE", "FILL_SCALE", "FILL_SWEEPS", "FILL_ANALYSIS", "FILL_SYNTHESIS",
+           "SWEEP_FILTER", "HOLES", "BLEND_COARSEST"]

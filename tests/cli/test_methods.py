@@ -53,6 +53,29 @@ def test_fill_levels_out_of_range_exits_2(holes, tmp_path):
     assert r.exit_code == 2 and not (tmp_path / "o.exr").exists()
 
 
+@pytest.mark.parametrize("option", [["--weight-scale", "0"], ["--sweeps", "65"], ["--sweeps", "1,2,3"],
+                                    ["--weight-scale", "a"]])
+def test_fill_weight_scale_or_sweeps_out_of_range_exits_2(holes, tmp_path, option):
+    r = invoke("fill", *option, holes, tmp_path / "o.exr")
+    assert r.exit_code == 2 and not (tmp_path / "o.exr").exists() and option[0] in r.output
+
+
+def test_fill_classic_options_equal_the_api_and_json_names_them(holes, tmp_path):
+    """``--weight-scale 4 --sweeps 0 --analysis box4`` is pyr.fill's classic pull-push; --json says what ran."""
+    import pyramid_cli as pyr
+
+    r = invoke("fill", "--backend", "cpu", "--json", "--analysis", "box4", "--weight-scale", "4", "--sweeps", "0",
+               holes, tmp_path / "c.exr")
+    assert r.exit_code == 0, r.output
+    info = json.loads(r.stdout)
+    assert info["weight_scale"] == [4, 4] and info["sweeps"] == [0, 0] and info["analysis"] == "box4"
+    src = read(holes)
+    want = pyr.fill(src, analysis="box4", weight_scale=4, sweeps=0, backend="cpu")
+    np.testing.assert_allclose(read(tmp_path / "c.exr"), want, rtol=0, atol=1e-6)
+    r = invoke("fill", "--backend", "cpu", "--json", holes, tmp_path / "d.exr")
+    assert json.loads(r.stdout)["weight_scale"] == [16, 2] and json.loads(r.stdout)["sweeps"] == [1, 4]
+
+
 def test_blend_json_and_a_mask_of_ones_gives_a_back(tmp_path):
     rng = np.random.default_rng(1)
     a = write(tmp_path / "a.exr", rng.random((16, 16, 3)))
