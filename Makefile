@@ -30,6 +30,7 @@ demo: $(STAMP)
 test: $(STAMP) check-gl
 	$(PY) -m ruff check pyramid_cli tests samples scripts bench
 	$(VENV)/bin/lint-imports
+	$(PY) -m mypy
 	$(MAKE) docs
 	$(PY) -m pytest
 

@@ -350,7 +350,8 @@ def pyramid(array: ArrayLike, *, analysis: str = catalogue.DEFAULT_ANALYSIS, lev
         _check_levels(levels, 0)
     work = Levels(levels=levels, analysis=analysis, border=border)
     if arrays.wanted(array, out, memory):
-        return iter([array, *arrays.banded(_session(session, backend), work, array, out, memory, dtype)])
+        outs = arrays.banded(_session(session, backend), work, array, out, memory, dtype)
+        return iter([arrays.as_array(array), *outs])
     return iter(_run(work, ArrayInput(array, dtype), session, backend))
 
 
@@ -427,17 +428,13 @@ def collapse(bands: Sequence[ArrayLike], *, synthesis: str | None = None, border
     given = [np.asarray(b) for b in bands]
     if len(given) < 2:
         raise errors.UsageError(f"collapse needs at least two bands, got {len(given)}")
-    inputs = [ArrayInput(b, dtype, f"band {k}") for k, b in enumerate(given)]
-    joint = ArrayInput(given[0], dtype if dtype is not None else np.result_type(*[b.dtype for b in given]),
-                       "band 0")
-    wide = joint.wide or any(i.wide for i in inputs)
-    pixels = [i.at(wide) for i in inputs]
+    joint = ArrayInput(given[0], dtype if dtype is not None else np.result_type(*[b.dtype for b in given]), "band 0")
+    pixels = [dtypes.as_pixels(b, f"band {k}", joint.wide) for k, b in enumerate(given)]
     for k in range(1, len(pixels)):
         want = tuple(reduced(n) for n in pixels[k - 1].shape[:2])
         if pixels[k].shape[:2] != want or pixels[k].shape[2:] != pixels[0].shape[2:]:
             raise errors.UsageError(f"band {k} has shape {pixels[k].shape}; after {pixels[k - 1].shape} it must "
                                     f"be {want + pixels[0].shape[2:]}")
-    joint.wide, joint.pixels = wide, pixels[0]
     (out,) = _run(Collapse(bands=len(pixels), synthesis=synthesis, border=border), joint, session, backend,
                   pixels[1:])
     return out
@@ -479,7 +476,7 @@ def mipmap(array: ArrayLike, *, analysis: str = catalogue.MIP_ANALYSIS_DEFAULT, 
     """
     work = TextureLevels(levels=None, analysis=analysis, border=border, rounding=rounding)
     if arrays.wanted(array, out, memory):
-        return [np.asarray(array), *arrays.banded(_session(session, backend), work, array, out, memory, dtype)]
+        return [arrays.as_array(array), *arrays.banded(_session(session, backend), work, array, out, memory, dtype)]
     return _run(work, ArrayInput(array, dtype), session, backend)
 
 
@@ -678,7 +675,10 @@ def process_files(work: Work, inputs: Sequence[str], output: str | None = None, 
     read_keys = {"colorspace", "alpha", "nan"}
     ro = ReadOptions(**{k: v for k, v in io_options.items() if k in read_keys})
     wo = WriteOptions(**{k: v for k, v in io_options.items() if k not in read_keys})
-    paths = [*inputs, output] if template is None else list(inputs)
+    if template is None and output is None:
+        raise errors.UsageError("process_files needs an output path or a template")
+    paths = [*inputs, output] if template is None and output is not None else list(inputs)
+    runner: Any  # a session, or for a cluster without one what each worker's is made of
     if cluster is not None and session is None:
         from pyramid_cli.run.cluster import SessionSpec
 

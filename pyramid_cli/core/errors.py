@@ -131,9 +131,11 @@ def warn(message: str, category: type[Warning] = PyramidWarning) -> None:
     import os
     import sys
     import warnings
+    from types import FrameType
 
     package = os.path.dirname(os.path.dirname(os.path.abspath(__file__))) + os.sep
-    frame, level = sys._getframe(1), 2
+    frame: FrameType | None = sys._getframe(1)
+    level = 2
     while frame is not None and frame.f_code.co_filename.startswith(package):
         frame, level = frame.f_back, level + 1
     warnings.warn(message, category, stacklevel=level)

@@ -72,6 +72,11 @@ def fill_colour(colour: np.ndarray, first: ArrayInput, holes: str) -> np.ndarray
     return np.ascontiguousarray(a3, dtype=np.float64)
 
 
+def as_array(array: ArrayLike) -> np.ndarray:
+    """``array`` itself when it is a numpy array (a memmap stays one), else as one."""
+    return array if isinstance(array, np.ndarray) else np.asarray(array)
+
+
 def wanted(array: object, out: object, memory: object) -> bool:
     """Whether a call runs band by band: ``out=``, ``memory=`` or a memory-mapped input."""
     return out is not None or memory is not None or isinstance(array, np.memmap)
@@ -112,9 +117,10 @@ def banded(session: Session, work: Work, array: ArrayLike, out: Sequence[np.ndar
     executor = session.executor
     choice = stream.choose(plan, channels, budget, in_bytes=max(4, a.dtype.itemsize), force=True,
                            **stream.costs(executor))
-    tiles.run_arrays(executor, plan, [a], band=choice.band, out=outs, convert=dtypes.as_pixels)
+    band = choice.band if choice.band is not None else a.shape[0]  # forced: always a band, else the whole height
+    tiles.run_arrays(executor, plan, [a], band=band, out=outs, convert=dtypes.as_pixels)
     session.ran = session.name
     return outs if out is not None or store == want else [dtypes.to_dtype(o, want) for o in outs]
 
 
-__all__ = ["ArrayInput", "run", "fill_colour", "wanted", "banded"]
+__all__ = ["ArrayInput", "run", "fill_colour", "as_array", "wanted", "banded"]
