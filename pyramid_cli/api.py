@@ -541,7 +541,7 @@ def fill(array: ArrayLike, *, mask: ArrayLike | None = None, holes: str | None =
     >>> [round(float(v), 2) for v in filled[2]]
     [0.0, 0.12, 0.2, 0.32, 0.48, 0.64, 0.8, 0.88, 1.0]
     """
-    from pyramid_cli.workflows.methods import fill_inputs, fill_output
+    from pyramid_cli.workflows.methods import fill_inputs
 
     holes = holes or ("mask" if mask is not None else "alpha")
     if keep_alpha and holes != "alpha":
@@ -554,7 +554,7 @@ def fill(array: ArrayLike, *, mask: ArrayLike | None = None, holes: str | None =
     work = Fill(levels=levels, analysis=analysis, synthesis=synthesis, premultiplied=premultiplied, border=border)
     _warn_work(work, pixels.shape[:2])
     (out,) = _session(session, backend).run(work, [arrays.fill_colour(colour, inp, holes), weight], inp.compute)
-    return dtypes.to_dtype(fill_output(out, pixels, holes, keep_alpha=keep_alpha), inp.dtype)
+    return arrays.fill_result(out, inp, holes, keep_alpha)
 
 
 def blend(a: ArrayLike, b: ArrayLike, mask: ArrayLike, *, levels: int | None = None,

@@ -72,6 +72,18 @@ def fill_colour(colour: np.ndarray, first: ArrayInput, holes: str) -> np.ndarray
     return np.ascontiguousarray(a3, dtype=np.float64)
 
 
+def fill_result(filled: np.ndarray, first: ArrayInput, holes: str, keep_alpha: bool) -> np.ndarray:
+    """:func:`pyramid_cli.workflows.methods.fill_output` at ``first``'s width and as its dtype: where it computes
+    in float64, the filled colours are put back in float64 (fill_output's alpha layout is float32)."""
+    from pyramid_cli.workflows.methods import fill_output
+
+    out = fill_output(filled, first.pixels, holes, keep_alpha=keep_alpha)
+    if first.wide and holes == "alpha":
+        out = out.astype(np.float64)
+        out[:, :, :-1] = filled if filled.ndim == 3 else filled[:, :, None]
+    return dtypes.to_dtype(out, first.dtype)
+
+
 def as_array(array: ArrayLike) -> np.ndarray:
     """``array`` itself when it is a numpy array (a memmap stays one), else as one."""
     return array if isinstance(array, np.ndarray) else np.asarray(array)
@@ -123,4 +135,4 @@ def banded(session: Session, work: Work, array: ArrayLike, out: Sequence[np.ndar
     return outs if out is not None or store == want else [dtypes.to_dtype(o, want) for o in outs]
 
 
-__all__ = ["ArrayInput", "run", "fill_colour", "as_array", "wanted", "banded"]
+__all__ = ["ArrayInput", "run", "fill_colour", "fill_result", "as_array", "wanted", "banded"]

@@ -133,6 +133,16 @@ def test_every_function_checks_before_it_returns(call):
         call()  # not at the first next()
 
 
+@pytest.mark.parametrize("keep_alpha", [False, True])
+def test_a_float64_fill_from_alpha_keeps_its_known_pixels_bit_for_bit(keep_alpha):
+    a = picture(np.float64, (9, 8, 4), seed=5)
+    a[:, :, 3] = 1.0
+    a[3:6, 2:5] = 0.0  # a premultiplied hole
+    filled = pyr.fill(a, keep_alpha=keep_alpha, backend="cpu")
+    assert filled.dtype == np.float64
+    np.testing.assert_array_equal(filled[a[:, :, 3] == 1], a[a[:, :, 3] == 1])
+
+
 def test_collapse_of_integer_input_gives_codes_back():
     a = picture(np.uint8, (12, 9))
     np.testing.assert_array_equal(pyr.collapse(pyr.laplacian(a, 3, backend="cpu"), dtype=np.uint8, backend="cpu"), a)
