@@ -12,11 +12,11 @@ as scikit-image's ``img_as_float`` reads them: floats as they are, integer array
 codes (unsigned: code / max, signed: code / max clipped at −1), booleans as 0/1. Pixels are
 linear light: filtering sRGB codes directly is the caller's choice (``read_image`` decodes files).
 
-Result dtype (:mod:`pyramid_cli.imageio.dtypes`): the input's, or ``dtype=``. float16/32 inputs are
-computed in float32 (every executor's width); float64 ones (or float64 asked) in float64 by the float64
-oracle (``backend="reference"``, 10–100× slower than the CPU executor: ``dtype=np.float32`` is the fast
-path) on every backend but ``"gl"`` (float32 there, widened). Integer inputs come back as codes of their
-type, ``round(value · max)`` clipped (NaN as 0); booleans as float32. Every level of a pyramid has one
+Result dtype (:mod:`pyramid_cli.imageio.dtypes`): the input's, or ``dtype=``. float16/32 results are
+computed in float32 (every executor's width); float64 results in float64 by the numpy plan emulator
+(``"auto"``, ``"cpu"``; about 15× slower than the CPU executor: ``dtype=np.float32`` is the fast path) or
+the float64 oracle (``"reference"``), and in float32 then widened on ``"gl"``. Integer inputs come back
+as codes of their type, ``round(value · max)`` clipped (NaN as 0); booleans as float32. Every level of a pyramid has one
 dtype and none is the caller's memory (level 0 is a copy), except in band-by-band runs (``out=``,
 ``memory=``, a memmap input: computed in float32, level 0 the caller's array itself).
 

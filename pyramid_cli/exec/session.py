@@ -414,9 +414,10 @@ class Session:
         """Every output of ``work`` on ``images`` (one array, or one per input), as ``dtype``.
 
         ``dtype`` is float32 or float16 (rounded to nearest even from the float32 result,
-        as every executor rounds), or float64: computed in float64 by the float64 oracle
-        (:meth:`~pyramid_cli.jobs.work.Work.reference`) on every backend but ``gl``, which has no
-        float64 (computed in float32 there, then widened). A job that keeps its input returns it
+        as every executor rounds), or float64: computed in float64 by the numpy plan emulator
+        (:class:`~pyramid_cli.exec.emulate.Emulator`, float64 throughout) for ``auto`` and ``cpu``, by
+        the float64 oracle (:meth:`~pyramid_cli.jobs.work.Work.reference`) for ``reference``, and in
+        float32 then widened on ``gl``, which has no float64. A job that keeps its input returns it
         first, unchanged.
         """
         images = list(images) if isinstance(images, (list, tuple)) else [images]
@@ -425,10 +426,7 @@ class Session:
         work.check(tuple(im.shape[:2] for im in images))
         kept = [images[0]] if work.keeps_input else []
         if np.dtype(dtype) == np.float64:
-            if self.backend != "gl":
-                self.ran = "reference"
-                return kept + [np.asarray(o, dtype=np.float64) for o in work.reference(images)]
-            return kept + [o.astype(np.float64) for o in self.run(work, images)[len(kept):]]
+            return kept + self._run_float64(work, images)
         if not self._decided:
             shapes = [np.shape(im) if np.ndim(im) > 2 else (*np.shape(im)[:2], 1) for im in images]
             self.decide(work, shapes, dtype=np.asarray(images[0]).dtype)
@@ -440,6 +438,18 @@ class Session:
             self.ran = self.name
             return kept
         return kept + self.run_plan(p, images, dtype, work)
+
+    def _run_float64(self, work: Work, images: list) -> list[np.ndarray]:
+        """:meth:`run`'s float64 outputs (see there), without the kept input."""
+        if self.backend == "reference":
+            self.ran = "reference"
+            return [np.asarray(o, dtype=np.float64) for o in work.reference(images)]
+        if self.backend == "gl":
+            return [o.astype(np.float64) for o in self.run(work, images)[1 if work.keeps_input else 0:]]
+        emulator = Emulator()
+        p = work.plan(tuple(tuple(np.shape(im)[:2]) for im in images), emulator.strategy)
+        self.ran = emulator.name
+        return [] if p is None else emulator.run_outputs(p, images, np.float64)
 
     def run_plan(self, p: Plan, images, dtype=np.float32, work: Work | None = None) -> list[np.ndarray]:
         """Every output of a plan, on this session's executor (the reference cannot run plans)."""

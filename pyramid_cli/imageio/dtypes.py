@@ -5,7 +5,7 @@ unsigned integers as ``code / max``, signed ones as ``code / max`` clipped at âˆ
 A result goes back to the caller's dtype (:func:`result_dtype`): a float keeps its width, an
 integer type gets its codes back (``round(value Â· max)``, clipped to the type's range; NaN
 becomes 0), a boolean input gives float32. :func:`is_wide` says which results are computed in
-float64 rather than float32.
+float64 (float64 results, and integers of more than 16 bits) rather than float32.
 """
 
 from __future__ import annotations
@@ -46,9 +46,10 @@ def result_dtype(source: np.dtype, dtype: Any = None) -> np.dtype:
 
 
 def is_wide(source: np.dtype, result: np.dtype) -> bool:
-    """Whether a job on ``source`` pixels giving ``result`` is computed in float64: when either is float64
-    (or a wider float) or an integer of more than 16 bits, whose codes float32 cannot hold exactly."""
-    return any((d.kind == "f" and d.itemsize >= 8) or (d.kind in "iu" and d.itemsize > 2) for d in (source, result))
+    """Whether a job on ``source`` pixels giving ``result`` is computed in float64: when the result is float64
+    (or a wider float) or an integer of more than 16 bits, whose codes float32 cannot hold exactly. A float32 or
+    float16 result (``dtype=np.float32`` of a float64 input, say) is computed in float32, the fast path."""
+    return (result.kind == "f" and result.itemsize >= 8) or (result.kind in "iu" and result.itemsize > 2)
 
 
 def as_pixels(array: Any, name: str = "array", wide: bool = False) -> np.ndarray:

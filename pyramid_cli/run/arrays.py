@@ -38,7 +38,8 @@ class ArrayInput:
 
     @property
     def compute(self) -> type:
-        """What the session is asked for: float64 (the oracle), float16 (rounded by the executor), float32."""
+        """What the session is asked for: float64 (:meth:`~pyramid_cli.exec.session.Session.run`'s float64
+        path), float16 (rounded by the executor) or float32."""
         return np.float64 if self.wide else np.float16 if self.dtype == np.float16 else np.float32
 
     def at(self, wide: bool) -> np.ndarray:

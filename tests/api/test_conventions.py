@@ -63,9 +63,11 @@ def test_integer_results_are_the_float_results_rounded_to_codes(dtype):
 def test_float64_is_computed_in_float64_and_float16_rounded_from_float32():
     a = picture(np.float64, (17, 13))
     want = pyramids.blur_reference(a, 3)
-    np.testing.assert_array_equal(pyr.blur(a, 3, backend="cpu"), want)  # the float64 oracle, not float32
-    fast = pyr.blur(a, 3, dtype=np.float32, backend="cpu")
+    np.testing.assert_array_equal(pyr.blur(a, 3, backend="reference"), want)  # the float64 oracle itself
+    np.testing.assert_allclose(pyr.blur(a, 3, backend="cpu"), want, rtol=0, atol=1e-14)  # float64 on the CPU
+    fast = pyr.blur(a, 3, dtype=np.float32, backend="cpu")  # the fast path: the executor's float32
     assert fast.dtype == np.float32 and 0 < np.abs(fast - want).max() < 1e-6
+    np.testing.assert_array_equal(fast, pyr.blur(a.astype(np.float32), 3, backend="cpu"))
     half = pyr.blur(a.astype(np.float16), 3, backend="cpu")
     np.testing.assert_array_equal(half, pyr.blur(a.astype(np.float16), 3, dtype=np.float32,
                                                  backend="cpu").astype(np.float16))

@@ -13,7 +13,8 @@ from pyramid_cli.imageio import dtypes
     (np.float16, None, np.float16, False), (np.float32, None, np.float32, False), (np.float64, None, np.float64, True),
     (np.uint8, None, np.uint8, False), (np.uint16, None, np.uint16, False), (np.int16, None, np.int16, False),
     (np.uint32, None, np.uint32, True), (np.bool_, None, np.float32, False), (np.uint8, np.float64, np.float64, True),
-    (np.float64, np.float32, np.float32, True), (np.float32, "uint16", np.uint16, False),
+    (np.float64, np.float32, np.float32, False), (np.float32, "uint16", np.uint16, False),
+    (np.uint32, np.float32, np.float32, False), (np.float16, np.float64, np.float64, True),
 ])
 def test_result_dtype_and_width(source, asked, result, wide):
     got = dtypes.result_dtype(np.dtype(source), asked)
