@@ -27,12 +27,15 @@ check-gl:
 demo: $(STAMP)
 	$(PY) -m pyramid_cli.demo $(OUT)
 
+# pytest across the cores (pytest-xdist; at most 4 workers: every one holds a GL context and numba kernels).
+# TEST_JOBS=0 runs the tests in this process, one after another. tests/system/test_docs.py builds the docs site as
+# `make docs` does (warnings are errors), so `make test` does not build it twice.
+TEST_JOBS ?= auto
 test: $(STAMP) check-gl
 	$(PY) -m ruff check pyramid_cli tests samples scripts bench
 	$(VENV)/bin/lint-imports
 	$(PY) -m mypy
-	$(MAKE) docs
-	$(PY) -m pytest
+	$(PY) -m pytest -n $(TEST_JOBS) --maxprocesses 4 --dist worksteal
 
 # The Sphinx site: warnings are errors and every cross-reference must resolve (-n).
 DOCS_OUT := build/docs

@@ -46,6 +46,7 @@ import atexit
 import logging
 import os
 from collections.abc import Iterator, Sequence
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -57,6 +58,7 @@ from pyramid_cli.core.border import canonical
 from pyramid_cli.core.errors import BackendWarning, MaskWarning, MixedLatticeWarning, PyramidWarning
 from pyramid_cli.core.expr import Expr, Op
 from pyramid_cli.core.geometry import reduced
+from pyramid_cli.core.parse import one_step, parse
 from pyramid_cli.exec.session import Session
 from pyramid_cli.imageio import dtypes
 from pyramid_cli.jobs.texture import TextureLevels
@@ -89,12 +91,8 @@ def _session(session: Session | None, backend: str) -> Session:
         return session
     options.check("backend", backend, options.BACKENDS)
     if backend not in _sessions:
-        _sessions[backend] = Session(backend, warn=_warn_backend, note=log.info)
+        _sessions[backend] = Session(backend, warn=partial(errors.warn, category=BackendWarning), note=log.info)
     return _sessions[backend]
-
-
-def _warn_backend(message: str) -> None:
-    errors.warn(message, BackendWarning)
 
 
 @atexit.register
@@ -114,14 +112,6 @@ def as_pixels(array: ArrayLike, name: str = "array") -> np.ndarray:
         Not 2-D or 3-D, empty, or not a real number type (a :class:`~pyramid_cli.core.errors.UsageError`).
     """
     return dtypes.as_pixels(array, name)
-
-
-def _expr(expr: str | Expr) -> Expr:
-    if isinstance(expr, str):
-        from pyramid_cli.core.parse import parse
-
-        return parse(expr)
-    return expr
 
 
 def _run(work: Work, inp: ArrayInput, session: Session | None, backend: str,
@@ -144,8 +134,7 @@ def _warn_work(work: Work, size: tuple[int, int] | None = None) -> None:
         log.info(message)
 
 
-def _warn_mask(message: str) -> None:  # called by methods.mask_weights, under fill_inputs or mask_channels
-    errors.warn(message, MaskWarning)
+_warn_mask = partial(errors.warn, category=MaskWarning)  # methods.mask_weights' warnings, at the caller's line
 
 
 class Bands(list):
@@ -205,7 +194,7 @@ def apply(expr: str | Expr, array: ArrayLike, *, border: str = "clamp", dtype: D
     >>> pyr.apply("doosabin *^ g", np.ones((2, 2, 3)), border="symmetric").shape
     (4, 4, 3)
     """
-    work = Filter(expr=_expr(expr), border=border)
+    work = Filter(expr=parse(expr) if isinstance(expr, str) else expr, border=border)
     if arrays.wanted(array, out, memory):
         return arrays.banded(_session(session, backend), work, array, None if out is None else [out], memory, dtype)[0]
     (result,) = _run(work, ArrayInput(array, dtype), session, backend)
@@ -230,8 +219,6 @@ def reduce(array: ArrayLike, *, analysis: str = catalogue.DEFAULT_ANALYSIS, bord
            [200, 200],
            [200, 200]], dtype=uint8)
     """
-    from pyramid_cli.core.parse import one_step
-
     return apply(one_step(analysis, Op.DOWN), array, border=border, dtype=dtype, backend=backend, session=session)
 
 
@@ -251,8 +238,6 @@ def expand(array: ArrayLike, *, synthesis: str = catalogue.DEFAULT_SYNTHESIS, bo
     >>> pyr.expand(np.ones((2, 3), dtype=np.float64)).dtype, pyr.expand(np.ones((2, 3))).shape
     (dtype('float64'), (4, 6))
     """
-    from pyramid_cli.core.parse import one_step
-
     return apply(one_step(synthesis, Op.UP), array, border=border, dtype=dtype, backend=backend, session=session)
 
 
@@ -617,30 +602,38 @@ def blend(a: ArrayLike, b: ArrayLike, mask: ArrayLike, *, levels: int | None = N
 
 # ------------------------------------------------------------------ files
 def read_image(path: str | os.PathLike[str], *, colorspace: str = "auto", alpha: str = "auto",
-               nan: str = "keep") -> io.Image:
+               nan: str = "keep", colorconfig: str | None = None) -> io.Image:
     """Read an image file into linear-light float32 pixels (alpha premultiplied) and its metadata.
 
-    ``colorspace``, ``alpha`` and ``nan`` are the CLI's ``--colorspace``, ``--alpha`` and
-    ``--nan``; see :func:`pyramid_cli.imageio.read_image`. The result's ``pixels`` is H×W×C.
+    ``colorspace``, ``alpha``, ``nan`` and ``colorconfig`` are the CLI's ``--colorspace``, ``--alpha``,
+    ``--nan`` and ``--colorconfig``; see :func:`pyramid_cli.imageio.read_image`. The result's ``pixels``
+    is H×W×C, in the linear space ``spec.linear_space`` names.
     """
-    return io.read_image(path, colorspace=colorspace, alpha=alpha, nan=nan)
+    return io.read_image(path, colorspace=colorspace, alpha=alpha, nan=nan, colorconfig=colorconfig)
 
 
 def write_image(path: str | os.PathLike[str], image, *, like: io.Image | None = None,
                 pixel_type: str | None = None, colorspace: str | None = None, alpha: str | None = None,
                 dither: bool = False, compression: str | None = None, force: bool = False,
-                channel_names: list[str] | None = None) -> None:
+                channel_names: list[str] | None = None, tocolorspace: str | None = None,
+                colorconfig: str | None = None) -> None:
     """Write an :class:`~pyramid_cli.imageio.Image` (like its source) or an array of linear pixels, atomically.
 
     An array is stored like ``like`` (an image from :func:`read_image`: its type,
     channels, colour and alpha rules and metadata) or, without it, as float where the
     format allows with channels named by count (Y, YA, RGB, RGBA, or ``channel_names``).
-    ``pixel_type`` etc. are the CLI's options.
+    ``pixel_type`` etc. are the CLI's options; ``tocolorspace`` (or its older name ``colorspace``) is
+    the space stored, ``colorconfig`` the OpenColorIO config of an array's names.
     """
+    if tocolorspace is not None and colorspace is not None and tocolorspace != colorspace:
+        raise ValueError(f"tocolorspace={tocolorspace!r} and colorspace={colorspace!r}: give one")
+    colorspace = tocolorspace if tocolorspace is not None else colorspace
     if not isinstance(image, io.Image):
         pixels = as_pixels(image)
         pixels = pixels if pixels.ndim == 3 else pixels[:, :, None]
         info = like.spec if like is not None else io.info_for_array(path, pixels.shape[2], channel_names)
+        if colorconfig is not None and like is None:
+            info.colorconfig = colorconfig
         if len(info.channel_names) != pixels.shape[2]:
             raise ValueError(f"{pixels.shape[2]} channel(s) cannot be stored like {len(info.channel_names)}")
         image = io.Image(np.ascontiguousarray(pixels, dtype=np.float32), info)
@@ -672,7 +665,7 @@ def process_files(work: Work, inputs: Sequence[str], output: str | None = None, 
     from pyramid_cli.run.pipeline import process
     from pyramid_cli.run.settings import ReadOptions, WriteOptions
 
-    read_keys = {"colorspace", "alpha", "nan"}
+    read_keys = {"colorspace", "alpha", "nan", "colorconfig"}
     ro = ReadOptions(**{k: v for k, v in io_options.items() if k in read_keys})
     wo = WriteOptions(**{k: v for k, v in io_options.items() if k not in read_keys})
     if template is None and output is None:

@@ -201,3 +201,28 @@ def test_write_like_a_source_keeps_its_encoding(tmp_path):
     assert out.spec.pixel_type == "uint8" and out.spec.colorspace == "srgb"
     with pytest.raises(ValueError, match="1 channel"):
         pyr.write_image(tmp_path / "bad.png", np.ones((2, 2)), like=img)
+
+
+def test_colour_spaces_pass_through_the_api(tmp_path):
+    """``colorspace=``, ``tocolorspace=`` and ``colorconfig=`` (issue 25) reach the imageio layer."""
+    import OpenImageIO as oiio
+
+    from helpers.colour import ocio, studio_config
+    from helpers.images import write
+
+    px = np.random.default_rng(3).random((8, 8, 3)).astype(np.float32)
+    src = write(tmp_path / "cct.exr", px, "float", oiio__ColorSpace="ACEScct")
+    img = pyr.read_image(src)
+    assert (img.spec.colorspace, img.spec.linear_space) == ("ACEScct", "ACEScg")
+    assert np.allclose(img.pixels, ocio(px, "ACEScct", "ACEScg"), atol=1e-6)
+    pyr.write_image(tmp_path / "g22.exr", img, tocolorspace="g22_rec709")
+    got = oiio.ImageInput.open(str(tmp_path / "g22.exr"))
+    assert got.spec().get_string_attribute("oiio:ColorSpace") == "g22_rec709_scene"
+    config = str(studio_config(tmp_path))
+    as_log = pyr.read_image(src, colorspace="plate_log", colorconfig=config)
+    assert as_log.spec.linear_space == "plate_lin"
+    from pyramid_cli.core.parse import parse
+
+    assert pyr.process_files(pyr.Filter(expr=parse("[1] * g")), [str(src)], str(tmp_path / "o.exr"),
+                             backend="cpu", colorconfig=config, colorspace="plate_log",
+                             tocolorspace="plate_lin").exit_code == 0

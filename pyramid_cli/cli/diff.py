@@ -19,7 +19,7 @@ from typing import Any
 
 import click
 
-from pyramid_cli.core.options import ALPHA_MODES, COLORSPACES
+from pyramid_cli.core.options import ALPHA_MODES
 from pyramid_cli.diff.idiff import DEFAULT_FAIL, DEFAULT_WARN, EXIT_CODES, format_value
 
 _NONNEG = click.FloatRange(min=0.0)
@@ -34,7 +34,7 @@ IDIFF_SPELLINGS: dict[str, str] = {
 _TAKES_VALUE = frozenset({
     "--fail", "--failpercent", "--hardfail", "--failrelative", "--warn", "--warnpercent", "--hardwarn",
     "--warnrelative", "--allowfailures", "--scale", "-o", "--out", "--colorspace", "--alpha", "--junit",
-    "--html", "--metric", "--flip-fail",
+    "--html", "--metric", "--flip-fail", "--tocolorspace", "--colorconfig",
 })
 
 
@@ -191,8 +191,13 @@ def _summary(results: Sequence[Any]) -> dict[str, int]:
 @click.option("--heatmap", is_flag=True,
               help="With --out: a false-colour RGB picture of each pixel's largest error, log scale "
                    "1e-8 (dark) to 1 (yellow); black = identical, white = NaN/Inf mismatch.")
-@click.option("--colorspace", type=click.Choice(COLORSPACES), default="auto", show_default=True,
-              help="With --linear: encoding of integer inputs.")
+@click.option("--colorspace", metavar="NAME", default="auto", show_default=True,
+              help="With --linear: the inputs' colour space (any name of the colour config; auto reads "
+                   "oiio:ColorSpace, then the config's file rules, then the type).")
+@click.option("--tocolorspace", metavar="NAME", help="Compare both decoded and converted to this colour space "
+              "(implies --linear): pyramid diff --tocolorspace srgb a.exr b.png.")
+@click.option("--colorconfig", metavar="FILE", help="OpenColorIO config (default: $OCIO, else OpenImageIO's "
+              "built-in one).")
 @click.option("--alpha", type=click.Choice(ALPHA_MODES), default="auto",
               show_default=True, help="With --linear: how the inputs store alpha.")
 @click.option("--metric", type=click.Choice(["idiff", "flip"]), default="idiff", show_default=True,
@@ -215,8 +220,9 @@ def _summary(results: Sequence[Any]) -> dict[str, int]:
 def diff(ctx: click.Context, path_a: str, path_b: str, fail: float, warn: float, failpercent: float,
          warnpercent: float, hardfail: float, hardwarn: float, failrelative: float, warnrelative: float,
          allowfailures: int, all_levels: bool, linear: bool, as_json: bool, out_path: str | None,
-         absolute: bool, out_if_differ: bool, scale: float, heatmap: bool, colorspace: str, alpha: str,
-         metric: str, flip_fail: float, update: bool, dry_run: bool, junit_path: str | None,
+         absolute: bool, out_if_differ: bool, scale: float, heatmap: bool, colorspace: str,
+         tocolorspace: str | None, colorconfig: str | None, alpha: str, metric: str, flip_fail: float,
+         update: bool, dry_run: bool, junit_path: str | None,
          html_dir: str | None, perceptual: bool, verbose: bool, quiet: bool) -> None:
     """Compare output A with reference B the way OpenImageIO's idiff does.
 
@@ -259,6 +265,14 @@ def diff(ctx: click.Context, path_a: str, path_b: str, fail: float, warn: float,
         raise click.UsageError("--heatmap needs --out FILE", ctx=ctx)
     if dry_run and not update:
         raise click.UsageError("--dry-run goes with --update", ctx=ctx)
+    if colorspace != "auto" or tocolorspace or colorconfig:
+        from pyramid_cli import imageio as io
+
+        try:
+            io.check_colorspaces(colorspace, tocolorspace, colorconfig=colorconfig)
+        except PyramidError as e:
+            _finish(ctx, 2, e.message, as_json)
+        linear = linear or tocolorspace is not None
     if metric == "flip":
         try:
             import flip_evaluator  # noqa: F401
@@ -271,6 +285,7 @@ def diff(ctx: click.Context, path_a: str, path_b: str, fail: float, warn: float,
                     "hardfail": hardfail, "hardwarn": hardwarn, "failrelative": failrelative,
                     "warnrelative": warnrelative, "allowfailures": allowfailures},
         all_levels=all_levels, linear=linear, colorspace=colorspace, alpha=alpha, metric=metric,
+        tocolorspace=tocolorspace, colorconfig=colorconfig,
         flip_fail=flip_fail)
     try:
         pairing = goldens.pair_inputs(path_a, path_b)

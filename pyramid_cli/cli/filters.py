@@ -36,6 +36,7 @@ def apply(expression, paths, border: str, **opts) -> None:
       pyramid apply 'quadratic *v g' 'frames/*.exr' -o 'half/{stem}.exr'
       pyramid apply 'quadratic *v g' 'plate.%04d.exr' -o 'half/plate.%04d.exr' --shard 3/10
       pyramid apply --memory 1G 'gauss7' matte_32k.exr matte_soft.exr
+      pyramid apply --colorconfig studio.ocio '[1] * g' shot_log.exr same.exr   # keeps pixels and label
     """
     from pyramid_cli.jobs.work import Filter
 
@@ -73,6 +74,7 @@ def blur(paths, levels: int, analysis: str, synthesis: str, quasi: bool, sigma: 
       pyramid blur 'plate.1001-1240#.exr' -o 'soft.%04d.exr' --shard auto --skip-existing
       pyramid blur 'plate.####.exr' -o 'soft.####.exr' --cluster local:4
       pyramid blur --levels 5 --memory 2G -v painting_32k.exr soft_32k.exr
+      pyramid blur -v --levels 3 plate_acescg.exr preview.png     # ACEScg → sRGB Rec.709 PNG, via OCIO
     """
     from pyramid_cli.jobs.work import blur_work
 

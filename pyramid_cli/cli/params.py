@@ -38,7 +38,6 @@ def io_options(f):
         ALPHA_MODES,
         BACKEND_HELP,
         BACKENDS,
-        COLORSPACES,
         NAN_POLICIES,
         PIXEL_TYPES,
         PRECISIONS,
@@ -54,8 +53,14 @@ def io_options(f):
                           "Half files travel as half either way (upload, read-back), losing nothing."),
         click.option("--type", "pixel_type", type=choice(PIXEL_TYPES),
                      help="Output pixel type (default: the input's, as the output format allows)."),
-        click.option("--colorspace", type=choice(COLORSPACES), default="auto",
-                     show_default=True, help="Encoding of integer inputs; filtering is always in linear light."),
+        click.option("--colorspace", metavar="NAME", default="auto", show_default=True,
+                     help="The input's colour space: any space, alias or role of the colour config (linear, srgb, "
+                          "ACEScg, ACEScct, g22_rec709, data, ...); auto reads oiio:ColorSpace, then the config's "
+                          "file rules, then the type (integers sRGB, floats linear). Filtering is in linear light."),
+        click.option("--tocolorspace", metavar="NAME", help="The output's colour space (default: the input's when "
+                     "the output format holds it, else what it conventionally holds: sRGB for 8/16-bit PNG/JPEG)."),
+        click.option("--colorconfig", metavar="FILE", help="OpenColorIO config (default: $OCIO, else OpenImageIO's "
+                     "built-in ACES config)."),
         click.option("--alpha", type=choice(ALPHA_MODES), default="auto",
                      show_default=True, help="How the input stores alpha (RGBA is filtered premultiplied)."),
         click.option("--nan", "nan_policy", type=choice(NAN_POLICIES), default="keep",

@@ -44,10 +44,13 @@ def open_session(opts: dict, reporter):
 
 def read_write(opts: dict):
     """The read and write settings (:mod:`pyramid_cli.run.settings`) of the io options."""
+    from pyramid_cli import imageio as io
     from pyramid_cli.run.settings import ReadOptions, WriteOptions
 
-    return (ReadOptions(opts["colorspace"], opts["alpha"], opts["nan_policy"]),
-            WriteOptions(opts["pixel_type"], opts["dither"], opts["compression"], opts["force"]))
+    io.check_colorspaces(opts["colorspace"], opts.get("tocolorspace"), colorconfig=opts.get("colorconfig"))
+    return (ReadOptions(opts["colorspace"], opts["alpha"], opts["nan_policy"], opts.get("colorconfig")),
+            WriteOptions(opts["pixel_type"], opts["dither"], opts["compression"], opts["force"],
+                         opts.get("tocolorspace")))
 
 
 def run_paths(paths, work, opts: dict, mip_tile: int | None = None) -> None:

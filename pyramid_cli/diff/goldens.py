@@ -50,7 +50,8 @@ class CompareOptions:
     """Thresholds and reading rules of a comparison (see :func:`pyramid_cli.diff.compare.compare`).
 
     ``linear`` compares decoded linear light (:func:`pyramid_cli.imageio.read_image`,
-    with ``colorspace`` and ``alpha``) instead of the stored values;
+    with ``colorspace``, ``alpha`` and ``colorconfig``) instead of the stored values, converted to
+    ``tocolorspace`` when given (:func:`pyramid_cli.imageio.pixels_in`);
     ``all_levels`` compares every subimage and MIP level (idiff's ``-a``);
     ``metric="flip"`` adds NVIDIA's FLIP, failing when the mean FLIP error is
     over ``flip_fail``.
@@ -63,6 +64,8 @@ class CompareOptions:
     alpha: str = "auto"
     metric: str = "idiff"
     flip_fail: float = 0.05
+    tocolorspace: str | None = None  # decoded pixels converted to this colour space before comparing
+    colorconfig: str | None = None   # the OpenColorIO config of the names (None: $OCIO, else the built-in one)
 
 
 @dataclass
@@ -149,8 +152,10 @@ def read_pixels(path: str, opts: CompareOptions, subimage: int, miplevel: int) -
     if opts.linear:
         from pyramid_cli import imageio as io
 
-        img = io.read_image(path, colorspace=opts.colorspace, alpha=opts.alpha, nan="keep", subimage=subimage)
-        return img.pixels, list(img.spec.channel_names)
+        img = io.read_image(path, colorspace=opts.colorspace, alpha=opts.alpha, nan="keep", subimage=subimage,
+                            colorconfig=opts.colorconfig)
+        pixels = io.pixels_in(img, opts.tocolorspace) if opts.tocolorspace else img.pixels
+        return pixels, list(img.spec.channel_names)
     from pyramid_cli.imageio import raw as io_raw
 
     lv = io_raw.read_level(path, subimage, miplevel)

@@ -9,11 +9,16 @@ premultiplied by alpha when the image has an alpha channel, plus an
 
 Rules
 -----
-Colour encoding
-    8/16-bit integer files are sRGB-encoded unless their ``oiio:ColorSpace``
-    metadata names a linear space; half/float files are linear unless their
-    metadata names an sRGB-like space. Decoding uses the exact piecewise sRGB
-    EOTF (not a 2.2 power) on colour channels only, never on alpha.
+Colour spaces
+    Named by OpenColorIO (:mod:`~pyramid_cli.imageio.ocio`): a file is in the
+    space its ``oiio:ColorSpace`` names, else the one the config's file rules
+    give, else sRGB (8/16-bit integers) or linear Rec.709 (half/float). Pixels
+    are filtered in linear light, converted by the config's own transforms on
+    colour channels only, never on alpha; the sRGB curve on Rec.709 is
+    decoded and encoded by exact tables (the piecewise sRGB EOTF, not a 2.2
+    power). Data spaces are filtered as stored. An output is stored in the
+    input's space when its format holds it, else in what the format
+    conventionally holds, and labelled with the space its pixels are in.
 Alpha
     Files are opened with the ``oiio:UnassociatedAlpha`` hint so that
     OpenImageIO hands over the stored values untouched. A file whose spec then
@@ -52,6 +57,7 @@ Modules
 -------
 :mod:`~pyramid_cli.imageio.formats` (what each format stores), :mod:`~pyramid_cli.imageio.image` (the image
 model), :mod:`~pyramid_cli.imageio.colour` (sRGB, premultiplication, 8/16-bit codes),
+:mod:`~pyramid_cli.imageio.ocio` (colour spaces through the OpenColorIO config),
 :mod:`~pyramid_cli.imageio.read` (decoding and input safety), :mod:`~pyramid_cli.imageio.encode` (the
 encoding rules), :mod:`~pyramid_cli.imageio.write` (the checked writer), :mod:`~pyramid_cli.imageio.atomic`
 (atomic replacement), :mod:`~pyramid_cli.imageio.texture` (MIP-mapped textures and multi-part files),
@@ -79,9 +85,16 @@ if TYPE_CHECKING:  # what each name is, for readers and checkers; loaded on firs
         streams_to,
     )
     from pyramid_cli.imageio.colour import count_nonfinite, linear_to_srgb, srgb_to_linear
-    from pyramid_cli.imageio.encode import check_write_options, encoded_rows, stores_half_unchanged
+    from pyramid_cli.imageio.encode import (
+        check_write_options,
+        describe_output,
+        encoded_rows,
+        pixels_in,
+        stores_half_unchanged,
+    )
     from pyramid_cli.imageio.formats import oiio_version, output_pixel_type
     from pyramid_cli.imageio.image import Image, ImageInfo, describe_rules, info_for_array
+    from pyramid_cli.imageio.ocio import check_names as check_colorspaces
     from pyramid_cli.imageio.read import (
         check_input_file,
         check_pyramid,
@@ -101,9 +114,11 @@ _HOMES = {
     **dict.fromkeys(["BandWriter", "ImageStream", "open_stream", "stream_writer", "stream_writers", "streams_to"],
                     "pyramid_cli.imageio.bands"),
     **dict.fromkeys(["count_nonfinite", "linear_to_srgb", "srgb_to_linear"], "pyramid_cli.imageio.colour"),
-    **dict.fromkeys(["check_write_options", "encoded_rows", "stores_half_unchanged"], "pyramid_cli.imageio.encode"),
+    **dict.fromkeys(["check_write_options", "describe_output", "encoded_rows", "pixels_in", "stores_half_unchanged"],
+                    "pyramid_cli.imageio.encode"),
     **dict.fromkeys(["oiio_version", "output_pixel_type"], "pyramid_cli.imageio.formats"),
     **dict.fromkeys(["Image", "ImageInfo", "describe_rules", "info_for_array"], "pyramid_cli.imageio.image"),
+    "check_colorspaces": "pyramid_cli.imageio.ocio",
     **dict.fromkeys(["check_input_file", "check_pyramid", "check_same_channels", "count_parts", "read_image",
                      "read_parts", "read_shape"], "pyramid_cli.imageio.read"),
     **dict.fromkeys(["MipBandWriter", "mip_stream_writer", "source_sha1", "write_levels"],
@@ -112,11 +127,14 @@ _HOMES = {
 }
 
 
+_ALIASES = {"check_colorspaces": "check_names"}  # exported under another name than its module's
+
+
 def __getattr__(name: str):
     home = _HOMES.get(name)
     if home is None:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(import_module(home), name)
+    value = getattr(import_module(home), _ALIASES.get(name, name))
     globals()[name] = value  # found directly from now on
     return value
 
@@ -131,6 +149,7 @@ __all__ = [
     "ImageInfo",
     "ImageStream",
     "MipBandWriter",
+    "check_colorspaces",
     "check_input_file",
     "check_pyramid",
     "check_same_channels",
@@ -138,6 +157,7 @@ __all__ = [
     "check_write_options",
     "count_nonfinite",
     "count_parts",
+    "describe_output",
     "describe_rules",
     "encoded_rows",
     "ensure_output_dir",
@@ -147,6 +167,7 @@ __all__ = [
     "oiio_version",
     "open_stream",
     "output_pixel_type",
+    "pixels_in",
     "read_image",
     "read_parts",
     "read_shape",

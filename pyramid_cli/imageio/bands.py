@@ -17,7 +17,6 @@ from pyramid_cli.imageio.atomic import atomic_paths
 from pyramid_cli.imageio.encode import check_output_path, check_write_options, encode, set_windows
 from pyramid_cli.imageio.formats import (
     ALPHA_MODES,
-    COLORSPACES,
     ENCODE_IN_MEMORY,
     check_choice,
     format_from_path,
@@ -28,6 +27,7 @@ from pyramid_cli.imageio.formats import (
 from pyramid_cli.imageio.image import Image, ImageInfo
 from pyramid_cli.imageio.read import (
     apply_nan_policy,
+    check_colorspace,
     check_input_file,
     decode_stored,
     describe_spec,
@@ -56,8 +56,8 @@ class ImageStream:
     """
 
     def __init__(self, path: str, *, colorspace: str = "auto", alpha: str = "auto", nan: str = "keep",
-                 keep_half: bool = False):
-        check_choice("colorspace", colorspace, ("auto", *COLORSPACES))
+                 keep_half: bool = False, colorconfig: str | None = None):
+        check_colorspace(colorspace, colorconfig)
         check_choice("alpha mode", alpha, ("auto", *ALPHA_MODES))
         check_choice("nan mode", nan, options.NAN_POLICIES)
         self.path = p = os.fspath(path)
@@ -67,7 +67,7 @@ class ImageStream:
         self._inp, spec, fmt, self._subimage = open_input(name, None, p)
         self._stack.callback(self._inp.close)
         self._spec = spec
-        self.info = describe_spec(spec, fmt, p, colorspace, alpha)
+        self.info = describe_spec(spec, fmt, p, colorspace, alpha, colorconfig=colorconfig)
         native = pixel_type_name(spec.format)
         uniform = len({str(t) for t in spec.channelformats}) <= 1
         keep = ("uint8", "uint16", "half") if keep_half else ("uint8", "uint16")
@@ -136,7 +136,7 @@ class ImageStream:
 
 def open_stream(path: str | os.PathLike[str], **options) -> ImageStream:
     """An :class:`ImageStream` of ``path`` (options as :func:`~pyramid_cli.imageio.read.read_image`: colorspace,
-    alpha, nan, keep_half)."""
+    alpha, nan, keep_half, colorconfig)."""
     return ImageStream(os.fspath(path), **options)
 
 
@@ -253,7 +253,7 @@ def stream_writers(paths: list[str | os.PathLike[str]], infos: list[ImageInfo], 
     out_paths = [os.fspath(p) for p in paths]
     opts = {"pixel_type": pixel_type, "colorspace": colorspace, "alpha": alpha, "dither": dither,
             "compression": compression, "force": force, "inputs": tuple(inputs)}
-    fmts = [check_band_output(p, opts) for p in out_paths]
+    fmts = [check_band_output(p, opts, info.colorconfig) for p, info in zip(out_paths, infos, strict=True)]
     with atomic_paths(out_paths) as tmps:
         writers = [BandWriter(p, tmp, fmt, info, shape, opts)
                    for p, tmp, fmt, info, shape in zip(out_paths, tmps, fmts, infos, shapes, strict=True)]
@@ -267,11 +267,11 @@ def stream_writers(paths: list[str | os.PathLike[str]], infos: list[ImageInfo], 
             raise
 
 
-def check_band_output(path: str, opts: dict) -> str:
+def check_band_output(path: str, opts: dict, colorconfig: str | None = None) -> str:
     """The format of ``path``, refused before any work as :func:`~pyramid_cli.imageio.write.write_image`
     refuses it, or when its format is encoded whole (it cannot be written band by band)."""
     fmt = check_output_path(path, opts["force"], opts["inputs"])
-    check_write_options(path, opts["pixel_type"], opts["compression"])
+    check_write_options(path, opts["pixel_type"], opts["compression"], opts["colorspace"], colorconfig)
     if not streams_to(path):
         raise OutputError(f"cannot write {path} band by band: {format_title(fmt)} is encoded whole")
     return fmt

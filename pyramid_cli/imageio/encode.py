@@ -17,22 +17,31 @@ from pyramid_cli.imageio.colour import colour_mask, encode_integer, linear_to_sr
 from pyramid_cli.imageio.formats import (
     ALPHA_MODES,
     ASSOCIATED_CAPABLE,
-    COLORSPACES,
     COMPRESSION_LEVELS,
     COMPRESSIONS,
     FORMAT_TYPES,
     NO_ALPHA_FORMATS,
-    OIIO_COLORSPACE,
     PIXEL_TYPES,
     TILED_FORMATS,
     check_choice,
-    classify_colorspace,
-    default_colorspace,
     format_from_path,
     format_title,
     output_pixel_type,
 )
 from pyramid_cli.imageio.image import Image, ImageInfo, default_channel_names
+from pyramid_cli.imageio.ocio import (
+    BUILTIN,
+    convert,
+    describe,
+    equivalent,
+    holds,
+    is_linear,
+    kind,
+    known,
+    label,
+    output_space,
+    short_name,
+)
 
 # Attributes that describe the file's layout rather than the image; they are
 # recomputed by OpenImageIO for each file, so copying them could only conflict.
@@ -48,15 +57,30 @@ _DERIVED_ATTRIBUTES = frozenset({
 _FORMAT_ONLY_ATTRIBUTES = frozenset({"compression", "planarconfig", "Compression"})
 
 # Attributes that only make sense with the colour encoding they came with.
-_COLOUR_PROFILE_ATTRIBUTES = frozenset({"ICCProfile", "oiio:Gamma", "png:gAMA", "CICP"})
+_COLOUR_PROFILE_ATTRIBUTES = frozenset({"ICCProfile", "oiio:Gamma", "png:gAMA", "CICP", "colorInteropID"})
 
 
-def _output_colorspace(info: ImageInfo, out_type: str) -> str:
-    in_int = info.pixel_type in ("uint8", "uint16")
-    out_int = out_type in ("uint8", "uint16")
-    if in_int == out_int:
-        return info.colorspace
-    return default_colorspace(out_type)
+def _ext(path: str) -> str:
+    return os.path.splitext(path)[1].lower().lstrip(".")
+
+
+def output_colorspace(path: str, info: ImageInfo, out_type: str, colorspace: str | None = None) -> str:
+    """The space an output of ``info``'s image is stored in (short name, :func:`pyramid_cli.imageio.ocio.short_name`):
+    ``colorspace`` when asked (refused, UsageError, when the format cannot say it holds it, or when it would turn
+    data into colour or colour into data), else :func:`pyramid_cli.imageio.ocio.output_space`."""
+    fmt, cfg = format_from_path(path), info.colorconfig
+    if colorspace is None:
+        return output_space(info.colorspace, info.linear_space, info.pixel_type in ("uint8", "uint16"), fmt,
+                            _ext(path), out_type, cfg)
+    want = short_name(colorspace, cfg)
+    if (kind(want, cfg) == "data") != (kind(info.colorspace, cfg) == "data") and want != info.colorspace:
+        what = "data" if kind(info.colorspace, cfg) == "data" else "colour"
+        raise UsageError(f"{path}: --tocolorspace {colorspace}: the input ({info.colorspace}) is {what}; "
+                         "data is never converted to or from colour")
+    if not holds(fmt, _ext(path), out_type, want, cfg):
+        raise UsageError(f"{path}: --tocolorspace {colorspace} cannot be stored in {format_title(fmt)} {out_type} "
+                         "files (their colour space label cannot say it; OpenEXR can)")
+    return want
 
 
 def _output_alpha_mode(info: ImageInfo, fmt: str, out_type: str) -> str:
@@ -119,9 +143,41 @@ def check_output_path(out_path: str, force: bool, inputs) -> str:
     return fmt
 
 
+def pixels_in(image: Image, space: str) -> np.ndarray:
+    """``image``'s pixels converted from the linear space they are in to ``space`` (float32, premultiplied by
+    alpha as the image is: an encoded space is converted on straight colour); data is never converted."""
+    info, px = image.spec, np.array(image.pixels, dtype=np.float32)
+    target = short_name(space, info.colorconfig)
+    how = _encoding(info, target)
+    if how == "none":
+        return px
+    colour = colour_mask(px.shape[2], info.alpha_channel, info.channel_names)
+    straight = image.premultiplied and not is_linear(target, info.colorconfig)
+    if straight:
+        unpremultiply(px, info.alpha_channel, colour)
+    if how == "srgb":
+        px[..., colour] = linear_to_srgb(px[..., colour])
+    else:
+        px[..., colour] = convert(px[..., colour], info.linear_space, target, info.colorconfig)
+    if straight:
+        premultiply(px, info.alpha_channel, colour)
+    return px
+
+
+def describe_output(path: str | os.PathLike[str], info: ImageInfo, *, pixel_type: str | None = None,
+                    colorspace: str | None = None, **_ignored) -> str:
+    """How ``-v`` says what an output of ``info``'s image stores: ``"output o.png: uint8, sRGB … (option)"``
+    (options as :func:`~pyramid_cli.imageio.write.write_image`'s)."""
+    out_path = os.fspath(path)
+    out_type = output_pixel_type(format_from_path(out_path), pixel_type or info.pixel_type)
+    space = output_colorspace(out_path, info, out_type, colorspace)
+    return f"output {out_path}: {out_type}, {describe(space, 'option' if colorspace else '', info.colorconfig)}"
+
+
 def check_write_options(path: str | os.PathLike[str], pixel_type: str | None = None,
-                        compression: str | None = None) -> None:
-    """Refuse (UsageError, exit 2) a --type or --compression the output's format would not honour.
+                        compression: str | None = None, colorspace: str | None = None,
+                        colorconfig: str | None = None) -> None:
+    """Refuse (UsageError, exit 2) a --type, --compression or --tocolorspace the output's format would not honour.
 
     Without this OpenImageIO stores the nearest type or its default compression without a word.
     ``None`` means "not asked": the input's type (as the format allows) and compression apply.
@@ -138,6 +194,12 @@ def check_write_options(path: str | os.PathLike[str], pixel_type: str | None = N
         if allowed is not None and pixel_type not in allowed:
             raise UsageError(f"{out_path}: --type {pixel_type} cannot be stored in {title} files "
                              f"(they hold {' or '.join(allowed)})")
+    if colorspace is not None:
+        want = short_name(colorspace, colorconfig)
+        types = [pixel_type] if pixel_type else list(FORMAT_TYPES.get(fmt, PIXEL_TYPES))
+        if not any(holds(fmt, _ext(out_path), t, want, colorconfig) for t in types):
+            raise UsageError(f"{out_path}: --tocolorspace {colorspace} cannot be stored in {title} files "
+                             "(their colour space label cannot say it; OpenEXR can)")
     if compression is None:
         return
     c = str(compression).strip().lower()
@@ -174,13 +236,11 @@ def encode(path, image: Image, *, pixel_type=None, colorspace=None, alpha=None, 
     info = image.spec
     if pixel_type is not None:
         check_choice("pixel type", pixel_type, PIXEL_TYPES)
-    if colorspace is not None:
-        check_choice("colorspace", colorspace, COLORSPACES)
     if alpha is not None:
         check_choice("alpha mode", alpha, ALPHA_MODES)
 
     fmt = check_output_path(out_path, force, inputs)
-    check_write_options(out_path, pixel_type, compression)
+    check_write_options(out_path, pixel_type, compression, colorspace, info.colorconfig)
 
     pixels = np.asarray(image.pixels)
     if pixels.ndim == 2:
@@ -194,11 +254,14 @@ def encode(path, image: Image, *, pixel_type=None, colorspace=None, alpha=None, 
         names = default_channel_names(nch)
         alpha_channel = names.index("A") if "A" in names else -1
 
-    out_type, encoding, memory_premultiplied, mode = _write_rules(fmt, info, alpha_channel, pixel_type,
+    out_type, encoding, memory_premultiplied, mode = _write_rules(out_path, info, alpha_channel, pixel_type,
                                                                   colorspace, alpha)
     out_int = out_type in ("uint8", "uint16")
+    how = _encoding(info, encoding)
+    # "ocio" into a linear space is a matrix: it commutes with premultiplication
+    transfer = how == "srgb" or how == "ocio" and not is_linear(encoding, info.colorconfig)
 
-    if (out_type == "uint8" and encoding == "srgb" and mode == "none" and not dither
+    if (out_type == "uint8" and how == "srgb" and mode == "none" and not dither
             and not (fmt in NO_ALPHA_FORMATS and alpha_channel >= 0)):
         # The common 8-bit sRGB file without alpha: encoded by table, a channel at a time.
         colour = colour_mask(nch, alpha_channel, names)
@@ -211,7 +274,7 @@ def encode(path, image: Image, *, pixel_type=None, colorspace=None, alpha=None, 
                 encode_integer(pixels[..., c:c + 1].astype(np.float64), out_type, False, colour[c:c + 1])[..., 0]
         return _output_spec(info, fmt, out_type, names, alpha_channel, nch, width, height, encoding, mode,
                             pixel_type, compression), data
-    if not out_int and not _converts(fmt, alpha_channel, memory_premultiplied, encoding, mode):
+    if not out_int and not _converts(fmt, alpha_channel, memory_premultiplied, how, mode):
         # Stored as they are: no copy (float16 stays float16 for a half file; OIIO converts float32).
         px = pixels if pixels.dtype in (np.float16, np.float32) else pixels.astype(np.float32)
     else:
@@ -228,15 +291,21 @@ def encode(path, image: Image, *, pixel_type=None, colorspace=None, alpha=None, 
         mode = "none"
         nch -= 1
     colour = colour_mask(nch, alpha_channel, names)
+
+    def to_output(values: np.ndarray) -> np.ndarray:
+        if how == "srgb":
+            return linear_to_srgb(values)
+        return convert(values, info.linear_space, encoding, info.colorconfig).astype(values.dtype)
+
     if mode != "none":
-        if memory_premultiplied and (mode == "straight" or encoding == "srgb"):
+        if memory_premultiplied and (mode == "straight" or transfer):
             unpremultiply(px, alpha_channel, colour)
-        if encoding == "srgb":
-            px[..., colour] = linear_to_srgb(px[..., colour])
-        if mode == "premultiplied" and (encoding == "srgb" or not memory_premultiplied):
+        if how != "none":
+            px[..., colour] = to_output(px[..., colour])
+        if mode == "premultiplied" and (transfer or not memory_premultiplied):
             premultiply(px, alpha_channel, colour)
-    elif encoding == "srgb":
-        px[..., colour] = linear_to_srgb(px[..., colour])
+    elif how != "none":
+        px[..., colour] = to_output(px[..., colour])
 
     if out_int:
         data = encode_integer(px, out_type, dither, colour)
@@ -260,6 +329,7 @@ def _output_spec(info: ImageInfo, fmt: str, out_type: str, names: list[str], alp
         spec.channelformats = tuple(oiio.TypeDesc(t) for t in info.channel_pixel_types)
     set_windows(spec, info, width, height)
 
+    cfg = info.colorconfig
     same_encoding = encoding == info.colorspace
     for name, value in info.attributes.items():
         if not _keep_attribute(name, same_format, same_encoding):
@@ -273,10 +343,16 @@ def _output_spec(info: ImageInfo, fmt: str, out_type: str, names: list[str], alp
         except (TypeError, ValueError, RuntimeError):
             continue  # metadata OpenImageIO cannot express for this file: drop it
     old_cs = info.attributes.get("oiio:ColorSpace")
-    if isinstance(old_cs, str) and classify_colorspace(old_cs) == encoding:
+    if isinstance(old_cs, str) and equivalent(old_cs, encoding, cfg):
         spec.attribute("oiio:ColorSpace", old_cs)
-    elif isinstance(old_cs, str) or encoding != default_colorspace(out_type):
-        spec.attribute("oiio:ColorSpace", OIIO_COLORSPACE[encoding])
+    elif isinstance(old_cs, str) or encoding != short_name("srgb" if out_type in ("uint8", "uint16") else "linear",
+                                                           cfg):
+        spec.attribute("oiio:ColorSpace", label(encoding, cfg))
+    name = spec.get_string_attribute("oiio:ColorSpace")
+    if fmt == "openexr" and name and not known(name, BUILTIN):
+        # OpenImageIO's EXR writer keeps only the names its built-in config knows, as colorInteropID: a
+        # studio config's name is written there itself (the reader takes oiio:ColorSpace from it)
+        spec.attribute("colorInteropID", name)
     if mode == "straight" or (mode == "none" and alpha_channel >= 0) or (
             alpha_channel >= 0 and fmt not in ASSOCIATED_CAPABLE):
         # The values handed over are exactly what is to be stored: stop
@@ -307,19 +383,27 @@ def set_windows(spec: oiio.ImageSpec, info: ImageInfo, width: int, height: int) 
             spec.full_width, spec.full_height = width, height
 
 
-def _write_rules(fmt: str, info: ImageInfo, alpha_channel: int, pixel_type: str | None, colorspace: str | None,
+def _write_rules(path: str, info: ImageInfo, alpha_channel: int, pixel_type: str | None, colorspace: str | None,
                  alpha: str | None) -> tuple[str, str, bool, str]:
-    """How a write stores the image: (pixel type, encoding, whether memory is premultiplied, alpha mode)."""
+    """How a write stores the image: (pixel type, colour space, whether memory is premultiplied, alpha mode)."""
+    fmt = format_from_path(path)
     out_type = output_pixel_type(fmt, pixel_type or info.pixel_type)
-    encoding = colorspace or _output_colorspace(info, out_type)
+    encoding = output_colorspace(path, info, out_type, colorspace)
     memory_premultiplied = alpha_channel >= 0 and info.alpha_mode != "none"
     mode = "none" if alpha_channel < 0 else (alpha or _output_alpha_mode(info, fmt, out_type))
     return out_type, encoding, memory_premultiplied, mode
 
 
-def _converts(fmt: str, alpha_channel: int, memory_premultiplied: bool, encoding: str, mode: str) -> bool:
-    """Does writing change the values (alpha dropped or re-associated, sRGB encoding)?"""
-    if fmt in NO_ALPHA_FORMATS and alpha_channel >= 0 or encoding == "srgb":
+def _encoding(info: ImageInfo, space: str) -> str:
+    """How linear pixels become ``space``: ``"none"``, ``"srgb"`` (the exact sRGB curve) or ``"ocio"``."""
+    if space == info.linear_space or kind(info.linear_space, info.colorconfig) == "data":
+        return "none"
+    return "srgb" if info.linear_space == "linear" and space == "srgb" else "ocio"
+
+
+def _converts(fmt: str, alpha_channel: int, memory_premultiplied: bool, how: str, mode: str) -> bool:
+    """Does writing change the values (alpha dropped or re-associated, a colour conversion)?"""
+    if fmt in NO_ALPHA_FORMATS and alpha_channel >= 0 or how != "none":
         return True
     return mode != "none" and (mode == "straight" and memory_premultiplied
                                or mode == "premultiplied" and not memory_premultiplied)
@@ -335,9 +419,10 @@ def stores_half_unchanged(path: str | os.PathLike[str], info: ImageInfo, *, pixe
     fmt = format_from_path(os.fspath(path))
     if not fmt:
         return False
-    out_type, encoding, memory_premultiplied, mode = _write_rules(fmt, info, info.alpha_channel, pixel_type,
-                                                                  colorspace, alpha)
-    return out_type == "half" and not _converts(fmt, info.alpha_channel, memory_premultiplied, encoding, mode)
+    out_type, encoding, memory_premultiplied, mode = _write_rules(os.fspath(path), info, info.alpha_channel,
+                                                                  pixel_type, colorspace, alpha)
+    return out_type == "half" and not _converts(fmt, info.alpha_channel, memory_premultiplied,
+                                                _encoding(info, encoding), mode)
 
 
 def encoded_rows(path: str | os.PathLike[str], image: Image, **options) -> np.ndarray:

@@ -1,7 +1,7 @@
 """The formats OpenImageIO writes and what each can store: pixel types, alpha, compression, tiles.
 
 The tables every reader and writer of :mod:`pyramid_cli.imageio` consults, and the small helpers that name
-things the way OpenImageIO does (format names from extensions, pixel type names, colour space names).
+things the way OpenImageIO does (format names from extensions, pixel type names).
 """
 
 from __future__ import annotations
@@ -15,12 +15,7 @@ from pyramid_cli.core import options
 from pyramid_cli.core.errors import UsageError
 
 PIXEL_TYPES = options.PIXEL_TYPES
-COLORSPACES = options.ENCODINGS
 ALPHA_MODES = options.STORED_ALPHA
-
-# The colour space names written into ``oiio:ColorSpace`` (OpenImageIO 3
-# built-in names, understood by older versions as well).
-OIIO_COLORSPACE = {"linear": "lin_rec709_scene", "srgb": "srgb_rec709_scene"}
 
 # Pixel types each format can store, for the formats that cannot store all
 # four. Formats not listed are assumed to store any of them.
@@ -72,11 +67,6 @@ def format_title(fmt: str) -> str:
     return _FORMAT_TITLES.get(fmt, fmt)
 
 
-_NON_LINEAR_KEYWORDS = ("srgb", "rec709", "g22", "g18", "gamma", "sycc")
-_LINEAR_NAMES = frozenset({"linear", "scene_linear", "acescg", "aces", "aces2065-1",
-                           "raw", "data", "role_scene_linear"})
-
-
 def one_line(message: str, fallback: str) -> str:
     """The first non-blank line of an OpenImageIO message, ``fallback`` when there is none."""
     lines = [ln.strip() for ln in str(message).splitlines() if ln.strip()]
@@ -100,23 +90,6 @@ def pixel_type_name(t: oiio.TypeDesc) -> str:
     if base == oiio.HALF:
         return "half"
     return "float"
-
-
-def classify_colorspace(name: str) -> str | None:
-    """``"linear"`` or ``"srgb"`` for an ``oiio:ColorSpace`` name, None when the name says neither."""
-    n = name.strip().lower()
-    if not n:
-        return None
-    if n in _LINEAR_NAMES or n.startswith(("lin", "g10")) or "linear" in n:
-        return "linear"
-    if any(k in n for k in _NON_LINEAR_KEYWORDS):
-        return "srgb"
-    return None
-
-
-def default_colorspace(pixel_type: str) -> str:
-    """The encoding a file of ``pixel_type`` has when it does not say: sRGB for integers, linear for floats."""
-    return "srgb" if pixel_type in ("uint8", "uint16") else "linear"
 
 
 def format_from_path(path: str) -> str:

@@ -32,7 +32,8 @@ class ImageInfo:
     alpha_channel : int
         Index of the alpha channel, -1 if none.
     colorspace : str
-        Encoding of the stored values: ``"linear"`` or ``"srgb"``.
+        The colour space of the stored values: ``"linear"`` or ``"srgb"`` for the Rec.709 pair, else the
+        colour config's name (:mod:`pyramid_cli.imageio.ocio`).
     alpha_mode : str
         How the file stores alpha: ``"straight"``, ``"premultiplied"``, or
         ``"none"`` (no alpha, or alpha treated as an ordinary channel).
@@ -53,6 +54,12 @@ class ImageInfo:
     tile : tuple of int or None
         ``(tile width, tile height)`` of a tiled file, None for scanlines; a
         tiled input is written back tiled (EXR, TIFF).
+    linear_space : str
+        The linear space :attr:`Image.pixels` are in (``"linear"``: linear Rec.709; data stays as stored).
+    colorconfig : str or None
+        The OpenColorIO config the names belong to (None: ``$OCIO``, else OpenImageIO's built-in one).
+    colorspace_source : str
+        How the input's space was found: ``"option"``, ``"metadata"``, ``"file rule"`` or ``"default"``.
     pixel_hash : hashlib object or None
         Under ``read_image(hash_source=True)``: the unfinished SHA-1 of the stored
         pixels as maketx's ``computePixelHashSHA1`` hashes them
@@ -75,6 +82,9 @@ class ImageInfo:
     display_window: tuple[int, int, int, int] | None = None
     tile: tuple[int, int] | None = None
     pixel_hash: Any = field(default=None, repr=False, compare=False)  # read_image(hash_source=True)
+    linear_space: str = "linear"
+    colorconfig: str | None = None
+    colorspace_source: str = ""
 
 
 @dataclass
@@ -119,7 +129,8 @@ def info_for_array(path: str | os.PathLike[str], nchannels: int, channel_names: 
 
 
 def describe_rules(info: ImageInfo) -> str:
-    """One line saying which colour and alpha rule is in force for ``info``.
+    """One line saying which colour and alpha rule is in force for ``info``
+    (:func:`~pyramid_cli.imageio.encode.describe_output` says an output's).
 
     Parameters
     ----------
@@ -133,10 +144,16 @@ def describe_rules(info: ImageInfo) -> str:
         linear light; straight alpha (channel A): premultiplied after
         decoding"``.
     """
+    from pyramid_cli.imageio.ocio import describe
+
+    found = f" ({info.colorspace_source})" if info.colorspace_source else ""
     if info.colorspace == "srgb":
-        colour = "sRGB-encoded: decoded with the sRGB EOTF to linear light"
+        colour = f"sRGB-encoded{found}: decoded with the sRGB EOTF to linear light"
+    elif info.colorspace == info.linear_space:
+        colour = f"{describe(info.colorspace, info.colorspace_source, info.colorconfig)}: linear light, no decoding"
     else:
-        colour = "linear light: no decoding"
+        colour = (f"{describe(info.colorspace, info.colorspace_source, info.colorconfig)}: converted to "
+                  f"{describe(info.linear_space, '', info.colorconfig)} by the colour config")
     if info.alpha_channel < 0:
         alpha = "no alpha"
     else:

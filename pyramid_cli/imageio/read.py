@@ -28,14 +28,12 @@ from pyramid_cli.imageio.colour import (
 )
 from pyramid_cli.imageio.formats import (
     ALPHA_MODES,
-    COLORSPACES,
     check_choice,
-    classify_colorspace,
-    default_colorspace,
     one_line,
     pixel_type_name,
 )
 from pyramid_cli.imageio.image import ALPHA_NAMES, Image, ImageInfo, default_channel_names
+from pyramid_cli.imageio.ocio import check_names, convert, input_space, kind, working_space
 
 
 def _find_alpha(spec: oiio.ImageSpec, names: list[str]) -> int:
@@ -49,7 +47,7 @@ def _find_alpha(spec: oiio.ImageSpec, names: list[str]) -> int:
 
 def read_image(path: str | os.PathLike[str], *, colorspace: str = "auto",
                alpha: str = "auto", nan: str = "keep", subimage: int | None = None,
-               keep_half: bool = False, hash_source: bool = False) -> Image:
+               keep_half: bool = False, hash_source: bool = False, colorconfig: str | None = None) -> Image:
     """Read an image into linear, premultiplied float32 pixels.
 
     Parameters
@@ -62,10 +60,16 @@ def read_image(path: str | os.PathLike[str], *, colorspace: str = "auto",
         Which part of a multi-part file to read. None (the default): the file
         must hold one image; a multi-part file is refused with an InputError
         naming its parts (:func:`read_parts` reads them all).
-    colorspace : {"auto", "linear", "srgb"}
-        Encoding of the stored values; ``"auto"`` decides from the
-        ``oiio:ColorSpace`` metadata, then from the pixel type (integer: sRGB,
-        half/float: linear).
+    colorspace : str
+        The colour space of the stored values: any name the colour config
+        resolves (a space, alias or role; ``"linear"`` and ``"srgb"`` are the
+        Rec.709 pair), or ``"auto"``: the ``oiio:ColorSpace`` metadata, then
+        the config's file rules, then the pixel type (integer: sRGB,
+        half/float: linear). Pixels come back in linear light
+        (:func:`pyramid_cli.imageio.ocio.working_space`); data spaces as stored.
+    colorconfig : str, optional
+        An OpenColorIO config file; default ``$OCIO``, else OpenImageIO's
+        built-in config.
     alpha : {"auto", "straight", "premultiplied", "none"}
         How the file stores alpha; ``"auto"`` follows the file (see the module
         notes). ``"none"`` treats alpha as an ordinary channel: it is neither
@@ -93,9 +97,10 @@ def read_image(path: str | os.PathLike[str], *, colorspace: str = "auto",
     DataError
         Non-finite values under ``nan="fail"``.
     UsageError
-        An unknown ``colorspace``, ``alpha`` or ``nan`` value.
+        An unknown ``colorspace``, ``alpha`` or ``nan`` value, or a colour
+        config that does not load.
     """
-    check_choice("colorspace", colorspace, ("auto", *COLORSPACES))
+    check_colorspace(colorspace, colorconfig)
     check_choice("alpha mode", alpha, ("auto", *ALPHA_MODES))
     check_choice("nan mode", nan, options.NAN_POLICIES)
     p = os.fspath(path)
@@ -108,14 +113,19 @@ def read_image(path: str | os.PathLike[str], *, colorspace: str = "auto",
         from pyramid_cli.workflows.mip import sha1_state
 
         pixel_hash = sha1_state(data)
-    info = describe_spec(spec, fmt, p, colorspace, alpha, pixel_hash)
+    info = describe_spec(spec, fmt, p, colorspace, alpha, pixel_hash, colorconfig)
     pixels = decode_stored(data, info)
     apply_nan_policy(pixels, nan, info, p, floats=data.dtype.kind == "f")
     return Image(pixels=pixels, spec=info)
 
 
+def check_colorspace(colorspace: str, colorconfig: str | None = None) -> None:
+    """Refuse (UsageError, exit 2) a config that does not load or a space it does not know."""
+    check_names(colorspace, colorconfig=colorconfig)
+
+
 def describe_spec(spec: oiio.ImageSpec, fmt: str, p: str, colorspace: str, alpha: str,
-              pixel_hash: Any = None) -> ImageInfo:
+              pixel_hash: Any = None, colorconfig: str | None = None) -> ImageInfo:
     """What :func:`read_image` says of a file from its header (the encoding and alpha mode it decodes by)."""
     names = [str(n) for n in spec.channelnames] or default_channel_names(spec.nchannels)
     pixel_type = pixel_type_name(spec.format)
@@ -127,12 +137,8 @@ def describe_spec(spec: oiio.ImageSpec, fmt: str, p: str, colorspace: str, alpha
         attributes[attr.name] = attr.value
         attribute_types[attr.name] = str(attr.type)
 
-    if colorspace == "auto":
-        meta = attributes.get("oiio:ColorSpace")
-        encoding = classify_colorspace(meta) if isinstance(meta, str) else None
-        encoding = encoding or default_colorspace(pixel_type)
-    else:
-        encoding = colorspace
+    encoding, source = input_space(attributes.get("oiio:ColorSpace"), p, pixel_type in ("uint8", "uint16"),
+                                   colorspace, colorconfig)
 
     if alpha_channel < 0:
         alpha_mode = "none"
@@ -164,6 +170,9 @@ def describe_spec(spec: oiio.ImageSpec, fmt: str, p: str, colorspace: str, alpha
         display_window=None if display == (spec.x, spec.y, spec.width, spec.height) else display,
         tile=(int(spec.tile_width), int(spec.tile_height)) if tiled else None,
         pixel_hash=pixel_hash,
+        linear_space=working_space(encoding, colorconfig),
+        colorconfig=colorconfig,
+        colorspace_source=source,
     )
 
 
@@ -171,26 +180,41 @@ def decode_stored(px: np.ndarray, info: ImageInfo) -> np.ndarray:
     """Stored values (as :func:`_read_pixels` returns them) → linear premultiplied float32 (or kept half).
 
     Pixel by pixel: a band of rows decodes exactly as the whole image does."""
-    alpha_channel, encoding, alpha_mode = info.alpha_channel, info.colorspace, info.alpha_mode
+    alpha_channel, alpha_mode = info.alpha_channel, info.alpha_mode
     colour = colour_mask(px.shape[2], alpha_channel, info.channel_names)
     has_alpha = alpha_channel >= 0 and alpha_mode != "none"
+    # "srgb": the exact sRGB tables; "ocio": the config converts to the linear space filtered in
+    how = _decoding(info)
     if px.dtype in (np.uint8, np.uint16):
-        px = decode_integer(px, encoding == "srgb", colour, alpha_channel if has_alpha else -1,
-                             alpha_mode == "straight")
-    else:
-        if px.dtype == np.float16 and (encoding == "srgb" or has_alpha and alpha_mode == "straight"):
-            px = px.astype(np.float32)  # converted below: not in half precision
-        if encoding == "srgb":
-            if has_alpha and alpha_mode == "premultiplied":
-                # The file premultiplied the encoded values: divide them back out
-                # before decoding, premultiply again in linear light below.
-                unpremultiply(px, alpha_channel, colour)
+        if how != "ocio":
+            return decode_integer(px, how == "srgb", colour, alpha_channel if has_alpha else -1,
+                                  alpha_mode == "straight")
+        px = decode_integer(px, False, colour, -1, False)  # code / max, converted below
+    if px.dtype == np.float16 and (how != "none" or has_alpha and alpha_mode == "straight"):
+        px = px.astype(np.float32)  # converted below: not in half precision
+    if how != "none":
+        if has_alpha and alpha_mode == "premultiplied":
+            # The file premultiplied the encoded values: divide them back out
+            # before decoding, premultiply again in linear light below.
+            unpremultiply(px, alpha_channel, colour)
+        if how == "srgb":
             px[..., colour] = srgb_to_linear(px[..., colour])
-            if has_alpha:
-                premultiply(px, alpha_channel, colour)
-        elif has_alpha and alpha_mode == "straight":
+        else:
+            px[..., colour] = convert(px[..., colour], info.colorspace, info.linear_space, info.colorconfig)
+        if has_alpha:
             premultiply(px, alpha_channel, colour)
+    elif has_alpha and alpha_mode == "straight":
+        premultiply(px, alpha_channel, colour)
     return px if px.dtype == np.float16 else px.astype(np.float32, copy=False)
+
+
+def _decoding(info: ImageInfo) -> str:
+    """How stored values become linear: ``"none"``, ``"srgb"`` (the exact tables) or ``"ocio"``."""
+    if info.colorspace == info.linear_space:
+        return "none"
+    if info.colorspace == "srgb" and info.linear_space == "linear":
+        return "srgb"
+    return "none" if kind(info.colorspace, info.colorconfig) == "data" else "ocio"
 
 
 def apply_nan_policy(pixels: np.ndarray, nan: str, info: ImageInfo, p: str, row: int = 0,

@@ -243,7 +243,7 @@ def mip_stream_writer(path: str | os.PathLike[str], info: ImageInfo, shapes: lis
     out_path = os.fspath(path)
     opts = {"pixel_type": pixel_type, "colorspace": colorspace, "alpha": alpha, "dither": dither,
             "compression": compression, "force": force, "inputs": tuple(inputs)}
-    fmt = check_band_output(out_path, opts)
+    fmt = check_band_output(out_path, opts, info.colorconfig)
     arbitrary = _check_mip_capable(out_path, fmt)
     with atomic_path(out_path) as tmp:
         writer = MipBandWriter(out_path, tmp, fmt, info, shapes, opts, tile=tile, meta=meta or {}, colors=colors,

@@ -261,7 +261,8 @@ def write_images(paths: list[str | os.PathLike[str]], images: list[Image], **opt
         raise ValueError("write_images needs one path per image")
     for p in out_paths:  # refuse bad names and options before writing anything
         check_output_path(p, options.get("force", False), options.get("inputs", ()))
-        check_write_options(p, options.get("pixel_type"), options.get("compression"))
+        check_write_options(p, options.get("pixel_type"), options.get("compression"), options.get("colorspace"),
+                            images[0].spec.colorconfig if images else None)
     with atomic_paths(out_paths) as tmps:
         for p, tmp, image in zip(out_paths, tmps, images, strict=True):
             spec, data = encode(p, image, **options)  # one image's encoded copy at a time

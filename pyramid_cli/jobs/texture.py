@@ -3,6 +3,7 @@ job with maketx's level sizes and the settings maketx takes."""
 
 from __future__ import annotations
 
+import shlex
 from dataclasses import dataclass
 
 from pyramid_cli.core import catalogue
@@ -22,8 +23,10 @@ class TextureLevels(Levels):
     ``rounding`` "down" (the default): maketx's and OpenEXR's level sizes ``max(1, ⌊n/2⌋)``;
     levels that halve exactly use the paper's ``analysis`` filter, the others are resampled with
     the same filter's continuous kernel so that every level covers the whole texture domain
-    (:mod:`pyramid_cli.plan.resample`, :func:`pyramid_cli.workflows.pyramids.mip_plan`). "up": the analysis pyramid's
-    sizes ``⌈n/2⌉`` (odd sizes padded by the border), :class:`Levels` as it is.
+    (:mod:`pyramid_cli.plan.resample`, :func:`pyramid_cli.workflows.pyramids.mip_plan`); ``border`` is how lookups
+    read past the edges (the file's ``wrapmodes``), and under ``clamp`` and ``zero`` the levels are built inside
+    the domain by the mirror fold, so each keeps level 0's mean (:func:`pyramid_cli.workflows.pyramids.level_border`).
+    "up": the analysis pyramid's sizes ``⌈n/2⌉`` (odd sizes padded by the border), :class:`Levels` as it is.
     ``constant_detect``: an image whose pixels are all the same becomes one tile of that colour
     before the levels are made (:func:`shrink_constant`).
     """
@@ -35,6 +38,7 @@ class TextureLevels(Levels):
     nchannels: int | None = None   # maketx's --nchannels: keep or pad to this many channels (:func:`channel_plan`)
     monochrome_detect: bool = False  # maketx's --monochrome-detect: R = G = B everywhere → one channel
     fill: bool = False        # pull-push texels of alpha < 1 first (pyramid_cli.run.methods_files.fill_texture)
+    colorconvert: tuple[str, str] | None = None  # maketx's --colorconvert IN OUT (the read and write do it)
 
     @property
     def keeps_input(self) -> bool:  # type: ignore[override]
@@ -55,11 +59,14 @@ class TextureLevels(Levels):
     @property
     def filter_name(self) -> str:
         """The filter, rule and whatever else changes the texels, as the SHA-1's appended text and
-        ImageHistory name them: ``quadratic``, ``quadratic/up``, ``quadratic/resize/nchannels=1/fill`` …
+        ImageHistory name them: ``quadratic``, ``quadratic/up``, ``quadratic/resize/nchannels=1/fill``,
+        ``quadratic/colorconvert=sRGB ACEScg`` …
         (the hash is of the source's pixels, so two files that differ below must differ here)."""
         flags = (["up"] if self.rounding == "up" else []) + (["resize"] if self.resize else [])
         flags += [f"nchannels={self.nchannels}"] if self.nchannels is not None else []
         flags += (["monochrome-detect"] if self.monochrome_detect else []) + (["fill"] if self.fill else [])
+        if self.colorconvert is not None:  # as a shell would read it back: maketx's ImageHistory is its command line
+            flags.append("colorconvert=" + " ".join(shlex.quote(n) for n in self.colorconvert))
         return "/".join([self.analysis, *flags])
 
     def count(self, size) -> int:

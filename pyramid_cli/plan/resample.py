@@ -30,7 +30,9 @@ Derivation (one axis; the filters of the catalogue are separable):
    decides (:func:`column_sums`): ``wrap`` folds the kernel periodically and ``mirror`` by
    reflection (the lattice of output centres is symmetric under both), so every column
    still sums to ``m/n`` (for mirror: a symmetric kernel); ``clamp`` adds what falls past
-   the edge to the edge pixel; ``zero`` drops it (each row then sums to less than 1).
+   the edge to the edge pixel; ``zero`` drops it (each row then sums to less than 1). So MIP
+   levels are built with the mirror fold when lookups clamp or read black
+   (:func:`pyramid_cli.workflows.pyramids.level_border`; docs/design.md, "MIP levels inside the domain").
 """
 
 from __future__ import annotations

@@ -63,11 +63,20 @@ def bilinear_matrix(n_in: int, n_out: int, border: str) -> np.ndarray:
     return out[:, 1:]
 
 
+# How a level is built for each lookup border: inside the texture's domain (clamp and zero fold the kernel back
+# by reflection, which keeps the mean); written here again, apart from the planner's table, for the oracle.
+DOMAIN = {"clamp": "mirror", "zero": "mirror", "wrap": "wrap", "mirror": "mirror"}
+
+
 def mip_reference(pixels: np.ndarray, analysis: str, border: str = "clamp", resize: bool = False,
                   axis_weights=None) -> list[np.ndarray]:
     """Levels 0..1×1 with maketx's sizes, every level resampled from the one above by ``analysis``'s
     continuous kernel (at exact halvings that is the filter itself), in float64; with ``resize``, level 0
     is first resampled up to powers of two by a bilinear lookup.
+
+    ``border`` is the lookup's (the file's ``wrapmodes``); the levels are built inside the texture's domain
+    by :data:`DOMAIN`: reads past the edges under ``clamp`` and ``zero`` fold back by reflection, so every
+    row of :func:`resample_matrix` sums to 1 and every column to m/n, and each level's mean is level 0's.
 
     ``analysis`` names a filter of the catalogue, whose 1-D weights come from its mask (:func:`kernel_1d`);
     for an expression, ``axis_weights`` gives its separated row weights ``((d, w_d), …)`` (the planner's
@@ -79,6 +88,7 @@ def mip_reference(pixels: np.ndarray, analysis: str, border: str = "clamp", resi
             raise ValueError(f"{analysis!r} is not a named analysis filter: pass its axis_weights")
         kern = (np.array([d for d, _ in axis_weights]), np.array([float(v) for _, v in axis_weights]))
     x = np.asarray(pixels, dtype=np.float64)
+    border = DOMAIN[border]
     if resize:
         h, w = (1 << max(0, n - 1).bit_length() for n in x.shape[:2])
         x = np.einsum("ji,ik...->jk...", bilinear_matrix(x.shape[0], h, border), x)
@@ -93,4 +103,4 @@ def mip_reference(pixels: np.ndarray, analysis: str, border: str = "clamp", resi
     return levels
 
 
-__all__ = ["kernel_1d", "resample_matrix", "bilinear_matrix", "mip_reference"]
+__all__ = ["DOMAIN", "kernel_1d", "resample_matrix", "bilinear_matrix", "mip_reference"]

@@ -56,7 +56,8 @@ def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: R
             session.prepare(work, [shape[:2]])
 
     def read_job(job):
-        io.check_write_options(job.output, wo.pixel_type, wo.compression)  # refused before any work
+        # refused before any work
+        io.check_write_options(job.output, wo.pixel_type, wo.compression, wo.tocolorspace, ro.colorconfig)
         image = read_input(job.input, ro, reporter, keep_half=not mip_tile, hash_source=bool(mip_tile))
         if mip_tile and getattr(work, "constant_detect", False):
             from pyramid_cli.workflows.mip import shrink_constant
@@ -84,7 +85,8 @@ def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: R
         half = (not mip_tile and image.pixels.dtype == np.float16
                 and io.stores_half_unchanged(job.output, image.spec, pixel_type=wo.pixel_type))
         outs = session.run(work, [image.pixels], np.float16 if half else np.float32)
-        reporter.detail(f"{io.describe_rules(image.spec)}; executor {session.ran}")
+        output = io.describe_output(job.output, image.spec, **wo.for_inputs([]))
+        reporter.detail(f"{io.describe_rules(image.spec)}; {output}; executor {session.ran}")
         return [io.Image(px, image.spec) for px in (outs if mip_tile else outs[-1:])]
 
     def write_job(job, images):

@@ -29,7 +29,7 @@ def _read_mask(path: str, shape: tuple[int, ...], ro: ReadOptions, reporter: Rep
     refused naming both counts. NaN/Inf and values outside [0, 1] are
     :func:`~pyramid_cli.workflows.methods.mask_weights`'.
     """
-    m = io.read_image(path, colorspace="linear", alpha="none", nan=ro.nan)
+    m = io.read_image(path, colorspace="linear", alpha="none", nan=ro.nan, colorconfig=ro.colorconfig)
     px = m.pixels
     if px.shape[:2] != tuple(shape[:2]):
         raise InputError(f"{path}: the mask is {px.shape[1]}×{px.shape[0]}, the image {shape[1]}×{shape[0]}")
@@ -66,9 +66,10 @@ def fill_file(input_path: str, output_path: str, session: Session, *, mask: str 
                          "is filled")
     if holes == "nan" and ro.nan != "keep":
         raise UsageError(f"--holes nan fills the NaN/Inf pixels; --nan {ro.nan} would remove them first")
-    io.check_write_options(output_path, wo.pixel_type, wo.compression)
+    io.check_write_options(output_path, wo.pixel_type, wo.compression, wo.tocolorspace, ro.colorconfig)
     # a half file stays half until fill_inputs copies it to float32 (one conversion, not two)
-    image = io.read_image(input_path, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan, keep_half=True)
+    image = io.read_image(input_path, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan, keep_half=True,
+                          colorconfig=ro.colorconfig)
     px = image.pixels
     alpha = image.spec.alpha_channel if image.premultiplied else None
     if holes == "alpha" and alpha is None:
@@ -125,7 +126,7 @@ def blend_files(a_path: str, b_path: str, mask_path: str, output_path: str, sess
                 reporter: Reporter | None = None) -> dict:
     """Multiresolution blend of two image files along a mask file (:func:`pyramid_cli.api.blend`)."""
     ro, wo, reporter = read or ReadOptions(), write or WriteOptions(), reporter or Reporter()
-    io.check_write_options(output_path, wo.pixel_type, wo.compression)
+    io.check_write_options(output_path, wo.pixel_type, wo.compression, wo.tocolorspace, ro.colorconfig)
     a = read_input(a_path, ro, reporter)
     b = read_input(b_path, ro, reporter)
     if a.pixels.shape != b.pixels.shape:
@@ -135,7 +136,9 @@ def blend_files(a_path: str, b_path: str, mask_path: str, output_path: str, sess
                          warn=reporter.warn, nan_hint=NAN_HINT)
     work = Blend(levels=levels, analysis=analysis, synthesis=synthesis, border=border,
                  allow_mixed_lattice=allow_mixed_lattice)
-    images = [a.pixels, b.pixels, mask]
+    # B in A's linear space (both linear: one matrix), so that the blend mixes like with like
+    b_pixels = io.pixels_in(b, a.spec.linear_space) if b.spec.linear_space != a.spec.linear_space else b.pixels
+    images = [a.pixels, b_pixels, mask]
     work.check(tuple(im.shape[:2] for im in images), where=a_path)
     for message in work.warnings(a.pixels.shape[:2]):
         reporter.warn(message)

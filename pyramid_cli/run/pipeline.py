@@ -173,14 +173,18 @@ def write_levels_files(input_path: str, pattern: str, work: Levels | Laplacian, 
     work.check((image.pixels.shape[:2],), where=input_path)
     announce_compiles(session, work, [image.pixels], reporter)
     stack = session.run(work, [image.pixels])
-    reporter.detail(f"{io.describe_rules(image.spec)}; executor {session.ran}")
     images = [io.Image(px, image.spec) for px in stack]
     options = wo.for_inputs([input_path])
     if laplacian:
         options["pixel_type"] = wo.pixel_type or "float"
+        # band-pass detail is signed linear light: it stays in the space it was computed in
+        options["colorspace"] = wo.tocolorspace or image.spec.linear_space
         for im in images:
             im.spec.attributes["pyramid:synthesis"] = work.synthesis
             im.spec.attributes["pyramid:border"] = work.border
+    first = pattern if multipart else level_path(pattern, 0)
+    reporter.detail(f"{io.describe_rules(image.spec)}; {io.describe_output(first, image.spec, **options)}; "
+                    f"executor {session.ran}")
     if multipart:
         io.write_levels(pattern, images, mode="multipart", **options)
         written = [pattern]
@@ -193,7 +197,8 @@ def write_levels_files(input_path: str, pattern: str, work: Levels | Laplacian, 
         panel = contact_sheet([im.pixels if not laplacian or k == len(images) - 1 else im.pixels + 0.5
                                for k, im in enumerate(images)])
         info = io.ImageInfo(path=sheet, format="png", pixel_type="uint8", channel_names=["R", "G", "B"],
-                            alpha_channel=-1, colorspace="srgb", alpha_mode="none")
+                            alpha_channel=-1, colorspace="srgb", alpha_mode="none",
+                            linear_space=image.spec.linear_space, colorconfig=image.spec.colorconfig)
         io.write_image(sheet, io.Image(panel, info), pixel_type="uint8")
         written.append(sheet)
     for path in written:
@@ -228,7 +233,8 @@ def collapse_files(inputs: list[str], output_path: str, session: Session, *, syn
     ro, wo, reporter = read or ReadOptions(), write or WriteOptions(), reporter or Reporter()
     paths = batch.expand(list(inputs))
     if len(paths) == 1:
-        bands = io.read_parts(paths[0], colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan)
+        bands = io.read_parts(paths[0], colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan,
+                              colorconfig=ro.colorconfig)
     else:
         bands = [read_input(p, ro, reporter) for p in sorted(paths, key=_level_key)]
     if len(bands) < 2:

@@ -1,7 +1,7 @@
 """How a run decodes its inputs and encodes its outputs: the read and write settings of every command.
 
-These are the command line's ``--colorspace --alpha --nan`` and ``--type --dither --compression
---force`` as values (:mod:`pyramid_cli.core.options` holds what each may be); the runners in
+These are the command line's ``--colorspace --alpha --nan --colorconfig`` and ``--type --dither --compression
+--force --tocolorspace`` as values (:mod:`pyramid_cli.core.options` holds what each may be); the runners in
 :mod:`pyramid_cli.run` hand them to :func:`pyramid_cli.imageio.read_image` and
 :func:`pyramid_cli.imageio.write_image`.
 """
@@ -18,6 +18,7 @@ class ReadOptions:
     colorspace: str = "auto"
     alpha: str = "auto"
     nan: str = "keep"
+    colorconfig: str | None = None  # an OpenColorIO config file; None: $OCIO, else OpenImageIO's built-in one
 
 
 @dataclass
@@ -28,11 +29,15 @@ class WriteOptions:
     dither: bool = False
     compression: str | None = None
     force: bool = False
+    tocolorspace: str | None = None  # the outputs' colour space; None: the input's, as the format holds it
 
     def for_inputs(self, inputs) -> dict:
         """The keyword arguments of :func:`pyramid_cli.imageio.write_image` for an output made from ``inputs``."""
-        return {"pixel_type": self.pixel_type, "dither": self.dither, "compression": self.compression,
-                "force": self.force, "inputs": tuple(inputs)}
+        options = {"pixel_type": self.pixel_type, "dither": self.dither, "compression": self.compression,
+                   "force": self.force, "inputs": tuple(inputs)}
+        if self.tocolorspace is not None:
+            options["colorspace"] = self.tocolorspace
+        return options
 
 
 __all__ = ["ReadOptions", "WriteOptions"]

@@ -312,7 +312,8 @@ def open_input(path: str, read):
     """An :class:`~pyramid_cli.imageio.ImageStream` of ``path`` as ``read`` (ReadOptions) asks, half kept half."""
     from pyramid_cli import imageio as io
 
-    return io.open_stream(path, colorspace=read.colorspace, alpha=read.alpha, nan=read.nan, keep_half=True)
+    return io.open_stream(path, colorspace=read.colorspace, alpha=read.alpha, nan=read.nan, keep_half=True,
+                          colorconfig=read.colorconfig)
 
 
 def stream_file(in_path: str, out_path: str | list[str], work, session, choice: Choice | None = None, *,
@@ -443,6 +444,9 @@ def run_job(job, work, session, *, memory: int | None, read=None, write=None, re
     if decided is None:
         return False
     st, choice = decided
+    if reporter is not None:
+        options = write.for_inputs([]) if hasattr(write, "for_inputs") else dict(write or {})
+        reporter.detail(f"{io.describe_rules(st.info)}; {io.describe_output(job.output, st.info, **options)}")
     with st:
         stream_file(job.input, job.output, work, session, choice, budget=choice.budget, read=read, write=write,
                     reporter=reporter, stream=st)

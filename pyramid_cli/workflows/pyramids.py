@@ -113,6 +113,37 @@ def mip_axis_weights(analysis: str):
     return tuple(tuple(sorted(axis[0].items())) for axis in split)
 
 
+# The border a MIP level (maketx's sizes) is built with, for each lookup border: a level averages what it covers
+# inside the texture's domain, so clamp and zero (black) build with the filter folded back into the domain by
+# reflection, which keeps every row's weights at 1 and every input texel's total at m/n (the mean; derivation
+# in docs/design.md, "MIP levels inside the domain"); wrap and mirror build as they read.
+LEVEL_BORDER: dict[str, str] = {"clamp": "mirror", "zero": "mirror", "wrap": "wrap", "mirror": "mirror"}
+
+
+def level_border(border: str) -> str:
+    """The border MIP levels of maketx's sizes are built with when lookups read past the edges by ``border``
+    (:data:`LEVEL_BORDER`): ``mirror`` for ``clamp`` and ``zero``, the border itself for ``wrap`` and ``mirror``.
+
+    The lookup's border stays the file's ``wrapmodes``; ``--round up`` (the analysis pyramid's padded
+    levels) builds with the lookup's border as before.
+    """
+    return LEVEL_BORDER[border]
+
+
+def folds_alike(weights, sizes) -> bool:
+    """Does clamp fold every read of a MIP chain of ``sizes`` as mirror does? Yes when no read of any level
+    reaches more than one texel past an edge (both fold −1 to 0 and n to n − 1): box, box4 and quadratic at
+    exact halvings (power-of-two sizes), or the bilinear reads of ``--resize``. Then the chain built with
+    the clamp border has the mirror fold's weights, and :func:`mip_plan` keeps its passes as they were."""
+    for (h, w), (h2, w2) in zip(sizes[:-1], sizes[1:], strict=True):
+        for axis, (n, m) in enumerate(((h, h2), (w, w2))):
+            if n != m:
+                starts, table = axis_table(weights[axis], n, m)
+                if min(starts) < -1 or max(st + len(row) for st, row in zip(starts, table, strict=True)) > n + 1:
+                    return False
+    return True
+
+
 @lru_cache(maxsize=32)  # batches re-use a plan per image size
 def mip_plan(size: tuple[int, int], analysis: str = catalogue.MIP_ANALYSIS_DEFAULT, border: str = "clamp",
              strategy: str = "cost", resize: bool = False) -> Plan:
@@ -125,10 +156,18 @@ def mip_plan(size: tuple[int, int], analysis: str = catalogue.MIP_ANALYSIS_DEFAU
 
     ``resize`` (maketx's ``--resize``): level 0 is first resampled up to powers of two, as a bilinear
     lookup reads the source (:func:`pyramid_cli.plan.resample.bilinear_table`); it is then output 0.
+
+    ``border`` is how a lookup reads past the edges (the file's ``wrapmodes``); the levels are built
+    with :func:`pyramid_cli.workflows.pyramids.level_border` of it, inside the texture's domain: ``clamp`` and
+    ``zero`` build mirrored (every level keeps level 0's mean), ``wrap`` periodically, ``mirror`` mirrored;
+    a ``clamp`` chain that :func:`folds_alike` keeps the clamp border, whose weights are then the same.
     """
     weights = mip_axis_weights(analysis)
     down = steps(one_step(analysis, Op.DOWN))
-    b = Builder(size, strategy, border)
+    build = level_border(border)
+    if border == "clamp" and folds_alike(weights, mip_sizes((ceil2(size[0]), ceil2(size[1])) if resize else size)):
+        build = border  # the same weights: a power-of-two chain keeps its passes (and its outputs) bit for bit
+    b = Builder(size, strategy, build)
     outs, current = [], 0
     if resize:
         for axis, n in enumerate(size):
@@ -159,7 +198,10 @@ def mip_plan(size: tuple[int, int], analysis: str = catalogue.MIP_ANALYSIS_DEFAU
                                      f"level {k} {w2}×{h2}: {analysis} kernel resampled, {name} {n}→{m} ({ratio})")
         outs.append(current)
     text = f"mipmap: {len(sizes) - 1} level(s) to 1×1, maketx's sizes, {analysis} ⊗↓"
-    return b.build(text + (", level 0 resized to powers of two" if resize else ""), outputs=outs)
+    text += ", level 0 resized to powers of two" if resize else ""
+    if build != border:
+        text += f", built inside the domain (edges folded by mirror; lookups read {border})"
+    return b.build(text, outputs=outs)
 
 
 def _lattice(text: str, op: Op) -> str:

@@ -25,16 +25,6 @@ def test_format_from_path_by_extension_whatever_its_case():
     assert formats.format_title("openexr") == "OpenEXR" and formats.format_title("bmp") == "bmp"
 
 
-def test_colour_space_names_and_defaults():
-    for name in ("linear", "lin_rec709_scene", "ACEScg", "scene_linear", "g10_rec709"):
-        assert formats.classify_colorspace(name) == "linear", name
-    for name in ("sRGB", "srgb_rec709_scene", "Gamma2.2", "g22_rec709"):
-        assert formats.classify_colorspace(name) == "srgb", name
-    assert formats.classify_colorspace("") is None and formats.classify_colorspace("XYZ-D65") is None
-    assert formats.default_colorspace("uint8") == formats.default_colorspace("uint16") == "srgb"
-    assert formats.default_colorspace("half") == formats.default_colorspace("float") == "linear"
-
-
 def test_pixel_type_names_of_oiio_types():
     assert formats.pixel_type_name(oiio.TypeDesc("uint8")) == "uint8"
     assert formats.pixel_type_name(oiio.TypeDesc("uint16")) == "uint16"

@@ -75,6 +75,67 @@ def test_what_the_border_does_to_the_mean(key, n):
     assert all(c <= target for c in column_sums(as_1d(key), n, m, "zero")[reach:n - reach] or [target])
 
 
+def _restricted(key, n, m, how):
+    """The (m, n) matrix of the kernel restricted to the domain: ``mirror`` folds what falls past an edge back in
+    by reflection, ``renormalised`` drops it and scales each row back to 1."""
+    starts, table = axis_table(as_1d(key), n, m)
+    if how == "mirror":
+        return dense(starts, table, n, "mirror")
+    return [[v / sum(row) for v in row] for row in dense(starts, table, n, "zero")]
+
+
+@pytest.mark.parametrize("key", SYMMETRIC)
+def test_the_mirror_fold_is_a_domain_restricted_filter_that_keeps_the_mean(key):
+    """Issue 26's rule, exact: rows summing to 1 (each level a weighted average of texels inside the domain) do
+    not keep the mean; that needs every column at m/n (each texel's total share). Folding by reflection gives
+    both at every size of maketx's chain, odd included, and is the filter itself wherever it stays inside."""
+    for n in [*range(2, 34), 67, 135]:
+        m = n // 2
+        target = Fraction(m, n)
+        fold = _restricted(key, n, m, "mirror")
+        assert all(sum(row) == 1 for row in fold), n
+        assert column_sums(as_1d(key), n, m, "mirror") == [target] * n, n
+        starts, table = axis_table(as_1d(key), n, m)
+        for j, (start, row) in enumerate(zip(starts, table, strict=True)):
+            if start >= 0 and start + len(row) <= n:  # reads inside: the filter as it is
+                assert fold[j] == [row[i - start] if start <= i < start + len(row) else 0 for i in range(n)]
+    # renormalising rows alone moves the mean: 5 → 2 gives the texels 12/35, 3/7, 16/35, 3/7, 12/35 (not 2/5)
+    ren = _restricted("quadratic", 5, 2, "renormalised")
+    assert [sum(row) for row in ren] == [1, 1]
+    assert [ren[0][i] + ren[1][i] for i in range(5)] == [Fraction(12, 35), Fraction(3, 7), Fraction(16, 35),
+                                                         Fraction(3, 7), Fraction(12, 35)]
+
+
+def test_clamp_and_black_build_the_mirror_plan_and_round_up_keeps_its_border():
+    """The lookup's border (the file's wrapmodes) is not the one the levels are built with: clamp and zero build
+    as mirror does, in the planner and (written apart) in the oracle; --round up pads by the border as before."""
+    from pyramid_cli.jobs.texture import TextureLevels
+    from pyramid_cli.reference.mip import DOMAIN
+    from pyramid_cli.workflows.pyramids import LEVEL_BORDER, level_border
+
+    assert DOMAIN == LEVEL_BORDER and {b: level_border(b) for b in BORDERS} == LEVEL_BORDER
+    assert LEVEL_BORDER["clamp"] == LEVEL_BORDER["zero"] == "mirror"
+    # clamp keeps its own passes where it folds as mirror does (no read more than one texel past an edge:
+    # power-of-two chains of box, box4 and quadratic, --resize's bilinear reads), so those stay bit for bit
+    for key, size, resize, alike in [("quadratic", (37, 23), False, False), ("quadratic", (7, 1), False, False),
+                                     ("quadratic", (64, 48), False, False), ("cubic", (64, 16), False, False),
+                                     ("quadratic", (64, 16), False, True), ("box4", (5, 6), True, True)]:
+        mirror = mip_plan(size, key, "mirror", "cost", resize)
+        for border in ("clamp", "zero"):
+            p = mip_plan(size, key, border, "cost", resize)
+            if border == "clamp" and alike:
+                assert p.border == "clamp" and p.expression == mirror.expression, (key, size)
+                x = np.random.default_rng(2).random(size)
+                for a, b in zip(emulate.run_outputs(p, x), emulate.run_outputs(mirror, x), strict=True):
+                    np.testing.assert_allclose(a, b, rtol=0, atol=1e-15)  # the same weights
+                continue
+            assert (p.passes, p.outputs, p.border) == (mirror.passes, mirror.outputs, "mirror"), (key, size, border)
+            said = f", built inside the domain (edges folded by mirror; lookups read {border})"
+            assert p.expression == mirror.expression + said
+    up = {b: TextureLevels(levels=None, border=b, rounding="up").plan([(9, 5)]) for b in ("clamp", "mirror")}
+    assert up["clamp"] != up["mirror"]
+
+
 # ------------------------------------------------------------------ the plan
 def test_exact_halvings_run_the_papers_passes_and_others_resample():
     p = mip_plan((64, 48), "quadratic")  # 32×24 16×12 8×6 4×3 halve exactly; 2×1 and 1×1 do not

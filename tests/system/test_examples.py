@@ -162,7 +162,8 @@ def build_stage(root: Path) -> None:
     for name in ("render.exr", "in.exr", "tile.exr", "albedo.exr", "bump.exr", "plate.exr", "patch.exr",
                  "matte_32k.exr", "painting_32k.exr", "plate_16k.exr", "a.exr", "out.exr",
                  "frames/a.exr", "frames/b.exr", "in/a.exr", "in/b.exr", "tex/albedo.1001.exr",
-                 "tex/albedo.1002.exr"):
+                 "tex/albedo.1002.exr", "plate_acescg.exr", "grade_acescct.exr", "grade.exr", "shot.exr",
+                 "shot_log.exr"):
         _write(root / name, rgba_with_holes() if name in ("in.exr", "render.exr") else rgb())
     for name in ("small.png", "photo.png", "albedo.png", "apple.png", "orange.png", "tex/a.png", "tex/b.png",
                  "a.png"):
@@ -174,6 +175,9 @@ def build_stage(root: Path) -> None:
     for name in ("left_half.png", "left.png", "valid.png", "m.png"):
         _write(root / name, matte(), "uint8")
     _write(root / "matte.exr", matte())
+    from helpers.colour import studio_config
+
+    studio_config(root)  # studio.ocio: the colour examples' own config
     _write(root / "tex" / "flat.exr", np.full((h, w, 3), 0.25, np.float32))
     depth = rng.random((h, w, 1)).astype(np.float32)
     depth[5:9, 5:9] = np.nan

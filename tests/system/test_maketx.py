@@ -356,6 +356,20 @@ def test_default_sizes_are_maketx_and_every_level_keeps_the_mean(tmp_path, shape
     np.testing.assert_allclose(levels_of(ours)[-1][0, 0], average, rtol=1e-5)
 
 
+@pytest.mark.parametrize("wrap", ["clamp", "black"])
+def test_clamp_and_black_keep_maketxs_sizes_and_wrapmodes_and_the_mean(tmp_path, wrap):
+    """Issue 26: levels built inside the domain; the sizes and the wrapmodes maketx writes are unchanged."""
+    src, ours, theirs = tmp_path / "in.exr", tmp_path / "ours.exr", tmp_path / "theirs.exr"
+    g = np.random.default_rng(8).random((7, 5, 3)).astype(np.float32)
+    write(src, g)
+    mipmap("--wrap", wrap, "--type", "float", src, ours)
+    maketx(src, theirs, "--wrap", wrap)
+    assert maketx_sizes(ours) == maketx_sizes(theirs)
+    assert attributes(ours)["wrapmodes"] == attributes(theirs)["wrapmodes"] == f"{wrap},{wrap}"
+    for level in levels_of(ours):
+        np.testing.assert_allclose(level.mean(axis=(0, 1)), g.astype(np.float64).mean(axis=(0, 1)), rtol=1e-6)
+
+
 def test_round_up_keeps_the_analysis_pyramids_sizes_and_even_levels_agree(tmp_path):
     src, down, up = tmp_path / "in.exr", tmp_path / "down.exr", tmp_path / "up.exr"
     write(src, np.random.default_rng(7).random((32, 16, 4)).astype(np.float32))

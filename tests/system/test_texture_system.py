@@ -5,9 +5,9 @@ resampling where a level is not exactly half the one above) and read back throug
 only: every level texel by texel (``Closest``, ``OneLevel``, derivatives of one texel of that level), bilinear
 lookups inside a level, trilinear lookups of single-pixel dots at growing footprints, and whole-image lookups.
 
-The means hold under the periodic and mirror wrap modes, whose reads past the edges keep every column of the
-resampling weights at m/n (:mod:`pyramid_cli.plan.resample`); under clamp the edge pixels weigh a little more
-(about 1e-5 relative on these images), under black (zero) the edges darken.
+The means hold under every wrap mode: periodic and mirror build as they read, and their reads past the edges keep
+every column of the resampling weights at m/n (:mod:`pyramid_cli.plan.resample`); clamp and black (whose lookups
+read the edge texel or zero) build their levels inside the domain, by the mirror fold (issue 26, docs/design.md).
 """
 
 from __future__ import annotations
@@ -102,6 +102,16 @@ def test_every_level_keeps_the_mean_through_the_texture_system(tmp_path, shape, 
     check_means(tmp_path, shape, wrap)
 
 
+@pytest.mark.parametrize("shape", [(3, 5, 3), (1, 7, 2), (7, 1, 1), (37, 51, 2)])
+@pytest.mark.parametrize("wrap", ["clamp", "black"])
+def test_clamp_and_black_levels_keep_the_mean_and_name_the_lookup_mode(tmp_path, shape, wrap):
+    """Built inside the domain, read by the lookup's mode: the file's wrapmodes is still what was asked."""
+    check_means(tmp_path, shape, wrap)
+    inp = oiio.ImageInput.open(str(tmp_path / "tex.tx.exr"))
+    assert inp.spec().get_string_attribute("wrapmodes") == f"{wrap},{wrap}"
+    inp.close()
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("shape", [(777, 1001, 3), (1080, 1920, 4)])
 def test_every_level_keeps_the_mean_on_large_odd_images(tmp_path, shape):
@@ -133,10 +143,10 @@ def test_single_pixel_dots_keep_their_centroid_at_every_footprint(tmp_path):
     g = np.zeros((h, w, 1), np.float32)
     for y, x in DOTS:
         g[y, x] = 1
-    path = make(tmp_path, g)
+    path = make(tmp_path, g)  # the default wrap, clamp: levels built inside the domain
     for footprint in (2, 8, 32):
         err = centroid_errors(path, h, w, footprint)
-        assert np.abs(err).max() < 1, f"footprint {footprint}: centroid off by {err}"
+        assert np.abs(err).max() < 0.1, f"footprint {footprint}: centroid off by {err}"
 
 
 def test_round_up_drifts_as_the_issue_measured(tmp_path):
