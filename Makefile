@@ -34,6 +34,7 @@ TEST_JOBS ?= auto
 test: $(STAMP) check-gl
 	$(PY) -m ruff check pyramid_cli tests samples scripts bench
 	$(VENV)/bin/lint-imports
+	$(PY) -m mypy
 	$(PY) -m pytest -n $(TEST_JOBS) --maxprocesses 4 --dist worksteal
 
 # The Sphinx site: warnings are errors and every cross-reference must resolve (-n).

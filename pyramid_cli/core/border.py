@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from enum import Enum
 
+from pyramid_cli.core.errors import UsageError
+
 
 class Border(Enum):
     CLAMP = "clamp"     # GL CLAMP_TO_EDGE, Halide repeat_edge
@@ -22,6 +24,48 @@ class Border(Enum):
 
 
 BORDER_NAMES = [b.value for b in Border]
+
+# Other libraries' names for our modes, each exactly equal (the API accepts them; the CLI takes ours): numpy.pad's
+# and scikit-image's "edge" and "symmetric" (d c b a | a b c d, the edge sample repeated: GL's MIRRORED_REPEAT) and
+# "wrap"; scipy.ndimage's "nearest", "grid-mirror", "grid-wrap", "grid-constant"; OpenCV's "replicate";
+# "constant" with its default value 0; maketx's "periodic" and "black" (--wrap).
+BORDER_ALIASES: dict[str, str] = {
+    "edge": "clamp", "nearest": "clamp", "replicate": "clamp",
+    "symmetric": "mirror", "grid-mirror": "mirror",
+    "periodic": "wrap", "grid-wrap": "wrap",
+    "constant": "zero", "grid-constant": "zero", "black": "zero",
+}
+
+# Names that mean another mode in another library, or a mode we do not have: refused, saying which of ours is near.
+BORDER_REFUSED: dict[str, str] = {
+    "reflect": "means two things: numpy's and scikit-image's 'reflect' (d c b | a b c d, the edge sample not "
+               "repeated) is not a mode here, and scipy.ndimage's and OpenCV's 'reflect' (d c b a | a b c d) is "
+               "'mirror' (numpy's 'symmetric')",
+    "reflect_101": "(OpenCV's BORDER_REFLECT_101, numpy's 'reflect': the edge sample not repeated) is not a mode "
+                   "here; 'mirror' (numpy's 'symmetric') repeats it",
+    "reflect101": "(OpenCV's BORDER_REFLECT_101, numpy's 'reflect': the edge sample not repeated) is not a mode "
+                  "here; 'mirror' (numpy's 'symmetric') repeats it",
+}
+
+
+def canonical(name: str) -> str:
+    """Our name of the border mode ``name``: one of :data:`BORDER_NAMES`, or an alias of :data:`BORDER_ALIASES`.
+
+    Raises
+    ------
+    UsageError
+        A name of :data:`BORDER_REFUSED` (another library's mode that is not exactly one of ours) or an unknown
+        one, with the names that are accepted.
+    """
+    key = name.lower() if isinstance(name, str) else name
+    if key in BORDER_NAMES:
+        return key
+    if key in BORDER_ALIASES:
+        return BORDER_ALIASES[key]
+    if key in BORDER_REFUSED:
+        raise UsageError(f"border {name!r} {BORDER_REFUSED[key]}")
+    raise UsageError(f"border must be one of {', '.join(BORDER_NAMES)} (or {', '.join(BORDER_ALIASES)}), "
+                     f"not {name!r}")
 
 
 def fold_index(i: int, n: int, border: Border) -> int:

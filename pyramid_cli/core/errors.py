@@ -6,10 +6,15 @@ and exits with that code. Anything else is a bug and exits with 1 and a
 traceback.
 
 For Python callers: :class:`UsageError` (a bad argument) and :class:`DataError` (bad pixel data)
-are also ``ValueError`` s; :class:`InputError` (a file that cannot be read), :class:`OutputError`
-(a file that cannot be written) and :class:`BackendError` (no GL context) are only
-:class:`PyramidError` s. :class:`MixedLatticeWarning` is the ``UserWarning`` of a filter pair on
-two lattices.
+are also ``ValueError`` s; :class:`InputError` (a file that cannot be read) and :class:`OutputError`
+(a file that cannot be written) are also ``OSError`` s (with no ``errno``: the message says why);
+:class:`BackendError` (no GL context) is only a :class:`PyramidError`.
+
+Warnings: every warning the package gives a Python caller is a :class:`PyramidWarning` (a
+``UserWarning``), so ``warnings.filterwarnings("ignore", category=PyramidWarning)`` silences them
+all; :class:`MixedLatticeWarning` (a filter pair on two lattices), :class:`MaskWarning` (mask or
+weight values clipped, NaN/Inf kept) and :class:`BackendWarning` (an executor that could not be
+used, and what ran instead) tell them apart.
 """
 
 from __future__ import annotations
@@ -74,14 +79,16 @@ class ExpressionError(UsageError):
         return f"{self.problem}\n  {self.text}\n  {self.caret()}"
 
 
-class InputError(PyramidError):
-    """An input file cannot be read (missing, truncated, unsupported), or inputs that do not fit together."""
+class InputError(PyramidError, OSError):
+    """An input file cannot be read (missing, truncated, unsupported), or inputs that do not fit together
+    (an ``OSError`` for Python callers)."""
 
     kind = "input"
 
 
-class OutputError(PyramidError):
-    """An output cannot be written (disk full, read-only folder), or would overwrite an input."""
+class OutputError(PyramidError, OSError):
+    """An output cannot be written (disk full, read-only folder), or would overwrite an input (an ``OSError``
+    for Python callers)."""
 
     kind = "output"
 
@@ -99,6 +106,36 @@ class BackendError(PyramidError):
     kind = "backend"
 
 
-class MixedLatticeWarning(UserWarning):
+class PyramidWarning(UserWarning):
+    """What the command line prints as ``pyramid: warning: …``, for a Python caller: the base of every
+    warning the package gives."""
+
+
+class MixedLatticeWarning(PyramidWarning):
     """An analysis and a synthesis filter on different lattices: the result shifts
     (:func:`pyramid_cli.workflows.pyramids.lattice_mismatch`)."""
+
+
+class MaskWarning(PyramidWarning):
+    """Mask or weight values outside [0, 1] (clipped), or NaN/Inf in them (kept: they spread)."""
+
+
+class BackendWarning(PyramidWarning):
+    """An executor that could not be used (no EGL context, an image GL cannot hold, no numba) and what
+    ran instead."""
+
+
+def warn(message: str, category: type[Warning] = PyramidWarning) -> None:
+    """``warnings.warn(message, category)`` attributed to the first caller outside this package (the user's
+    line), so that filters by module and line, and ``pytest.warns``, see where the user called from."""
+    import os
+    import sys
+    import warnings
+    from types import FrameType
+
+    package = os.path.dirname(os.path.dirname(os.path.abspath(__file__))) + os.sep
+    frame: FrameType | None = sys._getframe(1)
+    level = 2
+    while frame is not None and frame.f_code.co_filename.startswith(package):
+        frame, level = frame.f_back, level + 1
+    warnings.warn(message, category, stacklevel=level)

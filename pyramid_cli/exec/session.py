@@ -29,7 +29,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from pyramid_cli.core import options
+from pyramid_cli.core import errors, options
 from pyramid_cli.core.errors import BackendError, DataError
 from pyramid_cli.exec.base import Executor
 from pyramid_cli.exec.emulate import Emulator, rounded
@@ -215,7 +215,8 @@ class Session:
     threads : int, optional
         CPU executor threads (default: the machine's cores).
     warn : callable, optional
-        Receives one-line warnings (default: printed to standard error).
+        Receives one-line warnings (default: a :class:`~pyramid_cli.core.errors.BackendWarning` through
+        ``warnings``; the command line passes its own, which prints ``pyramid: warning: …``).
     note : callable, optional
         Receives one line when the executor is chosen: ``executor NAME (WHY)`` (``-v``).
 
@@ -235,7 +236,7 @@ class Session:
         self.backend = backend
         self.precision = precision
         self.threads = threads
-        self._warn = warn or (lambda msg: print(f"pyramid: warning: {msg}", file=sys.stderr))
+        self._warn = warn or (lambda msg: errors.warn(msg, errors.BackendWarning))
         self._note = note
         self._executor: Executor | None = None
         self._cpu: Executor | None = None
@@ -413,13 +414,19 @@ class Session:
         """Every output of ``work`` on ``images`` (one array, or one per input), as ``dtype``.
 
         ``dtype`` is float32 or float16 (rounded to nearest even from the float32 result,
-        as every executor rounds). A job that keeps its input returns it first, unchanged.
+        as every executor rounds), or float64: computed in float64 by the numpy plan emulator
+        (:class:`~pyramid_cli.exec.emulate.Emulator`, float64 throughout) for ``auto`` and ``cpu``, by
+        the float64 oracle (:meth:`~pyramid_cli.jobs.work.Work.reference`) for ``reference``, and in
+        float32 then widened on ``gl``, which has no float64. A job that keeps its input returns it
+        first, unchanged.
         """
         images = list(images) if isinstance(images, (list, tuple)) else [images]
         if len(images) != work.n_inputs:
             raise ValueError(f"{work.label} takes {work.n_inputs} image(s), got {len(images)}")
         work.check(tuple(im.shape[:2] for im in images))
         kept = [images[0]] if work.keeps_input else []
+        if np.dtype(dtype) == np.float64:
+            return kept + self._run_float64(work, images)
         if not self._decided:
             shapes = [np.shape(im) if np.ndim(im) > 2 else (*np.shape(im)[:2], 1) for im in images]
             self.decide(work, shapes, dtype=np.asarray(images[0]).dtype)
@@ -431,6 +438,18 @@ class Session:
             self.ran = self.name
             return kept
         return kept + self.run_plan(p, images, dtype, work)
+
+    def _run_float64(self, work: Work, images: list) -> list[np.ndarray]:
+        """:meth:`run`'s float64 outputs (see there), without the kept input."""
+        if self.backend == "reference":
+            self.ran = "reference"
+            return [np.asarray(o, dtype=np.float64) for o in work.reference(images)]
+        if self.backend == "gl":
+            return [o.astype(np.float64) for o in self.run(work, images)[1 if work.keeps_input else 0:]]
+        emulator = Emulator()
+        p = work.plan(tuple(tuple(np.shape(im)[:2]) for im in images), emulator.strategy)
+        self.ran = emulator.name
+        return [] if p is None else emulator.run_outputs(p, images, np.float64)
 
     def run_plan(self, p: Plan, images, dtype=np.float32, work: Work | None = None) -> list[np.ndarray]:
         """Every output of a plan, on this session's executor (the reference cannot run plans)."""

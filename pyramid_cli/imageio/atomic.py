@@ -20,7 +20,7 @@ import os
 import tempfile
 from collections.abc import Iterator, Sequence
 
-from pyramid_cli.core.errors import OutputError
+from pyramid_cli.core.errors import OutputError, PyramidError
 
 
 def _umask() -> int:
@@ -148,7 +148,7 @@ def atomic_paths(paths: Sequence[str]) -> Iterator[list[str]]:
         for tmp in tmps:
             if tmp:
                 remove_quietly(tmp)
-        if isinstance(exc, OSError):
+        if isinstance(exc, OSError) and not isinstance(exc, PyramidError):  # InputError is an OSError too
             raise OutputError(f"cannot write {paths[0] if len(paths) == 1 else ', '.join(paths)}: "
                               f"{error_reason(exc)}") from None
         if isinstance(exc, OutputError) and any(t in exc.message for t in made):

@@ -15,7 +15,7 @@ try:
 except ImportError:  # not on Windows: no file size limit to respect
     resource = None
 
-from pyramid_cli.core.errors import OutputError
+from pyramid_cli.core.errors import OutputError, PyramidError
 from pyramid_cli.imageio.atomic import atomic_path, atomic_paths
 from pyramid_cli.imageio.encode import check_output_path, check_write_options, encode
 from pyramid_cli.imageio.formats import ENCODE_IN_MEMORY, format_from_path, format_title, one_line
@@ -170,6 +170,8 @@ def write_file(tmp: str, user_path: str, fmt: str, parts: list[tuple[oiio.ImageS
     except WriteFailed as exc:
         message = str(exc).replace(tmp, user_path)
         raise OutputError(f"cannot write {user_path}: {message}{diagnosis(tmp)}") from None
+    except PyramidError:  # an InputError or OutputError is an OSError too: it says its own line
+        raise
     except OSError as exc:
         raise OutputError(f"cannot write {user_path}: {exc.strerror or exc}") from None
 

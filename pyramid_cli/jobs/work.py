@@ -15,8 +15,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from pyramid_cli.core import catalogue, geometry, options
-from pyramid_cli.core.border import Border
+from pyramid_cli.core import catalogue, geometry
+from pyramid_cli.core.border import Border, canonical
 from pyramid_cli.core.errors import InputError, UsageError
 from pyramid_cli.core.expr import Expr
 from pyramid_cli.core.sigma import check_sigma, sigma_blend
@@ -29,7 +29,8 @@ Size = tuple[int, int]
 
 
 def _border(name: str) -> str:
-    return options.check("border", name, options.BORDERS)
+    """Our name of a border mode, from ours or another library's (:data:`pyramid_cli.core.border.BORDER_ALIASES`)."""
+    return canonical(name)
 
 
 def _lattice_warnings(work, levels: int | None, method: str) -> list[str]:

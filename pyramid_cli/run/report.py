@@ -6,6 +6,7 @@ the lines they share (a written output, a first run's kernel compiles) are spell
 
 from __future__ import annotations
 
+import logging
 import sys
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -60,6 +61,27 @@ class Reporter:
             self.err(f"pyramid: {msg}")
 
 
+@dataclass
+class PythonReporter(Reporter):
+    """What a run says, for a Python caller (:func:`pyramid_cli.api.process_files`): warnings through
+    :mod:`warnings` at the caller's line (a :class:`~pyramid_cli.core.errors.MixedLatticeWarning` for those
+    in ``lattice``, the job's own, else a :class:`~pyramid_cli.core.errors.PyramidWarning`), what ``-v``
+    and :meth:`say` print logged at INFO on the ``pyramid_cli`` logger, results printed unless ``quiet``."""
+
+    lattice: tuple[str, ...] = ()
+
+    def warn(self, msg: str) -> None:
+        from pyramid_cli.core import errors
+
+        errors.warn(msg, errors.MixedLatticeWarning if msg in self.lattice else errors.PyramidWarning)
+
+    def detail(self, msg: str) -> None:
+        logging.getLogger("pyramid_cli").info(msg)
+
+    def say(self, msg: str) -> None:
+        logging.getLogger("pyramid_cli").info(msg)
+
+
 def announce_compiles(session, work, images, reporter: Reporter) -> None:
     """On a machine's first run the CPU executor compiles its kernels: say so, and for how long.
 
@@ -87,4 +109,4 @@ def wrote_line(path: str, width: int, height: int, levels: int | None, executor:
     return f"wrote {path} ({width}×{height}{f', {levels} MIP levels' if levels else ''}, {executor})"
 
 
-__all__ = ["NAN_HINT", "Reporter", "announce_compiles", "wrote_line", "nonfinite_kept"]
+__all__ = ["NAN_HINT", "Reporter", "PythonReporter", "announce_compiles", "wrote_line", "nonfinite_kept"]

@@ -50,3 +50,19 @@ def test_reference_reads_the_border_by_definition(border):
                 for d, w in ((-1, 0.25), (0, 0.5), (1, 0.25))) for c in range(1, n + 1)]
     got = reference.run(parse("1/4 [1 2 1] * g"), g, Border(border))
     np.testing.assert_allclose(got[0], want, rtol=0, atol=1e-12)
+
+
+def test_other_libraries_names_map_to_one_mode_each_and_reflect_is_refused():
+    from pyramid_cli.core.border import BORDER_ALIASES, BORDER_NAMES, BORDER_REFUSED, canonical
+    from pyramid_cli.core.errors import UsageError
+
+    assert {canonical(name) for name in BORDER_NAMES} == set(BORDER_NAMES)
+    assert all(canonical(alias.upper()) == mode in BORDER_NAMES for alias, mode in BORDER_ALIASES.items())
+    assert not set(BORDER_ALIASES) & set(BORDER_REFUSED) and not set(BORDER_ALIASES) & set(BORDER_NAMES)
+    # numpy's "symmetric" repeats the edge sample (our mirror); its "reflect" does not (no mode of ours)
+    assert np.pad([1, 2, 3], 2, mode="symmetric").tolist() == [fold_index(i, 3, Border.MIRROR) for i in range(-1, 6)]
+    assert np.pad([1, 2, 3], 2, mode="reflect").tolist() == [3, 2, 1, 2, 3, 2, 1]
+    with pytest.raises(UsageError, match="'reflect' means two things"):
+        canonical("reflect")
+    with pytest.raises(UsageError, match=r"must be one of clamp, mirror, wrap, zero \(or edge, nearest"):
+        canonical("reflex")

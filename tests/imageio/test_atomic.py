@@ -18,6 +18,18 @@ def test_the_output_appears_only_when_the_write_completes(tmp_path):
     assert os.listdir(tmp_path) == ["out.exr"]
 
 
+def test_an_input_error_in_the_body_stays_an_input_error(tmp_path):
+    from pyramid_cli.core.errors import InputError, OutputError
+
+    with pytest.raises(InputError, match="^cannot read in.exr: truncated$"):  # an OSError, not made an OutputError
+        with atomic_path(str(tmp_path / "out.exr")):
+            raise InputError("cannot read in.exr: truncated")
+    with pytest.raises(OutputError, match="^cannot write x: full$"):
+        with atomic_path(str(tmp_path / "out.exr")):
+            raise OutputError("cannot write x: full")
+    assert os.listdir(tmp_path) == []
+
+
 def test_a_failed_write_leaves_nothing(tmp_path):
     final = tmp_path / "out.exr"
     with pytest.raises(RuntimeError), atomic_path(str(final)) as temporary:

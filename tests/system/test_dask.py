@@ -314,14 +314,15 @@ def test_local_cluster_matches_one_process_and_survives_a_killed_worker(tmp_path
     distributed = pytest.importorskip("distributed")
     write_sequence(tmp_path / "in", 1001, 1030, size=(32, 32))
     pattern = str(tmp_path / "in" / "plate.####.exr")
-    assert pyr.process_files(WORK, [pattern], template=str(tmp_path / "one" / "soft.####.exr"), backend="cpu") == 0
+    assert pyr.process_files(WORK, [pattern], template=str(tmp_path / "one" / "soft.####.exr"),
+                             backend="cpu").exit_code == 0
 
     flag = tmp_path / "crashed"
     monkeypatch.setenv(cluster.CRASH_VARIABLE, str(flag))  # inherited by the worker processes
     with distributed.LocalCluster(n_workers=2, processes=True, threads_per_worker=1, host="127.0.0.1",
                                   dashboard_address=None) as local, distributed.Client(local) as client:
         code = pyr.process_files(WORK, [pattern], template=str(tmp_path / "many" / "soft.####.exr"),
-                                 backend="cpu", cluster=client, chunk=5)
+                                 backend="cpu", cluster=client, chunk=5).exit_code
         assert all(addr.startswith("tcp://127.0.0.1:") for addr in client.scheduler_info()["workers"])
     assert code == 0
     assert flag.exists()  # a worker did die half-way through a chunk
@@ -349,5 +350,5 @@ def test_cli_cluster_keep_going_and_exit_code_as_one_process(tmp_path):
 def test_api_takes_frames_and_shards(tmp_path):
     write_sequence(tmp_path / "in", 1, 6)
     kw = {"template": str(tmp_path / "out" / "o.{frame}.exr"), "backend": "cpu", "frames": "1-6x1"}
-    assert pyr.process_files(WORK, [str(tmp_path / "in" / "plate.####.exr")], shard="2/3", **kw) == 0
+    assert pyr.process_files(WORK, [str(tmp_path / "in" / "plate.####.exr")], shard="2/3", **kw).exit_code == 0
     assert outputs(tmp_path / "out") == ["o.3.exr", "o.4.exr"]

@@ -25,6 +25,13 @@ CRASH_VARIABLE = "PYRAMID_TEST_CLUSTER_CRASH"
 SLOW_VARIABLE = "PYRAMID_TEST_CLUSTER_SLOW"
 
 
+def _print_warning(message: str) -> None:
+    """A worker session's warning, on the worker's standard error as the command line prints it."""
+    import sys
+
+    print(f"pyramid: warning: {message}", file=sys.stderr)
+
+
 @dataclass(frozen=True)
 class SessionSpec:
     """What a worker's session is made of: ``Session(backend, precision, threads=threads)``."""
@@ -36,7 +43,7 @@ class SessionSpec:
     def open(self):
         from pyramid_cli.exec.session import Session
 
-        return Session(self.backend, self.precision, threads=self.threads)
+        return Session(self.backend, self.precision, threads=self.threads, warn=_print_warning)
 
     @property
     def plugin_name(self) -> str:
