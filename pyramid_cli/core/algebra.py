@@ -135,9 +135,9 @@ def kernel_of_steps(stps: list[Step]) -> Kernel:
             if _phases(truth, trial_p, trial_s) is None:
                 break
             period, stride = trial_p, trial_s
-    phases = _phases(truth, period, stride)
-    assert phases is not None
-    return Kernel(tuple(period), tuple(stride), phases)
+    found = _phases(truth, period, stride)
+    assert found is not None  # the loop only keeps a (period, stride) that _phases accepted
+    return Kernel((period[0], period[1]), (stride[0], stride[1]), found)
 
 
 def split_step(step: Step) -> tuple[dict, dict] | None:
@@ -180,8 +180,8 @@ def _evaluator_1d(axis_steps):
 
 def axis_kernels(stps: list[Step]):
     """For a chain of separable steps: per axis (period, stride, {phase: {d: w}}); else None."""
-    splits = [split_step(s) for s in stps]
-    if any(sp is None for sp in splits):
+    splits = [sp for sp in (split_step(s) for s in stps) if sp is not None]
+    if len(splits) != len(stps):
         return None
     out = []
     for axis in (0, 1):
@@ -415,26 +415,28 @@ def lattice(k: Kernel) -> tuple[str, tuple[Fraction | None, Fraction | None]]:
     at fine 2r − ½, docs/design.md §4); otherwise shifted by o. Returns the name and
     (o_r, o_c).
     """
-    names, offs = [], []
+    names: list[str] = []
+    offs: list[Fraction | None] = []
     for axis in (0, 1):
         rho = k.rate[axis]
-        o_all = []
+        o_all: list[Fraction] = []
+        undefined = False
         for (fr, fc), w in k.phases.items():
             phase = (fr, fc)[axis]
             p = k.period[axis]
             r = 8 * p + (phase or p)
             total = sum(w.values())
             if not total:
-                o_all.append(None)
-                continue
+                undefined = True  # a phase with zero total weight has no centroid
+                break
             centroid = sum(v * (k.base(r, axis) - d[axis]) for d, v in w.items()) / total
             o_all.append(centroid - rho * r)
-        if None in o_all:
+        if undefined:
             names.append("undefined")
             offs.append(None)
             continue
         # phases of a piecewise-constant filter (nearest) differ: take their mean
-        o = sum(o_all) / len(o_all)
+        o = sum(o_all, Fraction(0)) / len(o_all)
         offs.append(o)
         if o == 0:
             names.append("primal")

@@ -100,6 +100,7 @@ def resolve_mask(f: Filter) -> Matrix:
 
 def resolve_phases(f: Filter) -> dict[catalogue.Phase, Matrix]:
     """The four phase masks of a filter used with ⊗↑."""
+    assert isinstance(f, Named), "⊗↑ takes a named synthesis filter (the parser refuses a written mask)"
     return catalogue.synthesis(f.key).phases
 
 

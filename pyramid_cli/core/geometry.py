@@ -12,6 +12,8 @@ formulas on purpose: it is the oracle that catches mistakes here.
 
 from __future__ import annotations
 
+from typing import overload
+
 from pyramid_cli.core.errors import DataError
 
 
@@ -35,6 +37,14 @@ def reduced(n: int, m: int = 1) -> int:
     return ceil_div(n, 2 ** m)
 
 
+@overload
+def halved(size: tuple[int, int]) -> tuple[int, int]: ...
+
+
+@overload
+def halved(size: tuple[int, ...]) -> tuple[int, ...]: ...
+
+
 def halved(size: tuple[int, ...]) -> tuple[int, ...]:
     """Each dimension ⌈n/2⌉: the size of the next pyramid level (one ⊗↓ step; odd sizes round up)."""
     return tuple(reduced(n) for n in size)
@@ -42,7 +52,8 @@ def halved(size: tuple[int, ...]) -> tuple[int, ...]:
 
 def level_sizes(size: tuple[int, int], levels: int) -> list[tuple[int, int]]:
     """Sizes of pyramid levels 0..m: each :func:`halved` of the one before."""
-    out = [tuple(size)]
+    h, w = size
+    out = [(h, w)]
     for _ in range(levels):
         out.append(halved(out[-1]))
     return out
@@ -60,7 +71,8 @@ def mip_levels(size: tuple[int, int]) -> int:
 def mip_sizes(size: tuple[int, int], rounding: str = "down") -> list[tuple[int, int]]:
     """MIP level sizes (rows, columns) down to 1×1: ``max(1, ⌊n/2⌋)`` ("down", maketx's and OpenEXR's)
     or ``⌈n/2⌉`` ("up", :func:`halved`)."""
-    out = [tuple(size)]
+    h, w = size
+    out = [(h, w)]
     while out[-1][0] > 1 or out[-1][1] > 1:
         h, w = out[-1]
         out.append((max(1, h // 2), max(1, w // 2)) if rounding == "down" else halved((h, w)))

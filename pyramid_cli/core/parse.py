@@ -21,6 +21,7 @@ import difflib
 import re
 from dataclasses import dataclass
 from fractions import Fraction
+from typing import NoReturn
 
 from pyramid_cli.core import catalogue
 from pyramid_cli.core.errors import ExpressionError, UsageError
@@ -83,6 +84,7 @@ def tokenize(text: str) -> list[Token]:
             ch = text[pos]
             raise ExpressionError(f"unexpected character {ch!r}", text, pos)
         kind = m.lastgroup
+        assert kind is not None, "every alternative of _TOKEN_RE is a named group"
         tok = m.group()
         if kind != "ws":
             tokens.append(Token(kind.upper(), tok, pos))
@@ -138,7 +140,7 @@ class _Parser:
         self.i += 1
         return tok
 
-    def fail(self, message: str, tok: Token | None = None, length: int | None = None):
+    def fail(self, message: str, tok: Token | None = None, length: int | None = None) -> NoReturn:
         tok = tok or self.peek()
         raise ExpressionError(message, self.text, tok.pos, length or max(1, len(tok.text)))
 
@@ -165,11 +167,10 @@ class _Parser:
         if self.peek().kind in ("END", "RPAR", "OP"):
             self.fail(f"expected a filter or g after {op.unicode}")
         right = self.chain(depth + 1)
-        self._check_op(left, op)
+        self._check_op(left.filter, op)
         return Apply(op, left.filter, right, left.power, stride, left.span)
 
-    def _check_op(self, left: _Operand, op: Op) -> None:
-        f = left.filter
+    def _check_op(self, f: Filter, op: Op) -> None:
         start, end = f.span
         if isinstance(f, Literal):
             if op is Op.UP:
@@ -189,17 +190,18 @@ class _Parser:
         """A chain's last operand is the image: ``g``, ``(chain)``, or ``F`` meaning ``F ⊗ g``."""
         if operand.image is not None:
             return operand.image
-        if self.i and operand.filter is not None and self._is_whole(operand):
-            op = self._natural_op(operand)
-        self._check_op(operand, op)
-        return Apply(op, operand.filter, Input(), operand.power, 1, operand.span)
+        f = operand.filter
+        assert f is not None, "an operand is a filter or an image"
+        if self.i and self._is_whole(operand):
+            op = self._natural_op(f)
+        self._check_op(f, op)
+        return Apply(op, f, Input(), operand.power, 1, operand.span)
 
     def _is_whole(self, operand: _Operand) -> bool:
         return operand.span == (self.tokens[0].pos, self.tokens[-2].pos + len(self.tokens[-2].text))
 
-    def _natural_op(self, operand: _Operand) -> Op:
+    def _natural_op(self, f: Filter) -> Op:
         """A lone filter runs with its own operator: basic ⊗, analysis ⊗↓, synthesis ⊗↑."""
-        f = operand.filter
         if isinstance(f, Literal):
             return Op.CONV
         if f.key == "cubic":

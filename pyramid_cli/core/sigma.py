@@ -129,7 +129,8 @@ def max_levels(size: tuple[int, int] | None) -> int:
     :data:`~pyramid_cli.core.options.MAX_LEVELS`)."""
     if size is None:
         return MAX_LEVELS
-    return max(1, min(mip_levels(tuple(size)), MAX_LEVELS))
+    rows, cols = size
+    return max(1, min(mip_levels((rows, cols)), MAX_LEVELS))
 
 
 def max_sigma(size: tuple[int, int] | None, analysis: str = A0, synthesis: str = S0) -> float:

@@ -84,7 +84,7 @@ def plan_key(work: object, sizes, strategy: str) -> str:
 class _Fractions:
     """Each distinct Fraction once: an entry stores indices into a table of ``[numerator, denominator]``."""
 
-    def __init__(self):
+    def __init__(self) -> None:
         self.index: dict[Fraction, int] = {}
         self.table: list[list[int]] = []
 

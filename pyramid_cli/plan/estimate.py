@@ -6,7 +6,8 @@ from pyramid_cli.plan import cost
 from pyramid_cli.plan.model import Image, Pass, Plan, PointwisePass, ResamplePass
 
 
-def pass_measures(images: list[Image], ps: Pass | ResamplePass) -> tuple[int, tuple[int, int], float, float, int]:
+def pass_measures(images: list[Image],
+                  ps: Pass | ResamplePass | PointwisePass) -> tuple[int, tuple[int, int], float, float, int]:
     """What the cost model weighs for one pass: (texture reads in its shader, the target's stored
     size, bilinear and single-texel fetches each fragment executes, stored pixels of the sources read)."""
     if isinstance(ps, ResamplePass):  # a table row of single-texel reads per fragment
@@ -22,7 +23,8 @@ def pass_measures(images: list[Image], ps: Pass | ResamplePass) -> tuple[int, tu
     return in_shader, images[ps.target].stored, linear, nearest, read
 
 
-def pass_seconds(images: list[Image], ps: Pass, model: cost.CostModel | None = None) -> float:
+def pass_seconds(images: list[Image], ps: Pass | ResamplePass | PointwisePass,
+                 model: cost.CostModel | None = None) -> float:
     """The cost model's seconds for one pass: its stored target, executed fetches and sources read."""
     return (model or cost.model()).pass_seconds(*pass_measures(images, ps))
 

@@ -66,7 +66,7 @@ def axis_table(weights: Weights1D, n_in: int, n_out: int) -> tuple[tuple[int, ..
         for a, b, density in pieces:
             lo, hi = c + a * s, c + b * s  # the piece in input units
             for i in range(lo.__floor__(), hi.__ceil__()):
-                overlap = min(hi, i + 1) - max(lo, i)
+                overlap = min(hi, Fraction(i + 1)) - max(lo, Fraction(i))
                 if overlap > 0:
                     acc[i] = acc.get(i, Fraction(0)) + density * overlap / s
         first, last = min(acc), max(acc)

@@ -12,6 +12,7 @@ becomes a :class:`PointwiseShape`.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from fractions import Fraction
 
@@ -64,6 +65,12 @@ def sources(ps: Pass | PointwisePass) -> list[int]:
     return sorted(ps.sources())
 
 
+def _pair(v: Sequence[int]) -> tuple[int, int]:
+    """A (rows, columns) pair as a tuple of two (the hashable form a shape keeps)."""
+    r, c = v
+    return (r, c)
+
+
 def pointwise_shape(ps: PointwisePass) -> PointwiseShape:
     """The shape of a pointwise pass: its op, operand count and parameter."""
     return PointwiseShape(ps.op, len(ps.srcs), Fraction(ps.param))
@@ -80,13 +87,13 @@ def shape(ps: Pass | PointwisePass, images: list[Image] | None = None) -> PassSh
         return pointwise_shape(ps)
     slot = {src: k for k, src in enumerate(sources(ps))}
     phases = tuple(sorted(
-        (tuple(ph), tuple(ShapeTap(slot[t.source], (Fraction(t.offset[0]), Fraction(t.offset[1])),
+        (_pair(ph), tuple(ShapeTap(slot[t.source], (Fraction(t.offset[0]), Fraction(t.offset[1])),
                                    Fraction(t.weight)) for t in taps))
         for ph, taps in ps.phases.items()))
     borders = tuple(images[src].border for src in sources(ps)) if images is not None else ()
     if all(b == "clamp" for b in borders):
         borders = ()
-    return PassShape(tuple(ps.period), tuple(ps.stride), len(slot), phases, borders)
+    return PassShape(_pair(ps.period), _pair(ps.stride), len(slot), phases, borders)
 
 
 __all__ = ["PassShape", "PointwiseShape", "ShapeTap", "pointwise_shape", "shape", "sources"]

@@ -43,7 +43,7 @@ def taps_for(weights: Weights, source: int) -> list[Tap]:
             covered = sum(1 for row in block for v in row if v)
             fit = _bilinear_fit(block)
             if fit and (best is None or covered > best[0]):
-                best = (covered, top, fit, sum(sum(r) for r in block))
+                best = (covered, top, fit, sum((v for row in block for v in row), Fraction(0)))
         if best is None or best[0] == 1:
             v = left.pop(d0)
             out.append(Tap(source, (Fraction(d0[0]), Fraction(d0[1])), v, False))
