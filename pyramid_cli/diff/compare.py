@@ -57,7 +57,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
-from typing import Any
+from typing import Any, TypedDict
 
 import numpy as np
 
@@ -69,6 +69,7 @@ __all__ = [
     "EXIT_CODES",
     "DiffResult",
     "ShapeMismatchError",
+    "Thresholds",
     "compare",
     "difference_image",
     "heatmap",
@@ -76,6 +77,20 @@ __all__ = [
 
 
 VERDICTS = ("match", "warning", "failure")
+
+
+class Thresholds(TypedDict, total=False):
+    """:func:`compare`'s thresholds by keyword, as ``pyramid diff`` passes them (each one optional)."""
+
+    fail: float
+    warn: float
+    failpercent: float
+    warnpercent: float
+    hardfail: float
+    hardwarn: float
+    failrelative: float
+    warnrelative: float
+    allowfailures: int
 
 
 class ShapeMismatchError(ValueError):

@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 
 from pyramid_cli.core.errors import PyramidError
-from pyramid_cli.diff.compare import DiffResult, ShapeMismatchError, compare
+from pyramid_cli.diff.compare import DiffResult, ShapeMismatchError, Thresholds, compare
 from pyramid_cli.diff.idiff import format_value
 
 __all__ = ["STATUS_CODES", "CompareOptions", "LevelResult", "PairResult", "compare_files", "compare_pairs",
@@ -57,7 +57,7 @@ class CompareOptions:
     over ``flip_fail``.
     """
 
-    thresholds: dict[str, float] = field(default_factory=dict)
+    thresholds: Thresholds = field(default_factory=lambda: Thresholds())
     all_levels: bool = False
     linear: bool = False
     colorspace: str = "auto"
@@ -431,6 +431,7 @@ def _pair_frames(a: str, b: str) -> Pairing:
 
     outs, golds = dict(sequence.frames_of(a)), dict(sequence.frames_of(b))
     sa, sb = sequence.parse(a), sequence.parse(b)
+    assert sa is not None and sb is not None, "called for two frame sequences (_frame_sequences)"
     pairs, extras = [], []
     for f in sorted(set(outs) | set(golds)):
         out, gold = outs.get(f) or sa.frame(f), golds.get(f) or sb.frame(f)

@@ -57,8 +57,8 @@ class Work:
         Made once (:meth:`make_plan`) and kept in this process and in the cache folder
         (:func:`pyramid_cli.plan.cache.cached`): a batch of same-sized files, and the next process,
         read it back instead of redoing its exact algebra."""
-        sizes = tuple(tuple(int(n) for n in s[:2]) for s in sizes)
-        return cached(self, sizes, strategy, lambda: self.make_plan(sizes, strategy))
+        pairs = tuple((int(s[0]), int(s[1])) for s in sizes)
+        return cached(self, pairs, strategy, lambda: self.make_plan(pairs, strategy))
 
     def make_plan(self, sizes: tuple[Size, ...], strategy: str = "cost") -> Plan | None:
         """The plan for inputs of ``sizes``, computed (what every job defines; :meth:`plan` caches it)."""
@@ -338,7 +338,7 @@ class Blend(Work):
     def count(self, size: Size) -> int:
         from pyramid_cli.workflows.methods import blend_levels
 
-        return blend_levels(tuple(size)) if self.levels is None else self.levels
+        return blend_levels((size[0], size[1])) if self.levels is None else self.levels
 
     def warnings(self, size=None):
         return _lattice_warnings(self, self.count(size) if size is not None else self.levels, "blend")

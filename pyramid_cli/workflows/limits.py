@@ -67,7 +67,7 @@ def kernel_cost(expr: Expr) -> tuple[int, int]:
     period = 2 ** ups
     n = len(info)
 
-    def extent(level: int, count: int, axis: int) -> tuple[int, int]:
+    def extent(level: int, count: int, axis: int) -> int:
         """Width at level 0 of what ``count`` neighbouring pixels of level ``level`` read."""
         a, b = 8 * period + 1, 8 * period + count
         for op, s, rr, rc, _ in reversed(info[:level]):

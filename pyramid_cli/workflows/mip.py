@@ -163,7 +163,7 @@ def sha1_state(data: np.ndarray, block: int = SHA1_BLOCK, threads: int = 2):
         return hashlib.sha1(np.ascontiguousarray(stored_floats(data)).tobytes())
 
     def digest(y: int) -> bytes:
-        return hashlib.sha1(np.ascontiguousarray(stored_floats(data[y:y + block]))).hexdigest().upper().encode()
+        return hashlib.sha1(np.ascontiguousarray(stored_floats(data[y:y + block])).data).hexdigest().upper().encode()
 
     starts = range(0, data.shape[0], block)
     if threads > 1 and len(starts) > 1:
@@ -242,7 +242,7 @@ class PixelStats:
         self._hashed = 0        # source rows hashed
         self._rows = 0          # encoded rows summed
         self._sums: np.ndarray | None = None
-        self._dtype = None
+        self._dtype: np.dtype | None = None
         self._first: np.ndarray | None = None
         self._constant = True
         self.decoded_first: np.ndarray | None = None
@@ -296,16 +296,21 @@ class PixelStats:
             self.decoded_constant = bool(np.all(pixels == self.decoded_first))
 
     def average(self) -> list[float]:
-        w_c = len(self._sums)
-        c = len(self._first)
-        if np.issubdtype(self._dtype, np.integer):
-            sums = self._sums.reshape(w_c // c, c).sum(axis=0, dtype=np.uint64).astype(np.float64)
-            sums /= np.iinfo(self._dtype).max
+        totals, first, dtype = self._sums, self._first, self._dtype
+        if totals is None or first is None or dtype is None:
+            raise ValueError("no rows of level 0 added")
+        w_c = len(totals)
+        c = len(first)
+        if np.issubdtype(dtype, np.integer):
+            sums = totals.reshape(w_c // c, c).sum(axis=0, dtype=np.uint64).astype(np.float64)
+            sums /= np.iinfo(dtype).max
         else:
-            sums = self._sums.reshape(w_c // c, c).sum(axis=0)
+            sums = totals.reshape(w_c // c, c).sum(axis=0)
         return [float(v) for v in sums / max(1, self._rows * (w_c // c))]
 
     def constant(self) -> list[float] | None:
         if not self._constant:
             return None
+        if self._first is None:
+            raise ValueError("no rows of level 0 added")
         return [float(v) for v in _normalised(self._first[None])[0]]
