@@ -9,6 +9,9 @@ where neither GL nor numba is usable, and the tile scheduler's float64 reference
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from fractions import Fraction
+
 import numpy as np
 
 from pyramid_cli.core.border import Border, fold
@@ -16,7 +19,7 @@ from pyramid_cli.core.geometry import base_index
 from pyramid_cli.plan.model import Image, Plan, PointwisePass, ResamplePass, Tap
 
 
-def pointwise(op: str, srcs: list[np.ndarray], param: float = 1.0) -> np.ndarray:
+def pointwise(op: str, srcs: list[np.ndarray], param: float | Fraction = 1.0) -> np.ndarray:
     """The formulas of :data:`pyramid_cli.plan.model.POINTWISE_OPS`, elementwise on arrays of one shape."""
     k = float(param)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
@@ -113,20 +116,21 @@ def run(plan: Plan, image: np.ndarray) -> np.ndarray:
     return _logical(plan, _execute(plan, image), plan.outputs[-1])
 
 
-def _execute(plan: Plan, image) -> list[np.ndarray]:
-    """``image``: one array, or one per ``plan.inputs``."""
+def _execute(plan: Plan, image: np.ndarray | Sequence[np.ndarray]) -> list[np.ndarray | None]:
+    """``image``: one array, or one per ``plan.inputs``. Returns every image of the plan as stored (None
+    where neither an input nor a pass's target)."""
     images = image if isinstance(image, (list, tuple)) else [image]
     assert len(images) == len(plan.inputs)
     stored: list[np.ndarray | None] = [None] * len(plan.images)
     for index, px in zip(plan.inputs, images, strict=True):
         stored[index] = np.asarray(px, dtype=np.float64)
-    channels = stored[plan.inputs[0]].shape[2:]
+    channels = _written(stored, plan.inputs[0]).shape[2:]
     for ps in plan.passes:
         if isinstance(ps, ResamplePass):
-            stored[ps.target] = resample(stored[ps.source], ps, plan.images[ps.source])
+            stored[ps.target] = resample(_written(stored, ps.source), ps, plan.images[ps.source])
             continue
         if isinstance(ps, PointwisePass):
-            stored[ps.target] = pointwise(ps.op, [stored[s] for s in ps.srcs], ps.param)
+            stored[ps.target] = pointwise(ps.op, [_written(stored, s) for s in ps.srcs], ps.param)
             continue
         target = plan.images[ps.target]
         h, w = target.stored
@@ -171,23 +175,32 @@ def resample(src: np.ndarray, ps: ResamplePass, source: Image) -> np.ndarray:
     return (picked * weights[(...,) + extra]).sum(axis=ps.axis + 1)
 
 
-def run_outputs(plan: Plan, image: np.ndarray) -> list[np.ndarray]:
+def run_outputs(plan: Plan, image: np.ndarray | Sequence[np.ndarray]) -> list[np.ndarray]:
     """Like :func:`run`, returning every image in ``plan.outputs``."""
     stored = _execute(plan, image)
     return [_logical(plan, stored, i) for i in plan.outputs]
 
 
-def _logical(plan: Plan, stored, index: int) -> np.ndarray:
+def _written(stored: list[np.ndarray | None], index: int) -> np.ndarray:
+    """Image ``index`` of ``stored``, which a plan writes before any pass reads it
+    (:func:`pyramid_cli.plan.model.check`)."""
+    a = stored[index]
+    assert a is not None, f"image {index} is read before it is written"
+    return a
+
+
+def _logical(plan: Plan, stored: list[np.ndarray | None], index: int) -> np.ndarray:
     img = plan.images[index]
     t, l = img.guard[0], img.guard[1]
-    return stored[index][t:t + img.size[0], l:l + img.size[1]]
+    return _written(stored, index)[t:t + img.size[0], l:l + img.size[1]]
 
 
-def _read(plan: Plan, stored, t: Tap, base_r: np.ndarray, base_c: np.ndarray) -> np.ndarray:
+def _read(plan: Plan, stored: list[np.ndarray | None], t: Tap, base_r: np.ndarray,
+          base_c: np.ndarray) -> np.ndarray:
     src = plan.images[t.source]
     rows = base_r - float(t.offset[0])
     cols = base_c - float(t.offset[1])
-    return sample(stored[t.source], (src.guard[0], src.guard[1]), rows, cols, src.border)
+    return sample(_written(stored, t.source), (src.guard[0], src.guard[1]), rows, cols, src.border)
 
 
 class Emulator:

@@ -26,6 +26,7 @@ import os
 import sys
 import threading
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -36,6 +37,9 @@ from pyramid_cli.exec.emulate import Emulator, rounded
 from pyramid_cli.exec.gl.context import is_software_renderer
 from pyramid_cli.jobs.work import Blur, Work
 from pyramid_cli.plan.model import Plan
+
+if TYPE_CHECKING:  # importing the CPU executor imports numba: made on first use (LoadingCPU)
+    from pyramid_cli.exec.cpu import CPUExecutor
 
 # What auto estimates when asked before any job is known (the demo's and the API's first call decide better).
 NOMINAL_JOB = (Blur(levels=4), (1080, 1920, 4))
@@ -103,7 +107,7 @@ class LoadingCPU:
         from pyramid_cli.exec.cpu.executor import default_threads
 
         self.threads = max(1, int(threads)) if threads else default_threads()
-        self._ready: Executor | None = None
+        self._ready: CPUExecutor | None = None
         self._error: BaseException | None = None
         self._thread: threading.Thread | None = None
         self.pending = 0  # kernels the background thread compiles (what announce_compiles would say)
@@ -157,7 +161,7 @@ class LoadingCPU:
         self._thread = threading.Thread(target=work, name="pyramid-cpu-load")
         self._thread.start()
 
-    def result(self) -> Executor:
+    def result(self) -> CPUExecutor:
         """The executor: waits for the background thread (made here when none was started)."""
         if self._thread is not None:
             self._thread.join()
@@ -362,16 +366,20 @@ class Session:
         if not self._decided:
             self.decide()
         ex = self._executor
-        if self.backend == "auto" and ex is not None and ex.backend == "gl" and not ex.opened:
-            try:
-                ex.open()
-            except BackendError as e:
-                from pyramid_cli.exec.gl import context
+        if self.backend == "auto" and ex is not None and ex.backend == "gl":
+            from pyramid_cli.exec.gl import GLExecutor  # imported already: _use_gl made the executor
 
-                context.forget()
-                self._warn(f"{e.message}; running on the CPU")
-                self._why = f"auto: no GL here ({e.message})"
-                self._use_cpu()
+            assert isinstance(ex, GLExecutor), "GLExecutor is the executor whose backend is gl"
+            if not ex.opened:
+                try:
+                    ex.open()
+                except BackendError as e:
+                    from pyramid_cli.exec.gl import context
+
+                    context.forget()
+                    self._warn(f"{e.message}; running on the CPU")
+                    self._why = f"auto: no GL here ({e.message})"
+                    self._use_cpu()
         return self._executor
 
     @property
@@ -407,7 +415,10 @@ class Session:
         ``auto`` decides here when it has not yet (for this one job)."""
         if not self._decided:
             self.decide(work, sizes)
-        strategy = (executor or self._ready()).strategy
+        ex = executor or self._ready()
+        if ex is None:
+            raise BackendError("the reference backend runs jobs, not plans")
+        strategy = ex.strategy
         return work.plan(tuple(tuple(s[:2]) for s in sizes), strategy)
 
     def run(self, work: Work, images, dtype=np.float32) -> list[np.ndarray]:
@@ -468,7 +479,9 @@ class Session:
         if self._cpu is None:
             self._cpu = _cpu_executor(self.threads, self._warn)
         if self._cpu.strategy != executor.strategy and work is not None:
-            p = self.plan(work, [im.shape for im in images], self._cpu)
+            replanned = self.plan(work, [im.shape for im in images], self._cpu)
+            assert replanned is not None, "a job with a plan under one strategy has one under every strategy"
+            p = replanned
         outs = self._cpu.run_outputs(p, images, dtype)
         self.ran = _name(self._cpu)
         return outs
@@ -476,21 +489,23 @@ class Session:
     def uncached(self, work: Work, images, dtype=np.float32) -> int:
         """Kernels the CPU executor must compile before it can run ``work`` on ``images`` (0 elsewhere):
         a first run on a machine compiles them once, about a second each."""
-        if self._ready() is None:
+        ex = self._ready()
+        if ex is None:
             return 0
         p = self.plan(work, [im.shape for im in images])
         half = any(np.asarray(im).dtype == np.float16 for im in images)
-        return self._executor.uncached(p, np.float16 if half else np.float32) if p is not None else 0
+        return ex.uncached(p, np.float16 if half else np.float32) if p is not None else 0
 
     def prepare(self, work: Work, sizes) -> None:
         """Get ready to run ``work`` on inputs of ``sizes`` (GL: compile, allocate; the CPU: load the kernels);
         never fails."""
         try:
-            if self._ready() is None:
+            ex = self._ready()
+            if ex is None:
                 return
             p = self.plan(work, sizes)
             if p is not None:
-                self._executor.prepare(p)
+                ex.prepare(p)
         except (BackendError, DataError):
             pass  # the run itself reports it, or falls back
 

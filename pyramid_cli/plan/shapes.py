@@ -15,6 +15,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from fractions import Fraction
+from typing import overload
 
 from pyramid_cli.plan.model import Image, Pass, PointwisePass
 
@@ -74,6 +75,18 @@ def _pair(v: Sequence[int]) -> tuple[int, int]:
 def pointwise_shape(ps: PointwisePass) -> PointwiseShape:
     """The shape of a pointwise pass: its op, operand count and parameter."""
     return PointwiseShape(ps.op, len(ps.srcs), Fraction(ps.param))
+
+
+@overload
+def shape(ps: Pass, images: list[Image] | None = None) -> PassShape: ...
+
+
+@overload
+def shape(ps: PointwisePass, images: list[Image] | None = None) -> PointwiseShape: ...
+
+
+@overload
+def shape(ps: Pass | PointwisePass, images: list[Image] | None = None) -> PassShape | PointwiseShape: ...
 
 
 def shape(ps: Pass | PointwisePass, images: list[Image] | None = None) -> PassShape | PointwiseShape:

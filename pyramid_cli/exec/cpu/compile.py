@@ -17,8 +17,12 @@ import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from pyramid_cli.core import cache, signals
+
+if TYPE_CHECKING:
+    from numba.core.dispatcher import Dispatcher
 
 INSTALL_HINT = "install numba: pip install numba (or pip install -e . in a checkout)"
 CACHE_ENV = "PYRAMID_CACHE_DIR"
@@ -47,7 +51,7 @@ def cache_dir() -> Path:
 
 
 _LOCK = threading.Lock()
-_MODULES: dict[str, object] = {}   # file digest → compiled dispatcher, shared by executors of a process
+_MODULES: dict[str, Dispatcher] = {}   # file digest → compiled dispatcher, shared by executors of a process
 BLAS_PROBE = "scipy.linalg.cython_blas"
 
 
@@ -62,12 +66,13 @@ def compile_vectorised(fn, sig: str) -> None:
     """
     from numba.core import config
 
-    saved = config.SLP_VECTORIZE
-    config.SLP_VECTORIZE = 1
+    # numba's config sets its flags from the environment in a loop: no declared attribute to type
+    saved = config.SLP_VECTORIZE  # type: ignore[attr-defined]
+    config.SLP_VECTORIZE = 1  # type: ignore[attr-defined]
     try:
         compile_plain(fn, sig)
     finally:
-        config.SLP_VECTORIZE = saved
+        config.SLP_VECTORIZE = saved  # type: ignore[attr-defined]
 
 
 def compile_plain(fn, sig: str) -> None:
@@ -93,7 +98,7 @@ def _skip_blas_probe() -> None:
     """
     if "numba.np.arraymath" in sys.modules or "scipy.linalg" in sys.modules or BLAS_PROBE in sys.modules:
         return
-    sys.modules[BLAS_PROBE] = None  # type: ignore[assignment] - makes the probe's import fail fast
+    sys.modules[BLAS_PROBE] = None  # type: ignore[assignment]  # makes the probe's import fail fast
     try:
         import numba.np.arraymath  # noqa: F401
     finally:
@@ -119,7 +124,7 @@ def fallback_cache() -> Path:
     return Path(tempfile.gettempdir()) / f"bilinear-pyramid-cpu-{uid}"
 
 
-def load(source: str, folder: Path):
+def load(source: str, folder: Path) -> Dispatcher:
     """The ``kernel`` of ``source``, written once to ``folder`` (atomically) and imported from there."""
     digest = source_digest(source)
     with _LOCK:
@@ -132,6 +137,8 @@ def load(source: str, folder: Path):
             path = _write_source(fallback_cache(), digest, source)
         name = f"_pyramid_cpu_k_{digest}"
         spec = importlib.util.spec_from_file_location(name, path)
+        if spec is None or spec.loader is None:
+            raise ImportError(f"cannot import the kernel source {path}", path=str(path))
         module = importlib.util.module_from_spec(spec)
         sys.modules[name] = module
         spec.loader.exec_module(module)
@@ -184,11 +191,13 @@ def light_cache_load(fn) -> Iterator[None]:
     numba, a cache disabled by a full disk), it changes nothing.
     """
     cache = getattr(fn, "_cache", None)
+    load = getattr(cache, "_load_overload", None)
+    guard = getattr(cache, "_guard_against_spurious_io_errors", None)
     try:
         from numba.core.runtime import rtsys
-
-        load, guard = cache._load_overload, cache._guard_against_spurious_io_errors
-    except (ImportError, AttributeError):
+    except ImportError:
+        cache = None
+    if cache is None or load is None or guard is None:
         _skip_blas_probe()
         yield
         return

@@ -25,6 +25,7 @@ Every resampling pass shares one kernel, and every pointwise pass another.
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from functools import lru_cache
@@ -56,7 +57,7 @@ from pyramid_cli.exec.cpu.compile import (
     source_digest,
 )
 from pyramid_cli.exec.emulate import plan_inputs, resample_table
-from pyramid_cli.plan.model import Plan, PointwisePass, ResamplePass
+from pyramid_cli.plan.model import Pass, Plan, PointwisePass, ResamplePass
 from pyramid_cli.plan.shapes import PassShape, shape, sources
 
 SMALL = 1 << 20              # output floats below which a pass runs on the calling thread
@@ -77,7 +78,7 @@ class Kernel:
     """A compiled kernel of one pass shape, with what its caller needs to place its reads."""
 
 
-    fn: object       # the numba dispatcher, compiled for one signature
+    fn: Callable[..., None]  # the numba dispatcher, compiled for one signature
     shape: PassShape
     terms: dict      # phase → list[Term]
     extents: list    # per slot: (dr_min, dr_max, dc_min, dc_max)
@@ -204,7 +205,7 @@ class CPUExecutor:
                 "cache": str(self.cache)}
 
     # ------------------------------------------------------------ kernels
-    def kernel(self, ps) -> Kernel:
+    def kernel(self, ps: Pass) -> Kernel:
         """The compiled kernel of a pass's shape (for float32 and float16 sources alike)."""
         hit = self._by_pass.get(id(ps))
         if hit is not None and hit[0] is ps:  # the shape of a pass run before (exact Fractions: not free)
@@ -252,7 +253,7 @@ class CPUExecutor:
                 self.kernel(ps)
 
     # ------------------------------------------------------------ resampling
-    def resample_kernel(self):
+    def resample_kernel(self) -> Callable[..., None]:
         """The compiled table-driven kernel of every :class:`ResamplePass`, either axis (cached like the others)."""
         key = "resample"
         k = self._kernels.get(key)
@@ -363,7 +364,7 @@ class CPUExecutor:
             results.append(a.astype(dtype) if dtype != a.dtype else np.ascontiguousarray(a))
         return results
 
-    def pointwise_kernel(self):
+    def pointwise_kernel(self) -> Callable[..., None]:
         """The compiled kernel of every pointwise op (:func:`pointwise_source`: the op and its parameter are
         arguments)."""
         key = "pointwise"
@@ -378,9 +379,9 @@ class CPUExecutor:
         """Every element of ``out`` by the op, in bands on the thread pool when large."""
         fn = self.pointwise_kernel()
         flat = out.reshape(-1)
-        args = [np.ascontiguousarray(a, dtype=np.float32).reshape(-1) for a in srcs]
-        args += [_NO_F32_1D] * (3 - len(args))  # operands the op does not read
-        args += [np.float32(float(ps.param)), POINTWISE_CODES[ps.op]]
+        operands = [np.ascontiguousarray(a, dtype=np.float32).reshape(-1) for a in srcs]
+        operands += [_NO_F32_1D] * (3 - len(operands))  # operands the op does not read
+        args = [*operands, np.float32(float(ps.param)), POINTWISE_CODES[ps.op]]
         n = flat.size
         if self.threads == 1 or n < SMALL:
             fn(flat, *args, 0, n)
@@ -483,7 +484,7 @@ _RESAMPLE_DIGEST = source_digest(resample_source())
 _POINTWISE_DIGEST = source_digest(pointwise_source())
 
 
-def kernel_digest(ps) -> str:
+def kernel_digest(ps: Pass | ResamplePass | PointwisePass) -> str:
     """The digest of the source of the kernel a pass runs on: one per pass shape (float32 and float16 sources
     alike), one for every resampling pass, one for every pointwise pass. Pure Python: numba is not imported."""
     if isinstance(ps, ResamplePass):

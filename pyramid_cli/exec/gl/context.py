@@ -171,12 +171,13 @@ def machine_gl(refresh: bool = False, key: str | None = None) -> dict:
     entry_name = CACHE_ENTRY.format(key=key)
     if not refresh:
         raw = cache.read(CACHE_FOLDER, entry_name)
-        try:
-            entry = json.loads(raw) if raw is not None else None
-            if entry["key"] == key and _valid(entry["gl"]):
-                return entry["gl"]
-        except (ValueError, TypeError, KeyError):
-            pass  # corrupt: probed again
+        if raw is not None:
+            try:
+                entry = json.loads(raw)
+                if entry["key"] == key and _valid(entry["gl"]):
+                    return entry["gl"]
+            except (ValueError, TypeError, KeyError):
+                pass  # corrupt: probed again
     info = probe()
     cache.write(CACHE_FOLDER, entry_name, json.dumps({"key": key, "gl": info}).encode("utf-8"))
     return info

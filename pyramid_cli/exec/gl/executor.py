@@ -63,7 +63,7 @@ from pyramid_cli.exec.emulate import plan_inputs, resample_table
 from pyramid_cli.exec.gl import shaders as generate
 from pyramid_cli.exec.gl.context import context_info, create_context, is_software_renderer
 from pyramid_cli.plan.model import Plan, ResamplePass
-from pyramid_cli.plan.shapes import PassShape, shape, sources
+from pyramid_cli.plan.shapes import PassShape, PointwiseShape, shape, sources
 
 PRECISIONS = {"float": "f4", "half": "f2"}  # intermediate and target texture formats
 READ_DTYPES = {np.dtype(np.float32): "f4", np.dtype(np.float16): "f2"}
@@ -152,11 +152,12 @@ class GLExecutor:
             raise ValueError(f"precision must be one of {sorted(PRECISIONS)}, not {precision!r}")
         self.precision = precision
         self._ctx = None
-        self._programs: dict[PassShape, _Program] = {}
+        # a pass's shape, or ("resample", axis) for the table-driven program of either axis
+        self._programs: dict[PassShape | PointwiseShape | tuple[str, int], _Program] = {}
         self._plan_programs: dict[int, tuple[Plan, list[_Program]]] = {}
         self._tables: dict[tuple[int, int], tuple[ResamplePass, Any]] = {}
         self._free: dict[tuple[tuple[int, int], str], list[_Target]] = {}
-        self._buffers: dict[tuple[tuple[int, ...], str], np.ndarray] = {}
+        self._buffers: dict[tuple[tuple[int, ...], str, int], np.ndarray] = {}  # (shape, dtype, slot)
         self._tiling = False  # inside run_tiled: its one-pass plans are not tiled again
         self.compiles = 0  # programs built so far (the cache's misses)
         self._clock: _Clock | None = None
