@@ -268,7 +268,7 @@ def encode(path, image: Image, *, pixel_type=None, colorspace=None, alpha=None, 
         if all(colour):  # one pass over the whole array: no strided per-channel copies (1.6× faster at 4K)
             return _output_spec(info, fmt, out_type, names, alpha_channel, nch, width, height, encoding, mode,
                                 pixel_type, compression), srgb8(pixels)
-        data = np.empty(pixels.shape, dtype=np.uint8)
+        data: np.ndarray = np.empty(pixels.shape, dtype=np.uint8)
         for c in range(nch):
             data[..., c] = srgb8(pixels[..., c]) if colour[c] else \
                 encode_integer(pixels[..., c:c + 1].astype(np.float64), out_type, False, colour[c:c + 1])[..., 0]

@@ -137,8 +137,8 @@ def _rec709(path: str) -> dict[str, str | None]:
     into linear Rec.709)."""
     config = _load(path)
     spaces = _names(path)[0]
-    lin, srgb = (config.resolve(LABELS[k]) for k in ("linear", "srgb"))
-    lin = lin if lin in spaces else None
+    resolved, srgb = (config.resolve(LABELS[k]) for k in ("linear", "srgb"))
+    lin = resolved if resolved in spaces else None
     return {"linear": lin, "srgb": srgb if lin and srgb in spaces else None}
 
 

@@ -322,7 +322,7 @@ def count_parts(path: str | os.PathLike[str]) -> int:
 
 def _part_names(inp) -> list[str]:
     """The name of every subimage of an open file (``part k`` where it has none); leaves it at subimage 0."""
-    names = []
+    names: list[str] = []
     while inp.seek_subimage(len(names), 0):
         names.append(inp.spec().get_string_attribute("name") or f"part {len(names)}")
     inp.geterror()  # the last, failed seek's message

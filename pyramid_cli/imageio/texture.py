@@ -66,7 +66,11 @@ def _mip_metadata(spec: oiio.ImageSpec, data: np.ndarray | None, meta: dict[str,
 
     spec.attribute("fovcot", float(spec.full_width) / float(spec.full_height))  # maketx's: the aspect ratio
     values = dict(meta)
-    average, constant = colors if colors is not None else (average_color(data), constant_color(data))
+    if colors is None:
+        if data is None:
+            raise ValueError("the MIP metadata needs level 0's pixels or their colours")
+        colors = (average_color(data), constant_color(data))
+    average, constant = colors
     values["oiio:AverageColor"] = format_floats(average)
     if constant is not None:
         values["oiio:ConstantColor"] = format_floats(constant)
@@ -159,7 +163,7 @@ def write_levels(path: str | os.PathLike[str], images: list[Image], *, mode: str
                                       or (probe.supports("multiimage") and probe.supports("tiles")))
     else:
         able = probe is not None and probe.supports("multiimage")
-    if not able:
+    if probe is None or not able:
         oiio.geterror()
         raise OutputError(f"cannot write {out_path}: the {format_title(fmt)} format cannot hold "
                           f"{'MIP levels' if mode == 'mipmap' else 'several images'}")
@@ -194,6 +198,8 @@ class MipBandWriter(BandWriter):
             raise ValueError(f"level 0: {self.written} of {self.height} rows written")
         self.levels = max(self.levels, 1) + 1
         h, w, _ = self.shapes[self.levels - 1]
+        out = self._out
+        assert out is not None, "level 0 opens the file, and it stays open until finish"
         step = band_quantum(self.tile, self.options.get("dither", False))
         try:
             spec = None
@@ -205,13 +211,13 @@ class MipBandWriter(BandWriter):
                     spec.height = spec.full_height = h
                     set_windows(spec, self.info, w, h)
                     _mark_mip_level(spec, self.fmt, self.tile, self.round_up, self.options.get("compression"))
-                    append = "AppendMIPLevel" if self._out.supports("mipmap") else "AppendSubimage"
-                    checked(self._out, self._out.open(self.tmp, spec, append), "open")
+                    append = "AppendMIPLevel" if out.supports("mipmap") else "AppendSubimage"
+                    checked(out, out.open(self.tmp, spec, append), "open")
                 for a in range(0, r1 - r0, self.tile):
                     b = min(a + self.tile, r1 - r0)
-                    ok = self._out.write_tiles(spec.x, spec.x + w, spec.y + r0 + a, spec.y + r0 + b, spec.z,
+                    ok = out.write_tiles(spec.x, spec.x + w, spec.y + r0 + a, spec.y + r0 + b, spec.z,
                                                spec.z + 1, np.ascontiguousarray(data[a:b]))
-                    checked(self._out, ok, "write")
+                    checked(out, ok, "write")
         except WriteFailed as exc:
             raise OutputError(f"cannot write {self.path}: {str(exc).replace(self.tmp, self.path)}"
                               f"{diagnosis(self.tmp)}") from None
@@ -221,10 +227,12 @@ class MipBandWriter(BandWriter):
         if self.written != self.height or max(self.levels, 1) != len(self.shapes):
             raise ValueError(f"{max(self.levels, 1) if self.written == self.height else 0} of {len(self.shapes)} "
                              "MIP levels written")
+        out, spec = self._out, self.spec
+        assert out is not None and spec is not None, "level 0 written: the file is open and its spec known"
         try:
-            out, self._out = self._out, None
+            self._out = None
             checked(out, out.close(), "close")
-            verify(self.tmp, self.fmt, [(self.spec, None)] * len(self.shapes), "mipmap")
+            verify(self.tmp, self.fmt, [(spec, None)] * len(self.shapes), "mipmap")
         except WriteFailed as exc:
             raise OutputError(f"cannot write {self.path}: {str(exc).replace(self.tmp, self.path)}"
                               f"{diagnosis(self.tmp)}") from None

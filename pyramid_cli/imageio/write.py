@@ -5,15 +5,10 @@ from __future__ import annotations
 
 import contextlib
 import os
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 
 import numpy as np
 import OpenImageIO as oiio
-
-try:
-    import resource
-except ImportError:  # not on Windows: no file size limit to respect
-    resource = None
 
 from pyramid_cli.core.errors import OutputError, PyramidError
 from pyramid_cli.imageio.atomic import atomic_path, atomic_paths
@@ -94,7 +89,9 @@ def _oiio_write_parts(target: str, fmt: str, parts: list[tuple[oiio.ImageSpec, n
 
 def _size_limit() -> int | None:
     """The process's file size limit (ulimit -f) in bytes, None when unlimited."""
-    if resource is None:
+    try:
+        import resource
+    except ImportError:  # not on Windows: no file size limit to respect
         return None
     soft = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
     return None if soft == resource.RLIM_INFINITY else int(soft)
@@ -119,9 +116,10 @@ def _copy_to(src_fd: int, dst: str) -> None:
 _PNG_END = b"\x00\x00\x00\x00IEND\xaeB`\x82"
 
 
-def verify(tmp: str, fmt: str, parts: list[tuple[oiio.ImageSpec, np.ndarray]], mode: str) -> None:
+def verify(tmp: str, fmt: str, parts: Sequence[tuple[oiio.ImageSpec, np.ndarray | None]], mode: str) -> None:
     """Check what was written: not empty, the format's end marker where it has one (PNG, JPEG),
-    and a header that reads back with the size and channels written."""
+    and a header that reads back with the size and channels written (each part's spec: its pixels are
+    not read, and may be None)."""
     size = os.path.getsize(tmp)
     if size == 0:
         raise WriteFailed("nothing was written (the file is empty)")
