@@ -1,7 +1,5 @@
 """``python -m pyramid_cli.cli``: the ``pyramid`` command."""
 
-import sys
-
 from pyramid_cli.cli import run
 
-sys.exit(run())
+run()  # exits with the command's code (click's standalone mode)

@@ -46,7 +46,10 @@ def farm_template(ctx: click.Context, frames, chunk, target_seconds, name, execu
 
     template = job_template(list(command), frames, chunk=chunk, name=name, executable=executable,
                             target_seconds=target_seconds)
-    sub = ctx.find_root().command.get_command(ctx, command[0])  # the pyramid group
+    root = ctx.find_root().command
+    assert isinstance(root, click.Group), "farm-template is a subcommand of the pyramid group"
+    sub = root.get_command(ctx, command[0])
+    assert sub is not None, "job_template refused a command the group does not have"
     try:
         parsed = sub.make_context(command[0], list(command[1:]), parent=ctx)
     except click.ClickException as e:

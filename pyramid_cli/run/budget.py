@@ -96,7 +96,7 @@ class Budget:
         lim = self.limit
         if lim is None:
             return f"{head}: given by --memory"
-        if not lim.hard:
+        if lim.size is None:  # not hard: the machine's available memory
             return (f"{head}: a quarter of the {format_size(lim.left)} available on this machine ({lim.where}), "
                     f"at least {format_size(FLOOR)}")
         return (f"{head}: {HARD_FRACTION:.0%} of the {format_size(lim.left)} left under the {lim.kind} limit of "
@@ -196,7 +196,8 @@ def _cgroups(root: str) -> dict[str, str]:
 def memory_cgroups(root: str = "/") -> dict[str, str]:
     """The folders of the process's own cgroup where memory is limited: ``{"cgroup v2": folder}`` when the
     unified hierarchy is mounted, ``{"cgroup v1": folder}`` when the v1 memory controller is (either or both)."""
-    paths, out = _cgroups(root), {}
+    paths = _cgroups(root)
+    out: dict[str, str] = {}
     if "" in paths:
         for mount_root, point, _ in _mounts(root, "cgroup2"):
             out.setdefault("cgroup v2", _chain(mount_root, point, paths[""])[0])

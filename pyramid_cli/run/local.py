@@ -71,7 +71,7 @@ def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: R
         work.check((image.pixels.shape[:2],), where=job.input)
         return job, image
 
-    announced = []
+    announced: list[bool] = []
 
     def compute(job_image):
         job, image = job_image
@@ -106,16 +106,18 @@ def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: R
         if not show_bar:
             reporter.result(line)
 
-    show_bar = many and not reporter.quiet and reporter.progress is not None
-    run_options = {"keep_going": keep_going, "skip_existing": skip_existing, "workers": jobs, "written": written,
-                   # GL compiles and allocates while the first image decodes; so does the CPU executor for MIP maps
-                   # (loading its kernels, about 0.3 s of a cold process, beside the read and the source's hash)
-                   "prepare": prepare if session.on_gl or mip_tile else None}
-    if show_bar:
-        with reporter.progress(len(job_list)) as bar:
-            return batch.run(job_list, read_job, compute, write_job, progress=lambda job: bar.update(1),
-                             **run_options)
-    return batch.run(job_list, read_job, compute, write_job, **run_options)
+    progress = reporter.progress if many and not reporter.quiet else None
+    show_bar = progress is not None
+    # GL compiles and allocates while the first image decodes; so does the CPU executor for MIP maps
+    # (loading its kernels, about 0.3 s of a cold process, beside the read and the source's hash)
+    early = prepare if session.on_gl or mip_tile else None
+    if progress is not None:
+        with progress(len(job_list)) as bar:
+            return batch.run(job_list, read_job, compute, write_job, keep_going=keep_going,
+                             skip_existing=skip_existing, workers=jobs, written=written, prepare=early,
+                             progress=lambda job: bar.update(1))
+    return batch.run(job_list, read_job, compute, write_job, keep_going=keep_going, skip_existing=skip_existing,
+                     workers=jobs, written=written, prepare=early)
 
 
 __all__ = ["run_jobs", "texture_channels"]

@@ -343,7 +343,7 @@ def output_path(template: str, input_path: str, frame: int | None) -> str:
     """
     name = os.path.basename(input_path)
     stem, ext = os.path.splitext(name)
-    fields = {"stem": stem, "name": name, "ext": ext, "dir": os.path.dirname(input_path) or "."}
+    fields: dict[str, str | int] = {"stem": stem, "name": name, "ext": ext, "dir": os.path.dirname(input_path) or "."}
     if frame is not None:
         fields["frame"] = frame
     masked = _FIELD.sub(lambda f: "\0" * len(f.group()), template)

@@ -145,7 +145,8 @@ def _read(env: Mapping[str, str], name: str, read: list[str]) -> int | None:
 
 def _slurm(env: Mapping[str, str], task: _Task) -> None:
     lo, hi, step, n = (_read(env, f"SLURM_ARRAY_TASK_{k}", task.read) for k in ("MIN", "MAX", "STEP", "COUNT"))
-    if None not in (lo, hi, step, n) and step > 0 and ((hi - lo) % step or (hi - lo) // step + 1 != n):
+    if (lo is not None and hi is not None and step is not None and n is not None and step > 0
+            and ((hi - lo) % step or (hi - lo) // step + 1 != n)):
         # Slurm's STEP is the number after the first ':' of --array, COUNT the number of indices, so a list
         # (1,3,7 or 1-5,10) shows here, in every task alike. Its chunks cannot be known: refuse them all.
         raise task.refuse("the Slurm array is not one evenly stepped range (an --array list such as 1,3,7 or "
@@ -174,9 +175,10 @@ def _from_zero(name: str, count: str | None) -> Callable[[Mapping[str, str], _Ta
     def read(env: Mapping[str, str], task: _Task) -> None:
         task.put("first", 0, f"{name} (from 0)")
         task.put("step", 1, f"{name} (from 0)")
-        n = _read(env, count, task.read) if count else None
-        if n is not None:
-            task.put("count", n, count)
+        if count:
+            n = _read(env, count, task.read)
+            if n is not None:
+                task.put("count", n, count)
         task.example = "auto/10 for 10 tasks"
     return read
 

@@ -28,8 +28,8 @@ class _Kept:
     def __init__(self, shapes: list[tuple[int, int, int]], spill: str | None = None, dtype=np.float32,
                  beside: str = ""):
         self.shapes, self.dtype, self.beside = shapes, np.dtype(dtype), beside
-        self.arrays = None if spill else [np.empty(s, dtype=self.dtype) for s in shapes]
-        self.fd = None
+        self.arrays: list[np.ndarray] | None = None if spill else [np.empty(s, dtype=self.dtype) for s in shapes]
+        self.fd: int | None = None
         self.offsets = [0]
         for h, w, c in shapes:
             self.offsets.append(self.offsets[-1] + h * w * c * self.dtype.itemsize)
@@ -49,14 +49,21 @@ class _Kept:
         if self.arrays is not None:
             self.arrays[i][r:r + len(px)] = px
             return
-        view = memoryview(np.ascontiguousarray(px, dtype=self.dtype)).cast("B")
+        fd = self._spill()
+        view = np.ascontiguousarray(px, dtype=self.dtype).data.cast("B")
         at = self._at(i, r)
         try:
             while view:
-                n = os.pwrite(self.fd, view, at)
+                n = os.pwrite(fd, view, at)
                 view, at = view[n:], at + n
         except OSError as exc:
             raise self._failed(exc) from None
+
+    def _spill(self) -> int:
+        """The spill file's descriptor (rows kept on disk: no arrays)."""
+        if self.fd is None:
+            raise ValueError("the MIP levels' spill file is closed")
+        return self.fd
 
     def _failed(self, exc: OSError) -> OutputError:
         from pyramid_cli.imageio.atomic import error_reason
@@ -69,10 +76,11 @@ class _Kept:
             return self.arrays[i][r0:r1]
         _, w, c = self.shapes[i]
         size = (r1 - r0) * w * c * self.dtype.itemsize
+        fd = self._spill()
         data = bytearray()
         try:
             while len(data) < size:
-                chunk = os.pread(self.fd, size - len(data), self._at(i, r0) + len(data))
+                chunk = os.pread(fd, size - len(data), self._at(i, r0) + len(data))
                 if not chunk:
                     raise OSError(f"the spill file ends {size - len(data)} bytes early")
                 data += chunk
@@ -188,7 +196,8 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
         except DataError as exc:
             raise given.refusal(exc) from None
         reporter.detail(f"{in_path}: {choice.describe()}")
-        if not choice.streams:
+        band = choice.band
+        if band is None:  # runs whole (not Choice.streams)
             return False
         if not tiles.tileable(plan):
             if memory is not None:
@@ -199,7 +208,7 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
         info = st.info
         options = wo.for_inputs([in_path])
         io.check_write_options(out_path, wo.pixel_type, wo.compression)  # refused before any work
-        step = 2 * max(MIN_BAND, choice.band)  # level 0's rows at a time outside the scheduler (multiples of 8)
+        step = 2 * max(MIN_BAND, band)  # level 0's rows at a time outside the scheduler (multiples of 8)
         stats = PixelStats(h)
         once = bool(choice.level0)
         if once:  # level 0 kept as read while the scheduler runs; its header's statistics gathered on the way
@@ -234,7 +243,7 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
                 stats.add_encoded(io.encoded_rows(out_path, io.Image(rows, info), **options))
                 encoded[0] = b
 
-        with overlapped(st.read, h, read_step(plan, choice.band)) as (reader, behind):
+        with overlapped(st.read, h, read_step(plan, band)) as (reader, behind):
             def source(k, rows, cols):
                 px = reader.rows(*rows)
                 if once:
@@ -247,7 +256,7 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
             def sink(k, r, c0, px):
                 kept.write(slot[k], r, px)
 
-            tiles.Scheduler(executor, plan, source, sink, band=choice.band,
+            tiles.Scheduler(executor, plan, source, sink, band=band,
                             dtype=np.float64 if emu else np.float32).run()
         if once:
             st.on_stored = None
@@ -259,13 +268,14 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
             writer = open_writer()
             for y in range(0, h, step):
                 writer.write(y, level0.rows(0, y, min(h, y + step)).astype(np.float32, copy=False))
+        assert writer is not None, "opened before the scheduler ran, or after it when level 0 was kept"
         for i in range(len(shapes) - 1):
             writer.append_level(lambda r0, r1, i=i: kept.rows(i, r0, r1))
     session.ran = session.name
     if st.nonfinite and ro.nan == "keep":
         reporter.warn(nonfinite_kept(in_path, st.nonfinite))
     reporter.result(f"wrote {out_path} ({w}×{h}, {len(shapes)} MIP levels, {session.ran}, streamed in bands of "
-                    f"{choice.band} rows{', the input read once' if once else ''})")
+                    f"{band} rows{', the input read once' if once else ''})")
     return True
 
 
@@ -282,6 +292,7 @@ def _write_constant(work, session, stats, shape, tile: int, in_path: str, out_pa
     h, w, c = shape
     first = stats.decoded_first.astype(np.float32)
     small = shrink_constant(np.broadcast_to(first, (min(tile, h), min(tile, w), c)), tile)
+    assert small is not None, "one colour broadcast is constant"
     reporter.detail(f"{in_path}: constant colour, made from one {small.shape[1]}×{small.shape[0]} tile")
     outs = session.run(work, [small], np.float32)
     io.write_levels(out_path, [io.Image(px, info) for px in outs], mode="mipmap", tile=tile,

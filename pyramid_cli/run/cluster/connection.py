@@ -17,8 +17,12 @@ import threading
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from pyramid_cli.core.errors import UsageError
+
+if TYPE_CHECKING:  # distributed is an optional extra, imported when a cluster is used
+    from distributed import Client
 
 INSTALL_HINT = "pip install 'bilinear-pyramid[cluster]'"
 #: ``--cluster-timeout``'s default, in seconds: connecting, a scheduler file to appear, no worker connected.
@@ -212,7 +216,7 @@ def _identify(target: Target, security, timeout: float) -> None:
 
 
 @contextlib.contextmanager
-def connect(cluster, timeout: float = TIMEOUT) -> Iterator[tuple[object, str]]:
+def connect(cluster, timeout: float = TIMEOUT) -> Iterator[tuple[Client, str]]:
     """``(distributed.Client, label)`` for ``cluster``: a Client (used as is), ``local:N``, a scheduler file or address.
 
     ``local:N`` starts ``LocalCluster(n_workers=N, processes=True, threads_per_worker=1)``

@@ -12,6 +12,7 @@ import os
 import time
 import uuid
 from collections import deque
+from typing import TYPE_CHECKING
 
 from pyramid_cli.core.errors import PyramidError, UsageError
 from pyramid_cli.run import batch
@@ -26,6 +27,9 @@ from pyramid_cli.run.cluster.worker import (
     run_chunk,
     written_since,
 )
+
+if TYPE_CHECKING:  # distributed is an optional extra, imported when a cluster is used
+    from distributed import Variable
 
 MAX_CHUNK = 16
 _POLL = 0.1  # seconds between looks at the futures, the worker events and the clock
@@ -43,8 +47,8 @@ class ClusterError(PyramidError):
 
 def describe_jobs(jobs: list[batch.Job], most: int = 12) -> str:
     """Jobs as a person reads them: ``frames 1005-1012,1020`` (a range ``--frames`` takes), else their inputs."""
-    frames = [getattr(j, "frame", None) for j in jobs]
-    if not jobs or any(f is None for f in frames):
+    frames = [f for f in (getattr(j, "frame", None) for j in jobs) if f is not None]
+    if not jobs or len(frames) != len(jobs):
         names = [j.input for j in jobs]
         more = f" and {len(names) - 5} more" if len(names) > 5 else ""
         return ", ".join(names[:5]) + more
@@ -84,7 +88,7 @@ class _Run:
         self.results: list[ChunkResult | None] = [None] * len(parts)
         self.printed = 0
         self.first_failed: int | None = None  # without --keep-going: chunks after it do not start
-        self.stop = None  # the distributed.Variable the workers read it from
+        self.stop: Variable | None = None  # the distributed.Variable the workers read it from
         self.events: deque = deque()
         self.workers: set[str] = set()
         self.deaths = [0] * len(parts)
@@ -158,9 +162,9 @@ class _Run:
             return None
         from distributed import Variable
 
-        self.stop = Variable(f"pyramid-stop-{uuid.uuid4().hex[:8]}", client=self.client)
-        self.stop.set(len(self.parts))
-        return self.stop.name
+        stop = self.stop = Variable(f"pyramid-stop-{uuid.uuid4().hex[:8]}", client=self.client)
+        stop.set(len(self.parts))
+        return stop.name
 
     # -------------------------------------------------------------- one chunk
     def _finish(self, i: int, future, value) -> str | None:
@@ -196,7 +200,8 @@ class _Run:
         if result.report.failed and not self.keep_going and (self.first_failed is None or i < self.first_failed):
             self.first_failed = i
             with contextlib.suppress(Exception):
-                self.stop.set(i)
+                if self.stop is not None:  # set up by stop_variable without --keep-going
+                    self.stop.set(i)
 
     def _from_disk(self, i: int, error) -> ChunkResult:
         """Chunk ``i`` as its outputs on disk tell: written since the start, up to date, or failed (``error(jobs)``)."""

@@ -14,7 +14,7 @@ DASK_LOGGERS = ("distributed", "dask", "tornado", "asyncio", "bokeh")
 class CapturedLogs(logging.Handler):
     """Keeps the records of Dask's loggers (warnings and worse) instead of printing them."""
 
-    def __init__(self):
+    def __init__(self) -> None:
         super().__init__(logging.WARNING)
         self.records: list[logging.LogRecord] = []
 

@@ -176,6 +176,7 @@ def run_chunk(jobs: list[batch.Job], work, read, write, *, keep_going: bool, ski
     if os.environ.get(SLOW_VARIABLE):
         time.sleep(float(os.environ[SLOW_VARIABLE]))
     holder = get_worker().plugins[plugin]
+    assert isinstance(holder, SessionPlugin) and holder.lock is not None, "registered by gather, set up by Dask"
     messages: list[tuple[str, str]] = []
     reporter = Reporter(quiet=quiet, verbose=verbose, out=lambda m: messages.append(("out", m)),
                         err=lambda m: messages.append(("err", m)), progress=NoBar if bar else None)
