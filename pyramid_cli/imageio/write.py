@@ -242,7 +242,7 @@ def write_image(path: str | os.PathLike[str], image: Image, *,
     _atomic_write(out_path, os.path.dirname(os.path.abspath(out_path)), spec, data)
 
 
-def write_images(paths: list[str | os.PathLike[str]], images: list[Image], **options) -> None:
+def write_images(paths: Sequence[str | os.PathLike[str]], images: list[Image], **options) -> None:
     """Write several files all-or-nothing (``pyramid levels``): every file is written and checked under
     its temporary name first, then all are renamed; a failure or interruption leaves every previous
     output untouched and no temporary behind.
