@@ -31,13 +31,12 @@ def test_a_signal_during_an_import_is_raised_once_the_import_is_done(tmp_path):
         from pyramid_cli.core import signals
         signals.install()
         try:
-            import slow_module
-            print("imported", slow_module.DONE, flush=True)
-            time.sleep(5)
+            import slow_module  # noqa: F401 - a failed import is not in sys.modules
+            time.sleep(10)
             print("not interrupted")
         except signals.Interrupted as e:
-            print("interrupted", e.signum, "in import" if "slow_module" not in sys.modules else "after import")
+            print("interrupted", e.signum, "after import" if "slow_module" in sys.modules else "in import")
     """)
     r = subprocess.run([sys.executable, "-c", script], cwd=tmp_path, capture_output=True, text=True, timeout=60)
     assert r.returncode == 0, r.stderr
-    assert r.stdout.split("\n")[:2] == ["imported True", f"interrupted {int(signal.SIGTERM)} after import"], r.stdout
+    assert r.stdout.strip() == f"interrupted {int(signal.SIGTERM)} after import", r.stdout
