@@ -6,7 +6,7 @@ import json
 
 import click
 
-from pyramid_cli.cli.params import border_option, choice, io_options, mixed_lattice_option
+from pyramid_cli.cli.params import border_option, choice, io_options, memory_option, mixed_lattice_option
 from pyramid_cli.cli.running import drop, make_reporter, open_session, read_write
 from pyramid_cli.core import catalogue
 from pyramid_cli.core.options import MAX_LEVELS, MAX_SWEEPS, MAX_WEIGHT_SCALE
@@ -114,6 +114,7 @@ def fill(input_path, output_path, mask, holes, levels, analysis, synthesis, weig
 @mixed_lattice_option
 @border_option
 @io_options
+@memory_option
 def blend(a_path, b_path, mask_path, output_path, levels, analysis, synthesis, as_json, allow_mixed_lattice, border,
           **opts) -> None:
     """Join A and B along MASK without a seam (Burt & Adelson's multiresolution spline, 1983).
@@ -125,22 +126,28 @@ def blend(a_path, b_path, mask_path, output_path, levels, analysis, synthesis, a
     kept with a warning (as in an image; --nan), values outside 0 … 1 clipped with one. A, B and MASK have
     one size. Filters on two lattices move the seam and are warned about.
 
+    From a megapixel on the CPU executor, or when the whole run would not fit --memory, the three
+    inputs are read and the output written band by band (the same bytes; -v says which).
+
     \b
     Example:
       pyramid blend apple.png orange.png left_half.png orapple.png
       pyramid blend --levels 5 plate.exr patch.exr matte.exr comp.exr
       pyramid blend --analysis cubic --synthesis cubic --json a.exr b.exr m.png out.exr
+      pyramid blend --memory 512M -v plate_16k.exr patch_16k.exr matte_16k.exr comp_16k.exr
     """
     from pyramid_cli.run.methods_files import blend_files
+    from pyramid_cli.run.stream import parse_size
 
     reporter = make_reporter(opts)
     if as_json:  # the JSON object is the result; warnings still go to stderr
         reporter.out = drop
     ro, wo = read_write(opts)
+    memory = parse_size(opts["memory"]) if opts.get("memory") is not None else None
     with open_session(opts, reporter) as session:
         info = blend_files(a_path, b_path, mask_path, output_path, session, levels=levels, analysis=analysis,
                            synthesis=synthesis, border=border, allow_mixed_lattice=allow_mixed_lattice, read=ro,
-                           write=wo, reporter=reporter)
+                           write=wo, reporter=reporter, memory=memory)
     if as_json:
         click.echo(json.dumps(info, ensure_ascii=False))
 

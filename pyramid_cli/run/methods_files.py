@@ -18,6 +18,7 @@ from pyramid_cli.jobs.work import Blend, Fill
 from pyramid_cli.run.inputs import read_input
 from pyramid_cli.run.report import NAN_HINT, Reporter, announce_compiles
 from pyramid_cli.run.settings import ReadOptions, WriteOptions
+from pyramid_cli.run.stream_many import blend_streamed, mask_layout
 from pyramid_cli.workflows.methods import fill_inputs, fill_output, mask_channels, mask_weights
 
 
@@ -31,18 +32,9 @@ def _read_mask(path: str, shape: tuple[int, ...], ro: ReadOptions, reporter: Rep
     """
     m = io.read_image(path, colorspace="linear", alpha="none", nan=ro.nan, colorconfig=ro.colorconfig)
     px = m.pixels
-    if px.shape[:2] != tuple(shape[:2]):
-        raise InputError(f"{path}: the mask is {px.shape[1]}×{px.shape[0]}, the image {shape[1]}×{shape[0]}")
-    channels = shape[2] if len(shape) == 3 else 1
-    if px.shape[2] == 1 or px.shape[2] == channels:
+    alpha = mask_layout(path, m.spec, px.shape, shape, reporter.warn)
+    if alpha is None:
         return px
-    alpha = m.spec.alpha_channel
-    if not 0 <= alpha < px.shape[2]:
-        raise InputError(f"{path}: the mask has {px.shape[2]} channels ({', '.join(m.spec.channel_names)}) and no "
-                         f"alpha, the image {channels}: give one channel, one per channel, or an alpha channel")
-    # which channel of such a file holds the matte is a guess (its colour may, its alpha may be 1): say it
-    reporter.warn(f"{path}: {px.shape[2]} channels for an image of {channels}: its alpha channel "
-                  f"{m.spec.channel_names[alpha]} is the mask")
     return px[:, :, alpha]
 
 
@@ -124,10 +116,20 @@ def blend_files(a_path: str, b_path: str, mask_path: str, output_path: str, sess
                 levels: int | None = None, analysis: str = catalogue.DEFAULT_ANALYSIS,
                 synthesis: str = catalogue.DEFAULT_SYNTHESIS, border: str = "clamp", allow_mixed_lattice: bool = False,
                 read: ReadOptions | None = None, write: WriteOptions | None = None,
-                reporter: Reporter | None = None) -> dict:
-    """Multiresolution blend of two image files along a mask file (:func:`pyramid_cli.api.blend`)."""
+                reporter: Reporter | None = None, memory: int | None = None) -> dict:
+    """Multiresolution blend of two image files along a mask file (:func:`pyramid_cli.api.blend`).
+
+    Streams band by band (:func:`pyramid_cli.run.stream_many.blend_streamed`) when the whole run would not fit
+    ``memory`` bytes (default: :func:`pyramid_cli.run.budget.default_budget`) or is slower than bands (from a
+    megapixel on the CPU executor: :func:`pyramid_cli.run.stream.speed_band`); the bytes are the whole run's."""
     ro, wo, reporter = read or ReadOptions(), write or WriteOptions(), reporter or Reporter()
     io.check_write_options(output_path, wo.pixel_type, wo.compression, wo.tocolorspace, ro.colorconfig)
+    work = Blend(levels=levels, analysis=analysis, synthesis=synthesis, border=border,
+                 allow_mixed_lattice=allow_mixed_lattice)
+    streamed = blend_streamed(a_path, b_path, mask_path, output_path, work, session, memory=memory, read=ro,
+                              write=wo, reporter=reporter)
+    if streamed is not None:
+        return streamed
     a = read_input(a_path, ro, reporter)
     b = read_input(b_path, ro, reporter)
     if a.pixels.shape != b.pixels.shape:
@@ -135,8 +137,6 @@ def blend_files(a_path: str, b_path: str, mask_path: str, output_path: str, sess
                          f"{a_path} is {a.pixels.shape[1]}×{a.pixels.shape[0]} with {a.pixels.shape[2]}")
     mask = mask_channels(_read_mask(mask_path, a.pixels.shape, ro, reporter), a.pixels, where=mask_path,
                          warn=reporter.warn, nan_hint=NAN_HINT)
-    work = Blend(levels=levels, analysis=analysis, synthesis=synthesis, border=border,
-                 allow_mixed_lattice=allow_mixed_lattice)
     # B in A's linear space (both linear: one matrix), so that the blend mixes like with like
     b_pixels = io.pixels_in(b, a.spec.linear_space) if b.spec.linear_space != a.spec.linear_space else b.pixels
     images = [a.pixels, b_pixels, mask]

@@ -1,0 +1,266 @@
+"""Several files in, one picture out, band by band: ``pyramid blend`` streamed.
+
+The engine of :mod:`pyramid_cli.run.stream` for jobs of several inputs. Each input file is decoded ahead on a
+thread of its own (a :class:`~pyramid_cli.run.overlap.Reader`, in steps of its share of a band: the Laplacian
+bands of a collapse have several sizes), the plan runs on the demand-driven row-band scheduler of
+:mod:`pyramid_cli.exec.tiles`, which asks every input for its rows as the guard bands of every level need
+them, and the output's rows are encoded and written behind on a writer thread into the temporary that is
+renamed onto the output at the end (atomic, as every write). A :class:`Feed` turns the rows of one or more
+files into the rows of one or more of the plan's inputs with a per-pixel function (a blend's mask: its
+channel, clipped to [0, 1]); rows one input has taken stay until the others sharing the feed have taken
+them too. The pixels are those of the whole run.
+
+Whole or streamed is decided as for a single image (:func:`pyramid_cli.run.stream.choose`): streamed when
+the whole run would not fit the budget (``--memory``, else the container-aware default of
+:mod:`pyramid_cli.run.budget`), or by default where bands are faster
+(:func:`pyramid_cli.run.stream.speed_band`: from a megapixel on the CPU executor).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import time
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from pyramid_cli.core.errors import DataError, InputError
+from pyramid_cli.plan import Plan
+from pyramid_cli.run.budget import resolve
+from pyramid_cli.run.overlap import Reader, overlapped
+from pyramid_cli.run.report import nonfinite_kept
+from pyramid_cli.run.stream import MIN_BAND, Choice, choose, costs, executor_of, speed_band
+
+Prepare = Callable[[int, list[np.ndarray]], list[np.ndarray]]
+
+
+@dataclass
+class Feed:
+    """Rows of ``streams`` (open :class:`~pyramid_cli.imageio.ImageStream` s of one height) made into the rows of
+    the plan's inputs ``keys`` by ``prepare(y0, [rows of each stream])`` (one array per key, per pixel: a
+    band's result is that band of the whole picture's). None: each stream's rows as they are."""
+
+    streams: list
+    keys: list[int]
+    prepare: Prepare | None = None
+
+
+class _Tee:
+    """A feed's prepared rows, handed to each of its keys in order, kept until every key has taken them."""
+
+    def __init__(self, feed: Feed, readers: list[Reader]):
+        self.feed, self.readers = feed, readers
+        self.held: list[np.ndarray] | None = None  # one array per key, rows [start, done)
+        self.start = self.done = 0
+        self.taken = dict.fromkeys(feed.keys, 0)
+
+    def rows(self, k: int, y0: int, y1: int) -> np.ndarray:
+        if y1 > self.done:
+            raw = [r.rows(self.done, y1) for r in self.readers]
+            new = self.feed.prepare(self.done, raw) if self.feed.prepare else raw
+            if self.held is None or self.done == self.start:
+                self.held, self.start = list(new), self.done
+            else:
+                self.held = [np.concatenate([a, b]) for a, b in zip(self.held, new, strict=True)]
+            self.done = y1
+        out = self.held[self.feed.keys.index(k)][y0 - self.start:y1 - self.start]
+        self.taken[k] = max(self.taken[k], y1)
+        keep = min(self.taken.values())
+        if keep > self.start:  # no key asks for rows before what it took (the scheduler reads in order)
+            self.held = [a[keep - self.start:] for a in self.held]
+            self.start = keep
+        return out
+
+
+def decide(plan: Plan, channels: int, session, memory: int | None, *, where: str, reporter=None,
+           in_bytes: int = 4) -> Choice | None:
+    """The :class:`~pyramid_cli.run.stream.Choice` of a job of ``plan`` when it streams, else None (it runs whole:
+    it fits and is no faster in bands; the reference backend without ``memory``, which is then refused)."""
+    if session is None or session.executor is None:
+        if memory is not None:
+            executor_of(session)  # refuses with the reason
+        return None
+    given = resolve(memory)
+    if reporter is not None:
+        reporter.detail(f"{where}: {given.describe()}")
+    executor = executor_of(session)
+    try:
+        choice = choose(plan, channels, given.size, in_bytes=in_bytes, out_bytes=4, where=where,
+                        prefer=speed_band(plan, executor), **costs(executor))
+    except DataError as exc:
+        raise given.refusal(exc) from None
+    if reporter is not None:
+        reporter.detail(f"{where}: {choice.describe()}")
+    return choice if choice.streams else None
+
+
+@contextlib.contextmanager
+def _reading(feeds: Sequence[Feed], plan: Plan, band: int) -> Iterator[dict[int, _Tee]]:
+    """A started :class:`Reader` per stream, each decoding its plan input's share of a band at a time; on leaving
+    every reader is stopped and joined."""
+    anchor = max(plan.images[k].size[0] for k in plan.outputs)
+    readers: list[Reader] = []
+    tees: dict[int, _Tee] = {}
+    try:
+        for feed in feeds:
+            rows = plan.images[feed.keys[0]].size[0]
+            step = max(MIN_BAND, -(-band * rows // anchor))
+            mine = [Reader(st.read, st.shape[0], step) for st in feed.streams]
+            for r in mine:
+                readers.append(r)
+                r.thread.start()
+            tee = _Tee(feed, mine)
+            tees.update(dict.fromkeys(feed.keys, tee))
+        yield tees
+    finally:
+        for r in readers:
+            r.halt()
+
+
+def stream_plan(plan: Plan, feeds: Sequence[Feed], out_path: str, info, channels: int, options: dict, session,
+                choice: Choice, *, where: str = "", reporter=None) -> None:
+    """Run ``plan`` (one output) from ``feeds`` to ``out_path`` in bands of ``choice.band`` rows (see the module);
+    ``info`` and ``options`` as :func:`pyramid_cli.imageio.stream_writers` takes them."""
+    from pyramid_cli import imageio as io
+    from pyramid_cli.exec import tiles
+
+    executor = executor_of(session)
+    emu = executor.work_dtype == np.float64
+    (out,) = plan.outputs
+    h, w = plan.images[out].size
+    with (io.stream_writers([out_path], [info], [(h, w, channels)], **options) as (bw,),
+          overlapped(None, 0, 1) as (_, writer),
+          _reading(feeds, plan, choice.band) as tees):
+        def source(k, rows, cols):
+            px = tees[k].rows(k, *rows)
+            px = px[:, cols[0]:cols[1]] if (cols[0], cols[1]) != (0, px.shape[1]) else px
+            return px.astype(np.float64) if emu else np.ascontiguousarray(px, dtype=np.float32)
+
+        def sink(k, r, c0, px):  # px is the scheduler's buffer: the writer keeps rows, so a copy
+            writer.call(bw.write, r, px.astype(np.float32))
+
+        scheduler = tiles.Scheduler(executor, plan, source, sink, band=choice.band,
+                                    dtype=np.float64 if emu else np.float32)
+        started = time.thread_time()
+        scheduler.run()
+        computed = time.thread_time() - started
+    if reporter is not None:
+        decoding = sum(r.busy for t in {id(t): t for t in tees.values()}.values() for r in t.readers)
+        reporter.detail(f"{where}: CPU seconds: decoding {decoding:.2f}, computing {computed:.2f} (this thread), "
+                        f"encoding and writing {writer.busy:.2f}, each on a thread of its own")
+    session.ran = session.name
+
+
+def warn_nonfinite(streams, read, reporter) -> None:
+    """Say, as a whole read does (:func:`pyramid_cli.run.inputs.read_input`), how many NaN/Inf each stream kept."""
+    if reporter is None or read.nan != "keep":
+        return
+    for st in streams:
+        if st.nonfinite:
+            reporter.warn(nonfinite_kept(st.path, st.nonfinite))
+
+
+def mask_layout(path: str, info, mask_shape: tuple[int, ...], shape: tuple[int, ...], warn) -> int | None:
+    """Which channel of a mask or weight image (header ``info``, (H, W, C) ``mask_shape``) weights an image of
+    ``shape``: None, every channel as it is (one, or one per channel); else its alpha channel's index, with
+    ``warn`` told (which channel of such a file holds the matte is a guess). Refused (InputError) for another
+    size, or another count without an alpha channel."""
+    if tuple(mask_shape[:2]) != tuple(shape[:2]):
+        raise InputError(f"{path}: the mask is {mask_shape[1]}×{mask_shape[0]}, the image {shape[1]}×{shape[0]}")
+    channels = shape[2] if len(shape) == 3 else 1
+    n = mask_shape[2]
+    if n == 1 or n == channels:
+        return None
+    alpha = info.alpha_channel
+    if not 0 <= alpha < n:
+        raise InputError(f"{path}: the mask has {n} channels ({', '.join(info.channel_names)}) and no "
+                         f"alpha, the image {channels}: give one channel, one per channel, or an alpha channel")
+    warn(f"{path}: {n} channels for an image of {channels}: its alpha channel {info.channel_names[alpha]} is the mask")
+    return alpha
+
+
+class MaskCounts:
+    """NaN/Inf and values outside [0, 1] of a mask read in bands, said once at the end as a whole read says them
+    (:func:`pyramid_cli.workflows.methods.mask_weights`)."""
+
+    def __init__(self):
+        self.bad = self.outside = 0
+        self.lo, self.hi = np.inf, -np.inf
+
+    def add(self, m: np.ndarray) -> None:
+        m = np.asarray(m, dtype=np.float32)
+        self.bad += int(m.size - np.count_nonzero(np.isfinite(m)))
+        self.outside += int(np.count_nonzero((m < 0) | (m > 1)))
+        seen = m[~np.isnan(m)]
+        if seen.size:
+            self.lo, self.hi = min(self.lo, float(seen.min())), max(self.hi, float(seen.max()))
+
+    def say(self, where: str, warn, nan_hint: str) -> None:
+        if self.bad:
+            warn(f"{where}: {self.bad} NaN/Inf value(s) kept in the mask; they spread through the filter ({nan_hint})")
+        if self.outside:
+            warn(f"{where}: {self.outside} mask value(s) outside [0, 1] (from {self.lo:g} to {self.hi:g}) clipped to "
+                 "[0, 1]")
+
+
+def blend_streamed(a_path: str, b_path: str, mask_path: str, output_path: str, work, session, *,
+                   memory: int | None, read, write, reporter) -> dict | None:
+    """``pyramid blend`` (:func:`pyramid_cli.run.methods_files.blend_files`) streamed: A, B and the mask each read
+    in bands on a thread of its own, the output written in bands. Returns what ``--json`` prints, or None when
+    the job runs whole (it fits and is no faster in bands, an output encoded whole, or inputs that do not
+    match: the whole run then says why as before)."""
+    from pyramid_cli import imageio as io
+    from pyramid_cli.run.report import NAN_HINT
+    from pyramid_cli.workflows.methods import mask_channels
+
+    if not io.streams_to(output_path):
+        return None
+    if session is None or session.executor is None:
+        decide(None, 0, session, memory, where=a_path)  # refuses --memory with the reason
+        return None
+    ro = read
+    with contextlib.ExitStack() as stack:
+        a, b = (stack.enter_context(io.open_stream(p, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan,
+                                                   colorconfig=ro.colorconfig))
+                for p in (a_path, b_path))
+        m = stack.enter_context(io.open_stream(mask_path, colorspace="linear", alpha="none", nan=ro.nan,
+                                               colorconfig=ro.colorconfig))
+        if a.shape != b.shape or a.shape[:2] != m.shape[:2]:
+            return None
+        (h, w, c) = a.shape
+        work.check(((h, w),) * 3, where=a_path)
+        plan = session.plan(work, [(h, w)] * 3)
+        choice = decide(plan, c, session, memory, where=a_path, reporter=reporter)
+        if choice is None:
+            return None
+        alpha = mask_layout(mask_path, m.info, m.shape, a.shape, reporter.warn)
+        for message in work.warnings((h, w)):
+            reporter.warn(message)
+        counts = MaskCounts()
+
+        def weights(y0: int, raw: list[np.ndarray]) -> list[np.ndarray]:
+            px = raw[0] if alpha is None else raw[0][:, :, alpha]
+            counts.add(px)
+            like = np.broadcast_to(np.float32(0), (px.shape[0], w, c))  # the image's shape: no pixels needed
+            return [mask_channels(px, like, where=mask_path, warn=lambda _: None)]
+
+        def in_a_space(y0: int, raw: list[np.ndarray]) -> list[np.ndarray]:  # B in A's linear space, as whole
+            return [io.pixels_in(io.Image(raw[0], b.info), a.info.linear_space)]
+
+        ka, kb, km = plan.inputs
+        moved = b.info.linear_space != a.info.linear_space
+        feeds = [Feed([a], [ka]), Feed([b], [kb], in_a_space if moved else None), Feed([m], [km], weights)]
+        stream_plan(plan, feeds, output_path, a.info, c, write.for_inputs([a_path, b_path, mask_path]), session,
+                    choice, where=a_path, reporter=reporter)
+        warn_nonfinite([a, b], ro, reporter)
+        counts.say(mask_path, reporter.warn, NAN_HINT)
+        reporter.detail(f"{io.describe_rules(a.info)}; executor {session.ran}")
+    n = work.count((h, w))
+    reporter.result(f"wrote {output_path} ({w}×{h}, {n} level(s), {session.ran}, streamed in bands of {choice.band} "
+                    "rows)")
+    return {"output": output_path, "width": w, "height": h, "levels": n, "analysis": work.analysis,
+            "synthesis": work.synthesis, "border": work.border, "executor": session.ran}
+
+
+__all__ = ["Feed", "decide", "stream_plan", "warn_nonfinite", "mask_layout", "MaskCounts", "blend_streamed"]
