@@ -1,4 +1,4 @@
-"""Several files in, one picture out, band by band: ``pyramid blend`` streamed.
+"""Several files in, one picture out, band by band: ``pyramid blend`` and ``pyramid collapse`` streamed.
 
 The engine of :mod:`pyramid_cli.run.stream` for jobs of several inputs. Each input file is decoded ahead on a
 thread of its own (a :class:`~pyramid_cli.run.overlap.Reader`, in steps of its share of a band: the Laplacian
@@ -263,4 +263,46 @@ def blend_streamed(a_path: str, b_path: str, mask_path: str, output_path: str, w
             "synthesis": work.synthesis, "border": work.border, "executor": session.ran}
 
 
-__all__ = ["Feed", "decide", "stream_plan", "warn_nonfinite", "mask_layout", "MaskCounts", "blend_streamed"]
+def collapse_streamed(paths: list[str], output_path: str, session, settle: Callable, *, memory: int | None, read,
+                      write, options_from: list[str], reporter) -> Choice | None:
+    """``pyramid collapse`` of band files L_0 … L_m−1, G_m (``paths``, in order) streamed: each band read in
+    bands of its share of the output's rows on a thread of its own, the output written in bands. ``settle(info)``:
+    the (synthesis, border) of the bands whose first file's header is ``info`` (refusing a contradiction);
+    ``options_from``: the inputs the write options follow. Returns the choice it ran with, or None when the
+    job runs whole (it fits and is no faster in bands, an output encoded whole, or bands that do not make a
+    pyramid: the whole run then says why as before)."""
+    from pyramid_cli import imageio as io
+    from pyramid_cli.core.geometry import halved
+    from pyramid_cli.jobs.work import Collapse
+
+    if not io.streams_to(output_path) or len(paths) < 2:
+        return None
+    if session is None or session.executor is None:
+        decide(None, 0, session, memory, where=paths[0])  # refuses --memory with the reason
+        return None
+    ro = read
+    with contextlib.ExitStack() as stack:
+        streams = [stack.enter_context(io.open_stream(p, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan))
+                   for p in paths]
+        shapes = [st.shape for st in streams]
+        if (len({s[2] for s in shapes}) > 1
+                or any(tuple(shapes[k][:2]) != halved(tuple(shapes[k - 1][:2])) for k in range(1, len(shapes)))):
+            return None
+        synthesis, border = settle(streams[0].info)
+        work = Collapse(bands=len(paths), synthesis=synthesis, border=border)
+        sizes = [tuple(s[:2]) for s in shapes]
+        plan = session.plan(work, sizes)
+        h, w, c = shapes[0]
+        choice = decide(plan, c, session, memory, where=paths[0], reporter=reporter)
+        if choice is None:
+            return None
+        feeds = [Feed([st], [k]) for st, k in zip(streams, plan.inputs, strict=True)]
+        stream_plan(plan, feeds, output_path, streams[0].info, c, write.for_inputs(options_from), session, choice,
+                    where=paths[0], reporter=reporter)
+        warn_nonfinite(streams, ro, reporter)
+    reporter.result(f"wrote {output_path} ({w}×{h}, {session.ran}, streamed in bands of {choice.band} rows)")
+    return choice
+
+
+__all__ = ["Feed", "decide", "stream_plan", "warn_nonfinite", "mask_layout", "MaskCounts", "blend_streamed",
+           "collapse_streamed"]

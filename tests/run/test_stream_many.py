@@ -140,3 +140,38 @@ def test_a_signal_during_a_streamed_blend(big):
                              out, (1.4,), complete)
     assert stopped, "no run was interrupted: make the pictures larger"
 
+
+def collapse(session, pattern, out, **kw):
+    from pyramid_cli.run.pipeline import collapse_files
+
+    said = []
+    rep = Reporter(verbose=True, out=said.append, err=said.append)
+    collapse_files([str(pattern)], str(out), session, reporter=rep, **kw)
+    return " | ".join(said)
+
+
+@pytest.mark.parametrize("ext, memory", [
+    ("png", None),        # streams by default (faster): 8-bit, rounded
+    ("exr", 400 << 10),   # streams because the whole run does not fit --memory
+])
+def test_a_streamed_collapse_of_band_files_writes_the_whole_runs_file(tmp_path, session, small_pictures_stream, ext,
+                                                                      memory):
+    """Laplacian band files of several sizes (97×131 down to 13×17: each read at its own pace), mirror border."""
+    from pyramid_cli.jobs.work import Laplacian
+    from pyramid_cli.run.pipeline import write_levels_files
+
+    src = write(tmp_path / "in.exr", noise(97, 131, 3, seed=5), "float")
+    small_pictures_stream.setattr(stream, "STREAM_PIXELS", WHOLE)
+    write_levels_files(str(src), str(tmp_path / "band_{level}.exr"), Laplacian(levels=3, border="mirror"), session,
+                       reporter=Reporter(quiet=True))
+    said_whole = collapse(session, tmp_path / "band_*.exr", tmp_path / f"w.{ext}")
+    assert "runs whole" in said_whole and "streamed in bands" not in said_whole, said_whole
+    if memory is None:
+        small_pictures_stream.setattr(stream, "STREAM_PIXELS", 1)
+    said = collapse(session, tmp_path / "band_*.exr", tmp_path / f"s.{ext}", memory=memory)
+    assert "streamed in bands of" in said and ("faster than whole" in said) == (memory is None), said
+    assert filecmp.cmp(tmp_path / f"s.{ext}", tmp_path / f"w.{ext}", shallow=False)
+    with pytest.raises(UsageError, match="--border clamp would not give the image back"):
+        collapse(session, tmp_path / "band_*.exr", tmp_path / f"x.{ext}", border="clamp", memory=memory)
+    with pytest.raises(UsageError, match="not a multipart EXR"):
+        collapse(session, tmp_path / "band_0.exr", tmp_path / f"x.{ext}", memory=memory or 1 << 30)
