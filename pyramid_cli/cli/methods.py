@@ -63,6 +63,7 @@ class LevelPair(click.ParamType):
 @mixed_lattice_option
 @border_option
 @io_options
+@memory_option
 def fill(input_path, output_path, mask, holes, levels, analysis, synthesis, weight_scale, sweeps, keep_alpha, as_json,
          allow_mixed_lattice, border, **opts) -> None:
     """Fill holes from the pixels around them by pull-push (Kraus, GRAPP 2009).
@@ -75,6 +76,11 @@ def fill(input_path, output_path, mask, holes, levels, analysis, synthesis, weig
     without a known pixel is bad pixel data (exit 5). Filters
     on two lattices fill from beside the holes and are warned about.
 
+    With --levels whose coarsest level keeps 16 rows, the image (and mask) are read and the
+    output written band by band from a megapixel on the CPU executor, or when the whole run
+    would not fit --memory (the same bytes; -v says which). A fill down to 1×1 (the default)
+    needs every row before its first: it runs whole, and --memory with it is refused.
+
     \b
     Example:
       pyramid fill bake.png bake_padded.png                 # holes where alpha < 1
@@ -83,17 +89,21 @@ def fill(input_path, output_path, mask, holes, levels, analysis, synthesis, weig
       pyramid fill --analysis box --json in.exr out.exr
       pyramid fill --analysis box4 --weight-scale 4 --sweeps 0 in.exr out.exr   # the classic fill
       pyramid fill --keep-alpha decal.png decal_dilated.png    # colour under the cut-out
+      pyramid fill --levels 6 --memory 512M -v plate_16k.exr plate_filled.exr
     """
     from pyramid_cli.run.methods_files import fill_file
+    from pyramid_cli.run.stream import parse_size
 
     reporter = make_reporter(opts)
     if as_json:  # the JSON object is the result; warnings still go to stderr
         reporter.out = drop
     ro, wo = read_write(opts)
+    memory = parse_size(opts["memory"]) if opts.get("memory") is not None else None
     with open_session(opts, reporter) as session:
         info = fill_file(input_path, output_path, session, mask=mask, holes=holes, levels=levels, analysis=analysis,
                          synthesis=synthesis, weight_scale=weight_scale, sweeps=sweeps, keep_alpha=keep_alpha,
-                         border=border, allow_mixed_lattice=allow_mixed_lattice, read=ro, write=wo, reporter=reporter)
+                         border=border, allow_mixed_lattice=allow_mixed_lattice, read=ro, write=wo, reporter=reporter,
+                         memory=memory)
     if as_json:
         click.echo(json.dumps(info, ensure_ascii=False))
 

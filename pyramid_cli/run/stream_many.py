@@ -19,6 +19,7 @@ the whole run would not fit the budget (``--memory``, else the container-aware d
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
@@ -119,9 +120,11 @@ def _reading(feeds: Sequence[Feed], plan: Plan, band: int) -> Iterator[dict[int,
 
 
 def stream_plan(plan: Plan, feeds: Sequence[Feed], out_path: str, info, channels: int, options: dict, session,
-                choice: Choice, *, where: str = "", reporter=None) -> None:
+                choice: Choice, *, where: str = "", reporter=None,
+                finish: Callable[[int, np.ndarray], np.ndarray] | None = None) -> None:
     """Run ``plan`` (one output) from ``feeds`` to ``out_path`` in bands of ``choice.band`` rows (see the module);
-    ``info`` and ``options`` as :func:`pyramid_cli.imageio.stream_writers` takes them."""
+    ``info`` and ``options`` as :func:`pyramid_cli.imageio.stream_writers` takes them, ``channels`` the output's.
+    ``finish(y0, rows)``: the output's rows from the plan's (per pixel; a fill puts the alpha channel back)."""
     from pyramid_cli import imageio as io
     from pyramid_cli.exec import tiles
 
@@ -138,7 +141,7 @@ def stream_plan(plan: Plan, feeds: Sequence[Feed], out_path: str, info, channels
             return px.astype(np.float64) if emu else np.ascontiguousarray(px, dtype=np.float32)
 
         def sink(k, r, c0, px):  # px is the scheduler's buffer: the writer keeps rows, so a copy
-            writer.call(bw.write, r, px.astype(np.float32))
+            writer.call(bw.write, r, np.array(finish(r, px) if finish else px, dtype=np.float32))
 
         scheduler = tiles.Scheduler(executor, plan, source, sink, band=choice.band,
                                     dtype=np.float64 if emu else np.float32)
@@ -282,8 +285,8 @@ def collapse_streamed(paths: list[str], output_path: str, session, settle: Calla
         return None
     ro = read
     with contextlib.ExitStack() as stack:
-        streams = [stack.enter_context(io.open_stream(p, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan))
-                   for p in paths]
+        streams = [stack.enter_context(io.open_stream(p, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan,
+                                                      colorconfig=ro.colorconfig)) for p in paths]
         shapes = [st.shape for st in streams]
         if (len({s[2] for s in shapes}) > 1
                 or any(tuple(shapes[k][:2]) != halved(tuple(shapes[k - 1][:2])) for k in range(1, len(shapes)))):
@@ -304,5 +307,146 @@ def collapse_streamed(paths: list[str], output_path: str, session, settle: Calla
     return choice
 
 
+FILL_COARSEST = 16  # a fill streams only while its coarsest pull level keeps this many rows (see fill_streamed)
+
+
+def _known_row(holes: str, width: int, channels: int, alpha: int | None, mask_channels: int
+               ) -> tuple[np.ndarray, np.ndarray | None]:
+    """One row of known pixels (weight 1) as an image of ``channels`` and its mask (``holes`` mask)."""
+    px = np.zeros((1, width, channels), np.float32)
+    if holes == "alpha":
+        px[:, :, alpha] = 1
+    return px, (np.ones((1, width, mask_channels), np.float32) if holes == "mask" else None)
+
+
+class _Rows:
+    """Rows of an array kept from when they are read until the output's rows that need them are written."""
+
+    def __init__(self):
+        self.start, self.held = 0, None
+
+    def add(self, px: np.ndarray) -> None:
+        self.held = px if self.held is None or not len(self.held) else np.concatenate([self.held, px])
+
+    def take(self, y0: int, y1: int) -> np.ndarray:
+        out = self.held[y0 - self.start:y1 - self.start]
+        self.held, self.start = self.held[y1 - self.start:], y1
+        return out
+
+
+def fill_streamed(input_path: str, output_path: str, session, work_for: Callable, *, mask: str | None, holes: str,
+                  levels: int | None, keep_alpha: bool, memory: int | None, read, write, reporter
+                  ) -> tuple[tuple[int, int], dict, int] | None:
+    """``pyramid fill`` (:func:`pyramid_cli.run.methods_files.fill_file`) streamed: the image and the mask read in
+    bands on threads of their own, each band made colours and weights by
+    :func:`~pyramid_cli.workflows.methods.fill_inputs` (per pixel), the filled rows finished by
+    :func:`~pyramid_cli.workflows.methods.fill_output` and written in bands; the ``--json`` counts summed over the
+    bands. ``work_for(premultiplied)``: the :class:`~pyramid_cli.jobs.work.Fill` to run (the whole run's).
+    Returns ((rows, columns), {known, partial, empty}, band rows), or None when the job runs whole.
+
+    Only a pull of ``levels`` whose coarsest level keeps :data:`FILL_COARSEST` rows streams: pulled down to 1×1
+    (the default), the first output row depends on every input row, so every band would wait for the whole
+    picture (``memory`` is then refused: give ``--levels``). Checks that need the whole picture come at its end:
+    an image without a known pixel is refused once its last band is read (before the output is renamed)."""
+    from pyramid_cli import imageio as io
+    from pyramid_cli.core.errors import UsageError
+    from pyramid_cli.core.geometry import level_sizes, mip_levels
+    from pyramid_cli.run.report import NAN_HINT
+    from pyramid_cli.workflows.methods import fill_inputs, fill_output, mask_weights
+
+    if not io.streams_to(output_path):
+        return None
+    if session is None or session.executor is None:
+        decide(None, 0, session, memory, where=input_path)  # refuses --memory with the reason
+        return None
+    ro = read
+    quiet = lambda _: None  # noqa: E731 - the per-band calls' messages are said once, over the bands
+    with contextlib.ExitStack() as stack:
+        st = stack.enter_context(io.open_stream(input_path, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan,
+                                                colorconfig=ro.colorconfig))
+        ms = (stack.enter_context(io.open_stream(mask, colorspace="linear", alpha="none", nan=ro.nan,
+                                                 colorconfig=ro.colorconfig)) if mask else None)
+        info = st.info
+        h, w, c = st.shape
+        alpha = info.alpha_channel if info.alpha_channel >= 0 and info.alpha_mode != "none" else None
+        if (holes == "alpha" and alpha is None) or (ms is not None and ms.shape[:2] != st.shape[:2]):
+            return None  # the whole run says why
+        m = mip_levels((h, w)) if levels is None else levels
+        if level_sizes((h, w), m)[-1][0] < FILL_COARSEST:
+            if memory is not None:
+                raise UsageError(f"{input_path}: --memory: a fill pulled down to {level_sizes((h, w), m)[-1][0]} "
+                                 f"row(s) reads the whole picture before its first row; give --levels so that the "
+                                 f"coarsest level keeps {FILL_COARSEST} rows (at most "
+                                 f"{_fill_levels((h, w))} here) to stream it")
+            return None
+        layout_channels = 1 if ms is None else (c if ms.shape[2] == c else 1)
+        probe = _known_row(holes, 1, c, alpha, layout_channels)
+        colour, _, premultiplied = fill_inputs(probe[0], holes, probe[1], alpha, where=input_path, warn=quiet)
+        cc = colour.shape[2]
+        work = work_for(premultiplied)
+        plan = session.plan(work, [(h, w)] * 2)
+        choice = decide(plan, cc, session, memory, where=input_path, reporter=reporter)
+        if choice is None:
+            return None
+        layout = mask_layout(mask, ms.info, ms.shape, st.shape, reporter.warn) if ms is not None else None
+        for message in work.warnings((h, w)):
+            reporter.warn(message)
+        counts = {"known": 0, "partial": 0, "empty": 0}
+        said = MaskCounts()
+        kept = _Rows()  # the input's alpha, for --keep-alpha
+        known_px, known_mask = _known_row(holes, w, c, alpha, layout_channels)
+
+        def prepare(y0: int, raw: list[np.ndarray]) -> list[np.ndarray]:
+            px = raw[0]
+            weights = None
+            if ms is not None:
+                mk = raw[1] if layout is None else raw[1][:, :, layout:layout + 1]
+                said.add(mk)
+                weights = mask_weights(mk, px, mask, quiet)
+            # a row of known pixels below the band: fill_inputs refuses a band without one, which a picture may have
+            colour, weight, _ = fill_inputs(np.concatenate([px, known_px]), holes,
+                                            None if weights is None else np.concatenate([weights, known_mask]),
+                                            alpha, where=input_path, warn=quiet)
+            colour, weight = colour[:-1], weight[:-1]
+            w0 = weight[..., 0]
+            counts["known"] += int(np.sum(w0 >= 1))
+            counts["partial"] += int(np.sum((w0 > 0) & (w0 < 1)))
+            counts["empty"] += int(np.sum(w0 <= 0))
+            if keep_alpha:
+                kept.add(px[:, :, alpha].copy())
+            if y0 + len(px) == h and counts["known"] + counts["partial"] == 0:  # the whole run's refusal, its words
+                fill_inputs(px[:0], holes, None if weights is None else weights[:0], alpha, where=input_path,
+                            warn=quiet)
+            return [colour, weight]
+
+        def finish(y0: int, filled: np.ndarray) -> np.ndarray:
+            shape = (len(filled), w, c)
+            if not keep_alpha:
+                return fill_output(filled, np.broadcast_to(np.float32(0), shape), holes, alpha)
+            like = np.zeros(shape, np.float32)
+            like[:, :, alpha] = kept.take(y0, y0 + len(filled))
+            return fill_output(filled, like, holes, alpha, True)
+
+        kc, kw = plan.inputs
+        feed = Feed([st] + ([ms] if ms is not None else []), [kc, kw], prepare)
+        spec = dataclasses.replace(info, alpha_mode="none") if keep_alpha else info
+        stream_plan(plan, [feed], output_path, spec, c, write.for_inputs([input_path] + ([mask] if mask else [])),
+                    session, choice, where=input_path, reporter=reporter, finish=finish)
+        said.say(mask, reporter.warn, NAN_HINT)  # (a whole fill says nothing of the image's NaN/Inf: its holes)
+        reporter.detail(f"{io.describe_rules(info)}; executor {session.ran}")
+    return (h, w), counts, choice.band
+
+
+def _fill_levels(size: tuple[int, int]) -> int:
+    """The most pull levels whose coarsest level keeps :data:`FILL_COARSEST` rows."""
+    from pyramid_cli.core.geometry import halved
+
+    n, rows = 0, size[0]
+    while halved((rows, 1))[0] >= FILL_COARSEST and rows > 1:
+        rows = halved((rows, 1))[0]
+        n += 1
+    return n
+
+
 __all__ = ["Feed", "decide", "stream_plan", "warn_nonfinite", "mask_layout", "MaskCounts", "blend_streamed",
-           "collapse_streamed"]
+           "collapse_streamed", "fill_streamed", "FILL_COARSEST"]

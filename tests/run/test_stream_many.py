@@ -175,3 +175,105 @@ def test_a_streamed_collapse_of_band_files_writes_the_whole_runs_file(tmp_path, 
         collapse(session, tmp_path / "band_*.exr", tmp_path / f"x.{ext}", border="clamp", memory=memory)
     with pytest.raises(UsageError, match="not a multipart EXR"):
         collapse(session, tmp_path / "band_0.exr", tmp_path / f"x.{ext}", memory=memory or 1 << 30)
+
+
+def fill(session, src, out, **kw):
+    from pyramid_cli.run.methods_files import fill_file
+
+    said, warned = [], []
+    rep = Reporter(verbose=True, out=said.append, err=said.append)
+    rep.warn = warned.append
+    info = fill_file(str(src), str(out), session, reporter=rep, **kw)
+    return " | ".join(said), sorted(warned), info
+
+
+def holes_of(folder, holes):
+    """A picture with holes as ``holes`` finds them (97×131: 2 pull levels keep 25 rows) and the options."""
+    px = noise(97, 131, 4, seed=6)
+    px[20:60, 30:90] = 0      # a hole larger than a band
+    px[::7, ::5, 3] = 0.5     # partial pixels
+    if holes == "alpha":      # 8-bit RGBA, straight alpha kept beside the colours
+        px[:, :, :3] *= px[:, :, 3:]
+        return write(folder / "in.png", px, "uint8", alpha=3), "png", {"keep_alpha": True}
+    if holes == "nan":
+        px[px[:, :, 3] < 0.5] = np.nan
+        return write(folder / "in.exr", px[:, :, :3], "float"), "exr", {"holes": "nan"}
+    mask = px[:, :, 3:] * 1.2 - 0.1  # NaN/Inf-free, some values outside [0, 1]
+    write(folder / "m.exr", mask, "float")
+    return write(folder / "in.exr", px[:, :, :3], "float"), "exr", {"mask": str(folder / "m.exr")}
+
+
+@pytest.mark.parametrize("holes, memory", [("alpha", None), ("nan", None), ("mask", 600 << 10)])
+def test_a_streamed_fill_writes_the_whole_runs_file(tmp_path, session, small_pictures_stream, holes, memory):
+    src, ext, kw = holes_of(tmp_path, holes)
+    if memory is not None:
+        small_pictures_stream.setattr(stream, "STREAM_PIXELS", WHOLE)
+    said, warned, info = fill(session, src, tmp_path / f"s.{ext}", levels=2, memory=memory, **kw)
+    assert "streamed in bands of" in said and ("faster than whole" in said) == (memory is None), said
+    small_pictures_stream.setattr(stream, "STREAM_PIXELS", WHOLE)
+    said_whole, warned_whole, info_whole = fill(session, src, tmp_path / f"w.{ext}", levels=2, **kw)
+    assert "streamed in bands" not in said_whole, said_whole
+    assert filecmp.cmp(tmp_path / f"s.{ext}", tmp_path / f"w.{ext}", shallow=False)
+    assert info == {**info_whole, "output": info["output"]} and info["empty"], info
+    assert info["partial"] or holes == "nan", info
+    assert warned == warned_whole
+
+
+def test_fill_refusals_streamed_are_the_whole_runs(tmp_path, session, small_pictures_stream):
+    """No known pixel: refused once the last band is read, in the whole run's words, the previous output kept and
+    no temporary left. --memory with a pull down to 1×1 (which reads every row before the first) is refused."""
+    import os
+
+    from pyramid_cli.core.errors import DataError
+
+    src = write(tmp_path / "in.exr", np.full((40, 24, 3), np.nan, np.float32), "float")
+    out = tmp_path / "out.exr"
+    out.write_bytes(b"previous")
+    said = []
+    for threshold in (1, WHOLE):  # streamed, then whole
+        small_pictures_stream.setattr(stream, "STREAM_PIXELS", threshold)
+        with pytest.raises(DataError, match="no known pixel") as caught:
+            fill(session, src, out, holes="nan", levels=1)
+        said.append(str(caught.value))
+        assert out.read_bytes() == b"previous" and sorted(os.listdir(tmp_path)) == ["in.exr", "out.exr"]
+    assert said[0] == said[1]
+    with pytest.raises(UsageError, match="--memory: a fill pulled down to 1 row"):
+        fill(session, src, out, holes="nan", memory=1 << 30)
+
+
+@pytest.mark.parametrize("job, budget", [("fill", 4 << 20), ("collapse", 2 << 20)])  # whole: 6.5 and 5.3 MB
+def test_streamed_fill_and_collapse_allocate_within_the_memory_given(tmp_path, session, job, budget):
+    """In process, the arrays a run allocates (tracemalloc: numpy's buffers, OpenImageIO's reads): streamed within
+    --memory, half the whole run's or less (the same files). The RSS of a streamed blend: below."""
+    import tracemalloc
+
+    from pyramid_cli.jobs.work import Laplacian
+    from pyramid_cli.run.methods_files import fill_file
+    from pyramid_cli.run.pipeline import collapse_files, write_levels_files
+
+    px = noise(256, 320, 4, seed=9)
+    px[50:150, 50:200, 3] = 0
+    src = write(tmp_path / "in.exr", px, "float", alpha=3)
+    if job == "collapse":
+        write_levels_files(str(src), str(tmp_path / "band_{level}.exr"), Laplacian(levels=3), session,
+                           reporter=Reporter(quiet=True))
+
+    def run(memory, out):
+        if job == "fill":
+            fill_file(str(src), str(out), session, levels=2, memory=memory, reporter=Reporter(quiet=True))
+        else:
+            collapse_files([str(tmp_path / "band_*.exr")], str(out), session, memory=memory,
+                           reporter=Reporter(quiet=True))
+        return tracemalloc.get_traced_memory()[1]
+
+    run(None, tmp_path / "w.exr")  # plans, kernels and caches made before anything is measured
+    peaks = []
+    for memory, out in ((None, tmp_path / "w.exr"), (budget, tmp_path / "s.exr")):
+        tracemalloc.start()
+        try:
+            peaks.append(run(memory, out))
+        finally:
+            tracemalloc.stop()
+    whole, streamed = peaks
+    assert streamed < budget < whole and 2 * streamed < whole, peaks
+    assert filecmp.cmp(tmp_path / "s.exr", tmp_path / "w.exr", shallow=False)
