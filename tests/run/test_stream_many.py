@@ -42,12 +42,12 @@ def blend(session, paths, out, **kw):
     return " | ".join(said), sorted(warned), info
 
 
-def inputs(folder, ext, pixel_type, size=(97, 131)):
+def inputs(folder, ext, pixel_type, size=(97, 131), tile=0):
     """A and B (RGB) and a mask with NaN and values outside [0, 1] (a 2-channel luminance-alpha PNG beside
     8-bit pictures: its alpha is the mask; one float channel beside float ones)."""
     a, b = folder / f"a.{ext}", folder / f"b.{ext}"
-    write(a, noise(*size, 3, seed=1), pixel_type)
-    write(b, noise(*size, 3, seed=2), pixel_type)
+    write(a, noise(*size, 3, seed=1), pixel_type, tile)
+    write(b, noise(*size, 3, seed=2), pixel_type, tile)
     m = noise(*size, 1, seed=3) * 1.4 - 0.2
     if ext == "png":
         mask = write(folder / "m.png", np.concatenate([noise(*size, 1, seed=4), m], axis=2), "uint8",
@@ -58,13 +58,14 @@ def inputs(folder, ext, pixel_type, size=(97, 131)):
     return a, b, mask
 
 
-@pytest.mark.parametrize("ext, pixel_type, memory", [
-    ("png", "uint8", None),          # streams by default (faster), its mask an alpha channel
-    ("exr", "float", 1 << 20),       # streams because the whole run (about 2 MiB) does not fit --memory
+@pytest.mark.parametrize("ext, pixel_type, tile, memory", [
+    ("png", "uint8", 0, None),       # streams by default (faster), its mask an alpha channel
+    ("exr", "float", 0, 1 << 20),    # streams because the whole run (about 2 MiB) does not fit --memory
+    ("exr", "half", 16, None),       # rows of tiles read in bands of 8 rows, half written
 ])
-def test_a_streamed_blend_writes_the_whole_runs_file(tmp_path, session, small_pictures_stream, ext, pixel_type,
+def test_a_streamed_blend_writes_the_whole_runs_file(tmp_path, session, small_pictures_stream, ext, pixel_type, tile,
                                                      memory):
-    paths = inputs(tmp_path, ext, pixel_type)
+    paths = inputs(tmp_path, ext, pixel_type, tile=tile)
     if memory is not None:
         small_pictures_stream.setattr(stream, "STREAM_PIXELS", WHOLE)
     said, warned, info = blend(session, paths, tmp_path / f"s.{ext}", levels=3, memory=memory)
