@@ -164,6 +164,12 @@ def write_levels_files(input_path: str, pattern: str, work: Levels | Laplacian, 
             if laplacian:
                 options["pixel_type"] = wo.pixel_type or "float"
                 attributes = {"pyramid:synthesis": work.synthesis, "pyramid:border": work.border}
+                if wo.tocolorspace is None:  # in the space they were computed in, as whole (below): the header's
+                    with io.open_stream(input_path, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan,
+                                        colorconfig=ro.colorconfig) as st:
+                        options["colorspace"] = st.info.linear_space
+                else:
+                    options["colorspace"] = wo.tocolorspace
             if run_levels(input_path, written, work, session, memory=memory, read=ro, options=options,
                           attributes=attributes, reporter=reporter):
                 for path in written:

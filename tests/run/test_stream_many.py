@@ -278,3 +278,28 @@ def test_streamed_fill_and_collapse_allocate_within_the_memory_given(tmp_path, s
     whole, streamed = peaks
     assert streamed < budget < whole and 2 * streamed < whole, peaks
     assert filecmp.cmp(tmp_path / "s.exr", tmp_path / "w.exr", shallow=False)
+
+
+def test_streamed_blend_and_collapse_across_colour_spaces(tmp_path, session, small_pictures_stream):
+    """An ACEScct plate blended with an sRGB PNG (B brought into A's linear space band by band), and Laplacian bands
+    (in ACEScg) collapsed back to ACEScct with --tocolorspace: the whole runs' files."""
+    from pyramid_cli.jobs.work import Laplacian
+    from pyramid_cli.run.pipeline import collapse_files, write_levels_files
+    from pyramid_cli.run.settings import WriteOptions
+
+    a = write(tmp_path / "a.exr", noise(77, 37, 3, seed=1), "float", oiio__ColorSpace="ACEScct")
+    b = write(tmp_path / "b.png", noise(77, 37, 3, seed=2), "uint8")
+    m = write(tmp_path / "m.exr", noise(77, 37, 1, seed=3), "float")
+    back = WriteOptions(tocolorspace="ACEScct")
+    for threshold, name in ((1, "s"), (WHOLE, "w")):
+        small_pictures_stream.setattr(stream, "STREAM_PIXELS", threshold)
+        said = blend(session, (a, b, m), tmp_path / f"{name}.exr", levels=1)[0]
+        assert ("streamed in bands" in said) == (name == "s"), said
+        write_levels_files(str(a), str(tmp_path / f"{name}_band_{{level}}.exr"), Laplacian(levels=2), session,
+                           reporter=Reporter(quiet=True))
+        said = []
+        collapse_files([str(tmp_path / f"{name}_band_*.exr")], str(tmp_path / f"{name}_back.exr"), session,
+                       write=back, reporter=Reporter(verbose=True, out=said.append, err=said.append))
+        assert ("streamed in bands" in " ".join(said)) == (name == "s"), said
+    for out in ("s.exr", "s_band_0.exr", "s_back.exr"):
+        assert filecmp.cmp(tmp_path / out, tmp_path / out.replace("s", "w", 1), shallow=False), out
