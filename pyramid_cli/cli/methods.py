@@ -89,7 +89,7 @@ def fill(input_path, output_path, mask, holes, levels, analysis, synthesis, weig
       pyramid fill --analysis box --json in.exr out.exr
       pyramid fill --analysis box4 --weight-scale 4 --sweeps 0 in.exr out.exr   # the classic fill
       pyramid fill --keep-alpha decal.png decal_dilated.png    # colour under the cut-out
-      pyramid fill --levels 6 --memory 512M -v plate_16k.exr plate_filled.exr
+      pyramid fill --levels 6 --memory 512M -v render_16k.exr render_filled.exr
     """
     from pyramid_cli.run.methods_files import fill_file
     from pyramid_cli.run.stream import parse_size
