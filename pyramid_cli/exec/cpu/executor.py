@@ -22,9 +22,9 @@ kernel, so a plan with a half input loads no more kernels than the same plan on 
 Every resampling pass shares one kernel, and every pointwise pass another.
 
 float64: :meth:`CPUExecutor.run_outputs` with ``dtype=float64`` computes in float64 throughout (inputs,
-intermediates, weights, sums) on the same kernels generated at that width (:func:`~pyramid_cli.exec.cpu.codegen.
-work_type`), cached beside the float32 ones under their own digests and compiled or loaded only when a float64
-run first needs them: a float32 run loads exactly the float32 kernels.
+intermediates, weights, sums) on the same kernels generated at that width
+(:func:`~pyramid_cli.exec.cpu.codegen.work_type`), cached beside the float32 ones under their own digests and
+compiled or loaded only when a float64 run first needs them: a float32 run loads exactly the float32 kernels.
 """
 
 from __future__ import annotations
