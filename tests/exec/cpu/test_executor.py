@@ -132,8 +132,8 @@ def test_bad_inputs_are_value_errors(ex):
         ex.run(p, np.zeros((5, 4), np.float32))
     with pytest.raises(ValueError, match="input image"):
         ex.run_outputs(p, [np.zeros((4, 5)), np.zeros((4, 5))])
-    with pytest.raises(ValueError, match="float32 or float16"):
-        ex.run_outputs(p, [np.zeros((4, 5))], dtype=np.float64)
+    with pytest.raises(ValueError, match="float32, float16 or float64"):
+        ex.run_outputs(p, [np.zeros((4, 5))], dtype=np.int32)
     with pytest.raises(ValueError, match="nonzero"):
         ex.run(p, np.zeros((4, 5, 0), np.float32))
 
