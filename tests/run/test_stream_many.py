@@ -4,6 +4,8 @@ the whole run's file, within ``--memory``, atomically."""
 from __future__ import annotations
 
 import filecmp
+import subprocess
+import time
 
 import numpy as np
 import pytest
@@ -137,8 +139,13 @@ def test_a_signal_during_a_streamed_blend(big):
 
         return io.read_image(str(f)).pixels.shape == (512, 640, 3)
 
-    stopped = interrupt_runs(CLI + ["blend", "--backend", "cpu", "--levels", "3", "--memory", "6M"] + paths + [out],
-                             out, (1.4,), complete)
+    cmd = CLI + ["blend", "--backend", "cpu", "--levels", "3", "--memory", "6M"] + paths + [out]
+    # the signal lands part-way through the run on any machine: at fractions of its own time here
+    t0 = time.monotonic()
+    subprocess.run([str(c) for c in cmd], check=True, capture_output=True, timeout=300)
+    took = time.monotonic() - t0
+    out.unlink()
+    stopped = interrupt_runs(cmd, out, (0.5 * took, 0.75 * took), complete)
     assert stopped, "no run was interrupted: make the pictures larger"
 
 
