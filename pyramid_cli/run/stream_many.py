@@ -207,6 +207,19 @@ class MaskCounts:
                  "[0, 1]")
 
 
+
+def _runs_whole(output_path: str, session, memory: int | None, where: str) -> bool:
+    """Whether a job cannot stream here: its output is encoded whole (JPEG, …), or there is no executor to run
+    bands on (the reference backend: ``--memory`` is then refused with the reason)."""
+    from pyramid_cli import imageio as io
+
+    if not io.streams_to(output_path):
+        return True
+    if session is None or session.executor is None:
+        decide(None, 0, session, memory, where=where)
+        return True
+    return False
+
 def blend_streamed(a_path: str, b_path: str, mask_path: str, output_path: str, work, session, *,
                    memory: int | None, read, write, reporter) -> dict | None:
     """``pyramid blend`` (:func:`pyramid_cli.run.methods_files.blend_files`) streamed: A, B and the mask each read
@@ -217,10 +230,7 @@ def blend_streamed(a_path: str, b_path: str, mask_path: str, output_path: str, w
     from pyramid_cli.run.report import NAN_HINT
     from pyramid_cli.workflows.methods import mask_channels
 
-    if not io.streams_to(output_path):
-        return None
-    if session is None or session.executor is None:
-        decide(None, 0, session, memory, where=a_path)  # refuses --memory with the reason
+    if _runs_whole(output_path, session, memory, a_path):
         return None
     ro = read
     with contextlib.ExitStack() as stack:
@@ -278,10 +288,7 @@ def collapse_streamed(paths: list[str], output_path: str, session, settle: Calla
     from pyramid_cli.core.geometry import halved
     from pyramid_cli.jobs.work import Collapse
 
-    if not io.streams_to(output_path) or len(paths) < 2:
-        return None
-    if session is None or session.executor is None:
-        decide(None, 0, session, memory, where=paths[0])  # refuses --memory with the reason
+    if len(paths) < 2 or _runs_whole(output_path, session, memory, paths[0]):
         return None
     ro = read
     with contextlib.ExitStack() as stack:
@@ -354,10 +361,7 @@ def fill_streamed(input_path: str, output_path: str, session, work_for: Callable
     from pyramid_cli.run.report import NAN_HINT
     from pyramid_cli.workflows.methods import fill_inputs, fill_output, mask_weights
 
-    if not io.streams_to(output_path):
-        return None
-    if session is None or session.executor is None:
-        decide(None, 0, session, memory, where=input_path)  # refuses --memory with the reason
+    if _runs_whole(output_path, session, memory, input_path):
         return None
     ro = read
     quiet = lambda _: None  # noqa: E731 - the per-band calls' messages are said once, over the bands

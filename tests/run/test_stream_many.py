@@ -21,21 +21,6 @@ from pyramid_cli.run.report import Reporter
 WHOLE = 1 << 62  # STREAM_PIXELS that no picture reaches: the whole run
 
 
-@pytest.fixture(scope="module")
-def session():
-    pytest.importorskip("numba")
-    with Session("cpu") as s:
-        yield s
-
-
-@pytest.fixture
-def small_pictures_stream(monkeypatch):
-    """Pictures of any size stream by default, in bands of 8 rows of 80 columns."""
-    monkeypatch.setattr(stream, "STREAM_PIXELS", 1)
-    monkeypatch.setattr(stream, "BAND_PIXELS", 8 * 80)
-    return monkeypatch
-
-
 def blend(session, paths, out, **kw):
     said, warned = [], []
     rep = Reporter(verbose=True, out=said.append, err=said.append)
