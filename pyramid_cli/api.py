@@ -13,8 +13,8 @@ codes (unsigned: code / max, signed: code / max clipped at −1), booleans as 0/
 linear light: filtering sRGB codes directly is the caller's choice (``read_image`` decodes files).
 
 Result dtype (:mod:`pyramid_cli.imageio.dtypes`): the input's, or ``dtype=``. float16/32 results are
-computed in float32 (every executor's width); float64 results in float64 by the numpy plan emulator
-(``"auto"``, ``"cpu"``; about 15× slower than the CPU executor: ``dtype=np.float32`` is the fast path) or
+computed in float32 (every executor's width); float64 results in float64 by the CPU executor's float64
+kernels (``"auto"``, ``"cpu"``; about 1.6× the float32 time: ``dtype=np.float32`` is the fast path) or
 the float64 oracle (``"reference"``), and in float32 then widened on ``"gl"``. Integer inputs come back
 as codes of their type, ``round(value · max)`` clipped (NaN as 0); booleans as float32. Every level of a pyramid has one
 dtype and none is the caller's memory (level 0 is a copy), except in band-by-band runs (``out=``,

@@ -128,3 +128,12 @@ def float32_executor(request) -> Subject:
     """Each executor computing in float32 in turn (half inputs and outputs are theirs)."""
     fixture, dtype, atol, _ = EXECUTORS[request.param]
     return Subject(request.param, request.getfixturevalue(fixture), dtype, atol)
+
+
+#: The longest tests (half a minute and more each on 2 cores), started first: spread over pytest-xdist's
+#: workers (`make test`), one of them starting last would be the run's tail.
+LONGEST_FIRST = ("tests/system/test_memory_cgroup.py", "tests/system/test_docs.py", "tests/system/test_bench_peers.py")
+
+
+def pytest_collection_modifyitems(config, items):  # noqa: ARG001 - pytest's hook signature
+    items.sort(key=lambda item: not item.nodeid.startswith(LONGEST_FIRST))  # stable: the rest keep their order

@@ -32,7 +32,9 @@ def sessions(gl_executor):
 
 
 def image(size, channels, seed=0):
-    a = np.random.default_rng(seed).random(size + (channels,))
+    """float32 pixels: every executor's own width (float64 inputs run on the CPU executor's float64 kernels, held to
+    the reference in tests/exec/cpu/test_float64.py)."""
+    a = np.random.default_rng(seed).random(size + (channels,)).astype(np.float32)
     return a[:, :, 0] if channels == 1 else a  # one channel as a 2-D array
 
 
@@ -149,7 +151,7 @@ def test_data_errors_are_value_errors_as_the_readme_says_and_file_errors_os_erro
 
 @pytest.mark.parametrize("backend", ["cpu", "reference"])
 def test_collapse_uses_the_synthesis_and_border_the_bands_were_made_with_and_refuses_others(backend):
-    a = np.random.default_rng(9).random((33, 20, 3))
+    a = np.random.default_rng(9).random((33, 20, 3)).astype(np.float32)
     bands = pyr.laplacian(a, 3, synthesis="nearest", border="mirror", backend=backend)
     assert (bands.synthesis, bands.border) == ("nearest", "mirror")
     np.testing.assert_allclose(pyr.collapse(bands, backend=backend), a, rtol=0, atol=1e-5)

@@ -135,24 +135,31 @@ def levels(input_path, pattern, levels, analysis, laplacian, synthesis, multipar
 @click.option("--border", type=choice(BORDERS), default=None,
               help="The border the bands were made with (default: as recorded, else clamp).")
 @io_options
+@memory_option
 def collapse(inputs, output_path, synthesis, border, **opts) -> None:
     """Sum Laplacian bands back to the image: G_k = L_k + expand(G_k+1).
 
     INPUT is the multi-part EXR of `pyramid levels --laplacian --multipart`, or the
     level files L_0 … L_m-1, G_m in order. Use the --border the bands were made with.
+    Level files are read and the output written band by band from a megapixel on the CPU
+    executor, or when the whole run would not fit --memory (the same bytes; -v says which);
+    a multi-part EXR is read whole.
 
     \b
     Example:
       pyramid collapse bands.exr rebuilt.exr
       pyramid collapse 'pyr/band_*.exr' rebuilt.exr
+      pyramid collapse --memory 512M -v 'pyr/band_*.exr' rebuilt_32k.exr
     """
     from pyramid_cli.run.pipeline import collapse_files
+    from pyramid_cli.run.stream import parse_size
 
     reporter = make_reporter(opts)
     ro, wo = read_write(opts)
+    memory = parse_size(opts["memory"]) if opts.get("memory") is not None else None
     with open_session(opts, reporter) as session:
         collapse_files(list(inputs), output_path, session, synthesis=synthesis, border=border, read=ro, write=wo,
-                       reporter=reporter)
+                       reporter=reporter, memory=memory)
 
 
 __all__ = ['apply', 'blur', 'levels', 'collapse']

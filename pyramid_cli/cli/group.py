@@ -56,11 +56,20 @@ def main() -> None:
 
 
 def run() -> None:
-    """The console script's entry point (``pyramid``)."""
-    from pyramid_cli.core.signals import guard_streams, install
+    """The console script's entry point (``pyramid``).
+
+    An interrupted run ends without the interpreter's teardown once its own clean-up is done (temporaries
+    removed, outputs closed, the one line said): libraries' C++ destructors at exit (OpenImageIO's and
+    OpenEXR's thread pools) could find a thread still busy and abort the process ("terminate called without
+    an active exception", SIGABRT instead of exit 143)."""
+    from pyramid_cli.core.signals import end_interrupted, guard_streams, install
     install()  # SIGTERM/SIGHUP clean up like Ctrl-C (exit 143/129); SIGXFSZ ignored
     guard_streams()  # a reader closing stdout (| head) drops the lines, not the frames
-    main(prog_name="pyramid")
+    try:
+        main(prog_name="pyramid")
+    except SystemExit as e:
+        end_interrupted(e.code)
+        raise
 
 
 __all__ = ["EXIT_CODE_HELP", "Group", "main", "run"]

@@ -6,7 +6,7 @@ import json
 
 import click
 
-from pyramid_cli.cli.params import border_option, choice, io_options, mixed_lattice_option
+from pyramid_cli.cli.params import border_option, choice, io_options, memory_option, mixed_lattice_option
 from pyramid_cli.cli.running import drop, make_reporter, open_session, read_write
 from pyramid_cli.core import catalogue
 from pyramid_cli.core.options import MAX_LEVELS, MAX_SWEEPS, MAX_WEIGHT_SCALE
@@ -63,6 +63,7 @@ class LevelPair(click.ParamType):
 @mixed_lattice_option
 @border_option
 @io_options
+@memory_option
 def fill(input_path, output_path, mask, holes, levels, analysis, synthesis, weight_scale, sweeps, keep_alpha, as_json,
          allow_mixed_lattice, border, **opts) -> None:
     """Fill holes from the pixels around them by pull-push (Kraus, GRAPP 2009).
@@ -75,6 +76,11 @@ def fill(input_path, output_path, mask, holes, levels, analysis, synthesis, weig
     without a known pixel is bad pixel data (exit 5). Filters
     on two lattices fill from beside the holes and are warned about.
 
+    With --levels whose coarsest level keeps 16 rows, the image (and mask) are read and the
+    output written band by band from a megapixel on the CPU executor, or when the whole run
+    would not fit --memory (the same bytes; -v says which). A fill down to 1×1 (the default)
+    needs every row before its first: it runs whole, and --memory with it is refused.
+
     \b
     Example:
       pyramid fill bake.png bake_padded.png                 # holes where alpha < 1
@@ -83,17 +89,21 @@ def fill(input_path, output_path, mask, holes, levels, analysis, synthesis, weig
       pyramid fill --analysis box --json in.exr out.exr
       pyramid fill --analysis box4 --weight-scale 4 --sweeps 0 in.exr out.exr   # the classic fill
       pyramid fill --keep-alpha decal.png decal_dilated.png    # colour under the cut-out
+      pyramid fill --levels 6 --memory 512M -v render_16k.exr render_filled.exr
     """
     from pyramid_cli.run.methods_files import fill_file
+    from pyramid_cli.run.stream import parse_size
 
     reporter = make_reporter(opts)
     if as_json:  # the JSON object is the result; warnings still go to stderr
         reporter.out = drop
     ro, wo = read_write(opts)
+    memory = parse_size(opts["memory"]) if opts.get("memory") is not None else None
     with open_session(opts, reporter) as session:
         info = fill_file(input_path, output_path, session, mask=mask, holes=holes, levels=levels, analysis=analysis,
                          synthesis=synthesis, weight_scale=weight_scale, sweeps=sweeps, keep_alpha=keep_alpha,
-                         border=border, allow_mixed_lattice=allow_mixed_lattice, read=ro, write=wo, reporter=reporter)
+                         border=border, allow_mixed_lattice=allow_mixed_lattice, read=ro, write=wo, reporter=reporter,
+                         memory=memory)
     if as_json:
         click.echo(json.dumps(info, ensure_ascii=False))
 
@@ -114,6 +124,7 @@ def fill(input_path, output_path, mask, holes, levels, analysis, synthesis, weig
 @mixed_lattice_option
 @border_option
 @io_options
+@memory_option
 def blend(a_path, b_path, mask_path, output_path, levels, analysis, synthesis, as_json, allow_mixed_lattice, border,
           **opts) -> None:
     """Join A and B along MASK without a seam (Burt & Adelson's multiresolution spline, 1983).
@@ -125,22 +136,28 @@ def blend(a_path, b_path, mask_path, output_path, levels, analysis, synthesis, a
     kept with a warning (as in an image; --nan), values outside 0 … 1 clipped with one. A, B and MASK have
     one size. Filters on two lattices move the seam and are warned about.
 
+    From a megapixel on the CPU executor, or when the whole run would not fit --memory, the three
+    inputs are read and the output written band by band (the same bytes; -v says which).
+
     \b
     Example:
       pyramid blend apple.png orange.png left_half.png orapple.png
       pyramid blend --levels 5 plate.exr patch.exr matte.exr comp.exr
       pyramid blend --analysis cubic --synthesis cubic --json a.exr b.exr m.png out.exr
+      pyramid blend --memory 512M -v plate_16k.exr patch_16k.exr matte_16k.exr comp_16k.exr
     """
     from pyramid_cli.run.methods_files import blend_files
+    from pyramid_cli.run.stream import parse_size
 
     reporter = make_reporter(opts)
     if as_json:  # the JSON object is the result; warnings still go to stderr
         reporter.out = drop
     ro, wo = read_write(opts)
+    memory = parse_size(opts["memory"]) if opts.get("memory") is not None else None
     with open_session(opts, reporter) as session:
         info = blend_files(a_path, b_path, mask_path, output_path, session, levels=levels, analysis=analysis,
                            synthesis=synthesis, border=border, allow_mixed_lattice=allow_mixed_lattice, read=ro,
-                           write=wo, reporter=reporter)
+                           write=wo, reporter=reporter, memory=memory)
     if as_json:
         click.echo(json.dumps(info, ensure_ascii=False))
 

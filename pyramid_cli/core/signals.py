@@ -203,6 +203,17 @@ def guard_streams() -> None:
             setattr(sys, name, _Guarded(stream))
 
 
+def end_interrupted(code: object) -> None:
+    """After a signal, end the process now with ``code`` (its 128 + N exit status), standard streams flushed, and
+    no interpreter teardown (atexit, finalisers, C++ static destructors); without one, return."""
+    if not _received or not isinstance(code, int) or code < 128:
+        return
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(Exception):
+            stream.flush()
+    os._exit(code)
+
+
 def exit_code(exc: BaseException) -> int:
     """The exit status for an interruption: 128 + signal number (130 for a plain KeyboardInterrupt)."""
     return exc.exit_code if isinstance(exc, Interrupted) else 128 + signal.SIGINT

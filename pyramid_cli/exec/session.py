@@ -425,11 +425,11 @@ class Session:
         """Every output of ``work`` on ``images`` (one array, or one per input), as ``dtype``.
 
         ``dtype`` is float32 or float16 (rounded to nearest even from the float32 result,
-        as every executor rounds), or float64: computed in float64 by the numpy plan emulator
-        (:class:`~pyramid_cli.exec.emulate.Emulator`, float64 throughout) for ``auto`` and ``cpu``, by
-        the float64 oracle (:meth:`~pyramid_cli.jobs.work.Work.reference`) for ``reference``, and in
-        float32 then widened on ``gl``, which has no float64. A job that keeps its input returns it
-        first, unchanged.
+        as every executor rounds), or float64: computed in float64 throughout by the compiled CPU
+        executor's float64 kernels for ``auto`` and ``cpu`` (by the numpy plan emulator,
+        :class:`~pyramid_cli.exec.emulate.Emulator`, where numba is missing), by the float64 oracle
+        (:meth:`~pyramid_cli.jobs.work.Work.reference`) for ``reference``, and in float32 then widened
+        on ``gl``, which has no float64. A job that keeps its input returns it first, unchanged.
         """
         images = list(images) if isinstance(images, (list, tuple)) else [images]
         if len(images) != work.n_inputs:
@@ -457,10 +457,13 @@ class Session:
             return [np.asarray(o, dtype=np.float64) for o in work.reference(images)]
         if self.backend == "gl":
             return [o.astype(np.float64) for o in self.run(work, images)[1 if work.keeps_input else 0:]]
-        emulator = Emulator()
-        p = work.plan(tuple(tuple(np.shape(im)[:2]) for im in images), emulator.strategy)
-        self.ran = emulator.name
-        return [] if p is None else emulator.run_outputs(p, images, np.float64)
+        if self._cpu is None and _numba_installed():  # auto on GL (or not decided yet): GL has no float64
+            self._cpu = LoadingCPU(self.threads)
+        executor = self._cpu if self._cpu is not None else Emulator()
+        p = work.plan(tuple(tuple(np.shape(im)[:2]) for im in images), executor.strategy)
+        outs = [] if p is None else executor.run_outputs(p, images, np.float64)
+        self.ran = _name(executor)
+        return outs
 
     def run_plan(self, p: Plan, images, dtype=np.float32, work: Work | None = None) -> list[np.ndarray]:
         """Every output of a plan, on this session's executor (the reference cannot run plans)."""

@@ -18,6 +18,7 @@ from pyramid_cli.jobs.work import Blend, Fill
 from pyramid_cli.run.inputs import read_input
 from pyramid_cli.run.report import NAN_HINT, Reporter, announce_compiles
 from pyramid_cli.run.settings import ReadOptions, WriteOptions
+from pyramid_cli.run.stream_many import blend_streamed, fill_streamed, mask_layout
 from pyramid_cli.workflows.methods import fill_inputs, fill_output, mask_channels, mask_weights
 
 
@@ -31,18 +32,9 @@ def _read_mask(path: str, shape: tuple[int, ...], ro: ReadOptions, reporter: Rep
     """
     m = io.read_image(path, colorspace="linear", alpha="none", nan=ro.nan, colorconfig=ro.colorconfig)
     px = m.pixels
-    if px.shape[:2] != tuple(shape[:2]):
-        raise InputError(f"{path}: the mask is {px.shape[1]}×{px.shape[0]}, the image {shape[1]}×{shape[0]}")
-    channels = shape[2] if len(shape) == 3 else 1
-    if px.shape[2] == 1 or px.shape[2] == channels:
+    alpha = mask_layout(path, m.spec, px.shape, shape, reporter.warn)
+    if alpha is None:
         return px
-    alpha = m.spec.alpha_channel
-    if not 0 <= alpha < px.shape[2]:
-        raise InputError(f"{path}: the mask has {px.shape[2]} channels ({', '.join(m.spec.channel_names)}) and no "
-                         f"alpha, the image {channels}: give one channel, one per channel, or an alpha channel")
-    # which channel of such a file holds the matte is a guess (its colour may, its alpha may be 1): say it
-    reporter.warn(f"{path}: {px.shape[2]} channels for an image of {channels}: its alpha channel "
-                  f"{m.spec.channel_names[alpha]} is the mask")
     return px[:, :, alpha]
 
 
@@ -51,11 +43,15 @@ def fill_file(input_path: str, output_path: str, session: Session, *, mask: str 
               synthesis: str = catalogue.FILL_SYNTHESIS, weight_scale: int = catalogue.FILL_SCALE,
               sweeps: int = catalogue.FILL_SWEEPS, keep_alpha: bool = False, border: str = "clamp",
               allow_mixed_lattice: bool = False, read: ReadOptions | None = None, write: WriteOptions | None = None,
-              reporter: Reporter | None = None) -> dict:
+              reporter: Reporter | None = None, memory: int | None = None) -> dict:
     """Pull-push fill of one image file (:func:`pyramid_cli.api.fill`); returns what ``--json`` prints.
 
     ``keep_alpha`` writes the input's alpha beside the filled colours, stored unassociated (as they
-    are: what a PNG's straight alpha means; in EXR, for readers that take its colour as unassociated)."""
+    are: what a PNG's straight alpha means; in EXR, for readers that take its colour as unassociated).
+    A pull of ``levels`` that stops at 16 rows or more streams band by band
+    (:func:`pyramid_cli.run.stream_many.fill_streamed`) when the whole run would not fit ``memory`` bytes
+    (default: :func:`pyramid_cli.run.budget.default_budget`) or is slower than bands; the bytes are the whole
+    run's. A pull down to 1×1 (the default) needs every row before the first: it runs whole."""
     ro, wo, reporter = read or ReadOptions(), write or WriteOptions(), reporter or Reporter()
     holes = holes or ("mask" if mask else "alpha")
     if holes == "mask" and not mask:
@@ -68,6 +64,24 @@ def fill_file(input_path: str, output_path: str, session: Session, *, mask: str 
     if holes == "nan" and ro.nan != "keep":
         raise UsageError(f"--holes nan fills the NaN/Inf pixels; --nan {ro.nan} would remove them first")
     io.check_write_options(output_path, wo.pixel_type, wo.compression, wo.tocolorspace, ro.colorconfig)
+
+    def work_for(premultiplied: bool) -> Fill:  # the one Fill of both runs, whole and streamed
+        return Fill(levels=levels, analysis=analysis, synthesis=synthesis, premultiplied=premultiplied, border=border,
+                    weight_scale=weight_scale, sweeps=sweeps, allow_mixed_lattice=allow_mixed_lattice)
+
+    def done(w: int, h: int, counts: dict, how: str = "") -> dict:
+        info = {"output": output_path, "width": w, "height": h, "holes": holes, **counts,
+                "levels": _levels(work_for(True), (h, w)), "analysis": analysis, "synthesis": synthesis,
+                "weight_scale": weight_scale, "sweeps": sweeps, "border": border, "executor": session.ran}
+        reporter.result(f"wrote {output_path} ({w}×{h}, {info['empty']} empty and {info['partial']} partial "
+                        f"pixel(s) filled, {session.ran}{how})")
+        return info
+
+    streamed = fill_streamed(input_path, output_path, session, work_for, mask=mask, holes=holes, levels=levels,
+                             keep_alpha=keep_alpha, memory=memory, read=ro, write=wo, reporter=reporter)
+    if streamed is not None:
+        (h, w), counts, band = streamed
+        return done(w, h, counts, f", streamed in bands of {band} rows")
     # a half file stays half until fill_inputs copies it to float32 (one conversion, not two)
     image = io.read_image(input_path, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan, keep_half=True,
                           colorconfig=ro.colorconfig)
@@ -79,8 +93,7 @@ def fill_file(input_path: str, output_path: str, session: Session, *, mask: str 
                if mask else None)
     # the weights are checked, and what they hold said, above
     colour, weight, premultiplied = fill_inputs(px, holes, weights, alpha, where=input_path, warn=lambda _: None)
-    work = Fill(levels=levels, analysis=analysis, synthesis=synthesis, premultiplied=premultiplied, border=border,
-                weight_scale=weight_scale, sweeps=sweeps, allow_mixed_lattice=allow_mixed_lattice)
+    work = work_for(premultiplied)
     for message in work.warnings(px.shape[:2]):
         reporter.warn(message)
     announce_compiles(session, work, [colour, weight], reporter)
@@ -91,14 +104,9 @@ def fill_file(input_path: str, output_path: str, session: Session, *, mask: str 
                    **wo.for_inputs([input_path] + ([mask] if mask else [])))
     h, w = out.shape[:2]
     w0 = weight[..., 0]
-    info = {"output": output_path, "width": w, "height": h, "holes": holes, "known": int(np.sum(w0 >= 1)),
-            "partial": int(np.sum((w0 > 0) & (w0 < 1))), "empty": int(np.sum(w0 <= 0)),
-            "levels": _levels(work, px.shape[:2]), "analysis": analysis, "synthesis": synthesis,
-            "weight_scale": weight_scale, "sweeps": sweeps, "border": border, "executor": session.ran}
     reporter.detail(f"{io.describe_rules(image.spec)}; executor {session.ran}")
-    reporter.result(f"wrote {output_path} ({w}×{h}, {info['empty']} empty and {info['partial']} partial pixel(s) "
-                    f"filled, {session.ran})")
-    return info
+    return done(w, h, {"known": int(np.sum(w0 >= 1)), "partial": int(np.sum((w0 > 0) & (w0 < 1))),
+                       "empty": int(np.sum(w0 <= 0))})
 
 
 def fill_texture(image: io.Image, session: Session, border: str = "clamp", where: str = "") -> io.Image:
@@ -124,10 +132,20 @@ def blend_files(a_path: str, b_path: str, mask_path: str, output_path: str, sess
                 levels: int | None = None, analysis: str = catalogue.DEFAULT_ANALYSIS,
                 synthesis: str = catalogue.DEFAULT_SYNTHESIS, border: str = "clamp", allow_mixed_lattice: bool = False,
                 read: ReadOptions | None = None, write: WriteOptions | None = None,
-                reporter: Reporter | None = None) -> dict:
-    """Multiresolution blend of two image files along a mask file (:func:`pyramid_cli.api.blend`)."""
+                reporter: Reporter | None = None, memory: int | None = None) -> dict:
+    """Multiresolution blend of two image files along a mask file (:func:`pyramid_cli.api.blend`).
+
+    Streams band by band (:func:`pyramid_cli.run.stream_many.blend_streamed`) when the whole run would not fit
+    ``memory`` bytes (default: :func:`pyramid_cli.run.budget.default_budget`) or is slower than bands (from a
+    megapixel on the CPU executor: :func:`pyramid_cli.run.stream.speed_band`); the bytes are the whole run's."""
     ro, wo, reporter = read or ReadOptions(), write or WriteOptions(), reporter or Reporter()
     io.check_write_options(output_path, wo.pixel_type, wo.compression, wo.tocolorspace, ro.colorconfig)
+    work = Blend(levels=levels, analysis=analysis, synthesis=synthesis, border=border,
+                 allow_mixed_lattice=allow_mixed_lattice)
+    streamed = blend_streamed(a_path, b_path, mask_path, output_path, work, session, memory=memory, read=ro,
+                              write=wo, reporter=reporter)
+    if streamed is not None:
+        return streamed
     a = read_input(a_path, ro, reporter)
     b = read_input(b_path, ro, reporter)
     if a.pixels.shape != b.pixels.shape:
@@ -135,8 +153,6 @@ def blend_files(a_path: str, b_path: str, mask_path: str, output_path: str, sess
                          f"{a_path} is {a.pixels.shape[1]}×{a.pixels.shape[0]} with {a.pixels.shape[2]}")
     mask = mask_channels(_read_mask(mask_path, a.pixels.shape, ro, reporter), a.pixels, where=mask_path,
                          warn=reporter.warn, nan_hint=NAN_HINT)
-    work = Blend(levels=levels, analysis=analysis, synthesis=synthesis, border=border,
-                 allow_mixed_lattice=allow_mixed_lattice)
     # B in A's linear space (both linear: one matrix), so that the blend mixes like with like
     b_pixels = io.pixels_in(b, a.spec.linear_space) if b.spec.linear_space != a.spec.linear_space else b.pixels
     images = [a.pixels, b_pixels, mask]

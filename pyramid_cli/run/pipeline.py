@@ -164,6 +164,12 @@ def write_levels_files(input_path: str, pattern: str, work: Levels | Laplacian, 
             if laplacian:
                 options["pixel_type"] = wo.pixel_type or "float"
                 attributes = {"pyramid:synthesis": work.synthesis, "pyramid:border": work.border}
+                if wo.tocolorspace is None:  # in the space they were computed in, as whole (below): the header's
+                    with io.open_stream(input_path, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan,
+                                        colorconfig=ro.colorconfig) as st:
+                        options["colorspace"] = st.info.linear_space
+                else:
+                    options["colorspace"] = wo.tocolorspace
             if run_levels(input_path, written, work, session, memory=memory, read=ro, options=options,
                           attributes=attributes, reporter=reporter):
                 for path in written:
@@ -211,9 +217,10 @@ def _level_key(path: str):
     return (int(digits[-1]) if digits else 0, path)
 
 
-def _as_recorded(band: io.Image, path: str, what: str, asked: str | None, default: str) -> str:
-    """``asked`` when it agrees with what the bands record (``pyramid:<what>``), the record when not asked."""
-    recorded = band.spec.attributes.get(f"pyramid:{what}")
+def _as_recorded(spec: io.ImageInfo, path: str, what: str, asked: str | None, default: str) -> str:
+    """``asked`` when it agrees with what the bands record (``pyramid:<what>`` in their first file's header
+    ``spec``), the record when not asked."""
+    recorded = spec.attributes.get(f"pyramid:{what}")
     if asked is None:
         return recorded or default
     if recorded is not None and not same_setting(what, asked, recorded):
@@ -224,14 +231,31 @@ def _as_recorded(band: io.Image, path: str, what: str, asked: str | None, defaul
 
 def collapse_files(inputs: list[str], output_path: str, session: Session, *, synthesis: str | None = None,
                    border: str | None = None, read: ReadOptions | None = None, write: WriteOptions | None = None,
-                   reporter: Reporter | None = None) -> str:
+                   reporter: Reporter | None = None, memory: int | None = None) -> str:
     """Sum Laplacian bands back to the image: a multipart EXR, or band files L_0 … L_m−1, G_m in order.
 
     ``synthesis`` and ``border`` default to what the bands record (``pyramid levels --laplacian`` writes
     both); one that contradicts the record is refused, since it would not give the image back.
+    Band files stream, each read band by band (:func:`pyramid_cli.run.stream_many.collapse_streamed`), when the
+    whole run would not fit ``memory`` bytes (default: :func:`pyramid_cli.run.budget.default_budget`) or is
+    slower than bands (from a megapixel on the CPU executor); a multipart EXR is read whole.
     """
     ro, wo, reporter = read or ReadOptions(), write or WriteOptions(), reporter or Reporter()
     paths = batch.expand(list(inputs))
+    if len(paths) == 1 and memory is not None:
+        raise UsageError("--memory streams band files (L_0 … G_m), not a multipart EXR, whose parts are read whole")
+    if len(paths) > 1:
+        from pyramid_cli.run.stream_many import collapse_streamed
+
+        ordered = sorted(paths, key=_level_key)
+
+        def settle(spec: io.ImageInfo) -> tuple[str, str]:
+            return (_as_recorded(spec, paths[0], "synthesis", synthesis, catalogue.DEFAULT_SYNTHESIS),
+                    _as_recorded(spec, paths[0], "border", border, "clamp"))
+
+        if collapse_streamed(ordered, output_path, session, settle, memory=memory, read=ro, write=wo,
+                             options_from=paths, reporter=reporter) is not None:
+            return output_path
     if len(paths) == 1:
         bands = io.read_parts(paths[0], colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan,
                               colorconfig=ro.colorconfig)
@@ -240,8 +264,8 @@ def collapse_files(inputs: list[str], output_path: str, session: Session, *, syn
     if len(bands) < 2:
         raise UsageError(f"collapse needs at least two levels, {paths[0]} holds {len(bands)}")
     io.check_pyramid(bands)
-    synthesis = _as_recorded(bands[0], paths[0], "synthesis", synthesis, catalogue.DEFAULT_SYNTHESIS)
-    border = _as_recorded(bands[0], paths[0], "border", border, "clamp")
+    synthesis = _as_recorded(bands[0].spec, paths[0], "synthesis", synthesis, catalogue.DEFAULT_SYNTHESIS)
+    border = _as_recorded(bands[0].spec, paths[0], "border", border, "clamp")
     work = Collapse(bands=len(bands), synthesis=synthesis, border=border)
     announce_compiles(session, work, [b.pixels for b in bands], reporter)
     (out,) = session.run(work, [b.pixels for b in bands])

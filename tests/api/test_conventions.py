@@ -65,6 +65,15 @@ def test_float64_is_computed_in_float64_and_float16_rounded_from_float32():
     want = pyramids.blur_reference(a, 3)
     np.testing.assert_array_equal(pyr.blur(a, 3, backend="reference"), want)  # the float64 oracle itself
     np.testing.assert_allclose(pyr.blur(a, 3, backend="cpu"), want, rtol=0, atol=1e-14)  # float64 on the CPU
+    for backend in ("cpu", "auto"):  # on the compiled CPU executor's float64 kernels, not the numpy emulator
+        with pyr.Session(backend=backend) as s:
+            np.testing.assert_allclose(pyr.blur(a, 3, session=s), want, rtol=0, atol=1e-14)
+            assert s.ran.startswith("cpu (numba")
+    from pyramid_cli.exec.cpu.compile import loaded
+    from pyramid_cli.exec.cpu.executor import kernel_digest
+
+    plan = pyr.Blur(levels=3).plan(((17, 13),), "fused")
+    assert all(loaded(kernel_digest(ps, np.float64)) for ps in plan.passes)
     fast = pyr.blur(a, 3, dtype=np.float32, backend="cpu")  # the fast path: the executor's float32
     assert fast.dtype == np.float32 and 0 < np.abs(fast - want).max() < 1e-6
     np.testing.assert_array_equal(fast, pyr.blur(a.astype(np.float32), 3, backend="cpu"))
@@ -152,7 +161,7 @@ def test_collapse_of_integer_input_gives_codes_back():
 
 
 def test_warnings_are_pyramid_warnings_at_the_callers_line(caplog):
-    a = np.random.default_rng(4).random((16, 16))
+    a = np.random.default_rng(4).random((16, 16)).astype(np.float32)  # float32: no float64 kernels to compile
     with pytest.warns(MixedLatticeWarning, match="half a fine pixel per level") as caught:
         pyr.blur(a, 2, analysis="quadratic", synthesis="cubic", backend="cpu")
     assert caught[0].filename == __file__ and issubclass(caught[0].category, PyramidWarning)

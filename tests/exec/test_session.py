@@ -245,7 +245,6 @@ def test_a_broken_cost_model_falls_back_to_the_renderer_rule(contexts, monkeypat
 
 
 def test_float64_outputs_are_computed_in_float64_on_every_backend_but_gl():
-    from pyramid_cli.exec.emulate import Emulator
     from pyramid_cli.jobs.work import Levels
     from pyramid_cli.reference import pyramids
 
@@ -253,12 +252,13 @@ def test_float64_outputs_are_computed_in_float64_on_every_backend_but_gl():
     want = pyramids.blur_reference(a, 2)
     with Session("reference") as s:
         np.testing.assert_array_equal(s.run(Blur(levels=2), [a], np.float64)[0], want)
-    with Session("cpu") as s:
-        (got,) = s.run(Blur(levels=2), [a], np.float64)
-        assert got.dtype == np.float64 and s.ran == Emulator.name
-        np.testing.assert_allclose(got, want, rtol=0, atol=1e-14)  # float32 would be ~1e-7 off
-        kept, *levels = s.run(Levels(levels=2), [a], np.float64)
-        assert kept is a and [lv.dtype for lv in levels] == [np.float64] * 2
+    for backend in ("cpu", "auto"):  # the compiled CPU executor's float64 kernels (auto: whatever it decides)
+        with Session(backend) as s:
+            (got,) = s.run(Blur(levels=2), [a], np.float64)
+            assert got.dtype == np.float64 and s.ran.startswith("cpu (numba")
+            np.testing.assert_allclose(got, want, rtol=0, atol=1e-14)  # float32 would be ~1e-7 off
+            kept, *levels = s.run(Levels(levels=2), [a], np.float64)
+            assert kept is a and [lv.dtype for lv in levels] == [np.float64] * 2
 
 
 def test_a_sessions_own_warnings_are_backend_warnings_at_the_callers_line(monkeypatch, tmp_path):

@@ -13,7 +13,6 @@ from helpers.images import noise, write
 from pyramid_cli import imageio as io
 from pyramid_cli.core.errors import DataError, UsageError
 from pyramid_cli.core.parse import parse
-from pyramid_cli.exec.session import Session
 from pyramid_cli.jobs.work import Blur, Filter
 from pyramid_cli.run import stream
 
@@ -74,13 +73,6 @@ def test_non_finite_values_follow_the_policy_per_band(tmp_path):
 
 
 # ------------------------------------------------------------------ the driver
-@pytest.fixture(scope="module")
-def session():
-    pytest.importorskip("numba")
-    with Session("cpu") as s:
-        yield s
-
-
 @pytest.mark.parametrize("work", [Blur(levels=3), Blur(levels=2, border="mirror"), Filter(expr=parse("gauss5")),
                                   Filter(expr=parse("box4 *v g"), border="wrap"), Filter(expr=parse("doosabin"))],
                          ids=lambda w: w.label + "-" + w.border)

@@ -11,7 +11,6 @@ import filecmp
 import pytest
 
 from helpers.images import noise, write
-from pyramid_cli.exec.session import Session
 from pyramid_cli.jobs.texture import TextureLevels
 from pyramid_cli.jobs.work import Levels, blur_work
 from pyramid_cli.run import stream
@@ -20,21 +19,6 @@ from pyramid_cli.run.report import Reporter
 from pyramid_cli.run.settings import WriteOptions
 
 WHOLE = 1 << 62  # STREAM_PIXELS that no picture reaches: the whole run
-
-
-@pytest.fixture(scope="module")
-def session():
-    pytest.importorskip("numba")
-    with Session("cpu") as s:
-        yield s
-
-
-@pytest.fixture
-def small_pictures_stream(monkeypatch):
-    """Pictures of any size stream by default, in bands of 8 rows of 80 columns."""
-    monkeypatch.setattr(stream, "STREAM_PIXELS", 1)
-    monkeypatch.setattr(stream, "BAND_PIXELS", 8 * 80)
-    return monkeypatch
 
 
 def run(session, src, out, work, *, mip=False, write_options=None):

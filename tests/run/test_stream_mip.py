@@ -12,7 +12,6 @@ from helpers.cli import CLI, peak_rss, run_cli
 from helpers.images import noise, write
 from pyramid_cli import imageio as io
 from pyramid_cli.core.errors import UsageError
-from pyramid_cli.exec.session import Session
 from pyramid_cli.jobs.texture import TextureLevels
 from pyramid_cli.run import batch, stream_mip
 from pyramid_cli.run.pipeline import process
@@ -54,13 +53,6 @@ def assert_same_file(a, b):
     attrs = {k: oiio.ImageInput.open(str(p)).spec().get_string_attribute(k) for p in (a,)
              for k in ("oiio:AverageColor", "oiio:SHA-1", "wrapmodes")}
     assert all(attrs.values()), attrs
-
-
-@pytest.fixture(scope="module")
-def session():
-    pytest.importorskip("numba")
-    with Session("cpu") as s:
-        yield s
 
 
 def mipmap(session, src, out, memory=None, said=None, **kw):

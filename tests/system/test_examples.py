@@ -58,6 +58,7 @@ PRELUDE = textwrap.dedent("""\
     apple, orange = rng.random((48, 64, 3)).astype(np.float32), rng.random((48, 64, 3)).astype(np.float32)
     mask = np.zeros((48, 64, 1), np.float32); mask[:, :32] = 1
     arrays = [rng.random((24, 32, 3)).astype(np.float32) for _ in range(2)]
+    u8 = (rng.random((48, 64, 3)) * 255).astype(np.uint8)
     """)
 
 PROGRAMS = ("pyramid", "oiiotool", "idiff", "maketx", "openjd")
@@ -160,11 +161,14 @@ def build_stage(root: Path) -> None:
         return m
 
     for name in ("render.exr", "in.exr", "tile.exr", "albedo.exr", "bump.exr", "plate.exr", "patch.exr",
-                 "matte_32k.exr", "painting_32k.exr", "plate_16k.exr", "a.exr", "out.exr",
+                 "matte_32k.exr", "painting_32k.exr", "plate_16k.exr", "patch_16k.exr", "a.exr",
+                 "out.exr",
                  "frames/a.exr", "frames/b.exr", "in/a.exr", "in/b.exr", "tex/albedo.1001.exr",
                  "tex/albedo.1002.exr", "plate_acescg.exr", "grade_acescct.exr", "grade.exr", "shot.exr",
                  "shot_log.exr"):
         _write(root / name, rgba_with_holes() if name in ("in.exr", "render.exr") else rgb())
+    # tall enough that a fill of --levels 6 keeps 16 rows at its coarsest level, so it streams
+    _write(root / "render_16k.exr", np.concatenate([rgba_with_holes()] * 22)[:1024])
     for name in ("small.png", "photo.png", "albedo.png", "apple.png", "orange.png", "tex/a.png", "tex/b.png",
                  "a.png"):
         _write(root / name, rgb(), "uint8")
@@ -175,6 +179,7 @@ def build_stage(root: Path) -> None:
     for name in ("left_half.png", "left.png", "valid.png", "m.png"):
         _write(root / name, matte(), "uint8")
     _write(root / "matte.exr", matte())
+    _write(root / "matte_16k.exr", matte())
     from helpers.colour import studio_config
 
     studio_config(root)  # studio.ocio: the colour examples' own config

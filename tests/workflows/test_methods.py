@@ -407,3 +407,23 @@ def test_api_warns_of_a_nan_in_a_mask():
         with pytest.warns(UserWarning, match=r"1 NaN/Inf value\(s\) kept in the mask.*numpy\.nan_to_num") as caught:
             call()
         assert len(caught) == 1 and caught[0].filename == __file__
+
+
+@pytest.mark.parametrize("alpha_channel, keep_alpha", [(None, False), (1, True)])
+def test_fill_inputs_and_output_split_and_merge_channels_exactly_in_bands(monkeypatch, alpha_channel, keep_alpha):
+    """fill_inputs' colours and weights, and fill_output written band by band (a band of 3 rows here), equal the
+    plain channel selection: alpha last or in the middle, put back as 1 or kept."""
+    monkeypatch.setattr(methods, "OUTPUT_BAND", 3 * 5 * 4)
+    rng = np.random.default_rng(3)
+    px = rng.random((11, 5, 4)).astype(np.float32)
+    px[..., 1 if alpha_channel == 1 else 3] = rng.choice([0.0, 0.5, 1.0, 1.5], (11, 5))
+    ch = 3 if alpha_channel is None else alpha_channel
+    others = [c for c in range(4) if c != ch]
+    colour, weight, premultiplied = methods.fill_inputs(px, alpha_channel=alpha_channel)
+    assert premultiplied and colour.flags.c_contiguous and weight.flags.c_contiguous
+    np.testing.assert_array_equal(colour, px[:, :, others])
+    np.testing.assert_array_equal(weight, np.repeat(np.clip(px[:, :, ch:ch + 1], 0, 1), 3, axis=2))
+    filled = rng.random((11, 5, 3)).astype(np.float32)
+    out = methods.fill_output(filled, px, alpha_channel=alpha_channel, keep_alpha=keep_alpha)
+    np.testing.assert_array_equal(out[:, :, others], filled)
+    np.testing.assert_array_equal(out[:, :, ch], px[:, :, ch] if keep_alpha else 1)

@@ -20,6 +20,11 @@ alone: the sources' storage (float32, or float16 inputs converted row by row thr
 65536-entry table, so a half image is never copied to float32 whole) is an argument of the
 kernel, so a plan with a half input loads no more kernels than the same plan on float32.
 Every resampling pass shares one kernel, and every pointwise pass another.
+
+float64: :meth:`CPUExecutor.run_outputs` with ``dtype=float64`` computes in float64 throughout (inputs,
+intermediates, weights, sums) on the same kernels generated at that width
+(:func:`~pyramid_cli.exec.cpu.codegen.work_type`), cached beside the float32 ones under their own digests and
+compiled or loaded only when a float64 run first needs them: a float32 run loads exactly the float32 kernels.
 """
 
 from __future__ import annotations
@@ -37,11 +42,11 @@ from pyramid_cli.core.border import Border, fold
 from pyramid_cli.core.errors import BackendError
 from pyramid_cli.exec.cpu.codegen import (
     POINTWISE_CODES,
-    POINTWISE_SIGNATURE,
-    RESAMPLE_SIGNATURE,
     kernel_source,
     phase_terms,
+    pointwise_signature,
     pointwise_source,
+    resample_signature,
     resample_source,
     signature,
 )
@@ -62,7 +67,7 @@ from pyramid_cli.plan.shapes import PassShape, shape, sources
 
 SMALL = 1 << 20              # output floats below which a pass runs on the calling thread
 TINY = 1 << 14               # output floats up to which a pass runs as one call on one gathered window
-OUT_DTYPES = (np.dtype(np.float32), np.dtype(np.float16))
+OUT_DTYPES = (np.dtype(np.float32), np.dtype(np.float16), np.dtype(np.float64))
 
 
 def default_threads() -> int:
@@ -158,7 +163,7 @@ class CPUExecutor:
         self.compiles = 0
         self.cache_loads = 0
         self._kernels: dict = {}   # pass shape (or "resample", "pointwise") → compiled kernel
-        self._by_pass: dict[int, tuple] = {}   # id(pass) → (pass, Kernel)
+        self._by_pass: dict[tuple[int, str], tuple] = {}   # (id(pass), working type) → (pass, Kernel)
         self._pool: ThreadPoolExecutor | None = None
         self._lut: np.ndarray | None = None
 
@@ -182,20 +187,22 @@ class CPUExecutor:
 
         return f"cpu (numba {numba.__version__}, {self.threads} thread(s))"
 
-    def kernel_digests(self, plan: Plan) -> set[str]:
+    def kernel_digests(self, plan: Plan, dtype=np.float32) -> set[str]:
         """The distinct compiled kernels ``plan`` runs on, by the digest of their source: what a first run in a
-        process loads from the disk cache (or compiles), whatever the inputs store (float32 or float16)."""
+        process loads from the disk cache (or compiles), whatever the inputs store (float32 or float16); the
+        float64 kernels where ``dtype`` is float64 (a float64 run)."""
+        t = _work(dtype)
         digests = set()
         for ps in plan.passes:
-            hit = self._by_pass.get(id(ps))
-            digests.add(hit[1].digest if hit is not None and hit[0] is ps else kernel_digest(ps))
+            hit = self._by_pass.get((id(ps), t))
+            digests.add(hit[1].digest if hit is not None and hit[0] is ps else kernel_digest(ps, t))
         return digests
 
     def uncached(self, plan: Plan, dtype=np.float32) -> int:
         """How many of ``plan``'s kernels are neither loaded in this process nor compiled on disk yet
-        (what a first run on a machine compiles: about a second each). ``dtype`` (the inputs' storage)
-        changes nothing: one kernel serves float32 and float16 sources."""
-        return sum(1 for d in self.kernel_digests(plan) if not loaded(d) and not on_disk(self.cache, d))
+        (what a first run on a machine compiles: about a second each). ``dtype``: float64 counts the
+        float64 kernels of a float64 run; float32 and float16 (the inputs' storage) the float32 ones."""
+        return sum(1 for d in self.kernel_digests(plan, dtype) if not loaded(d) and not on_disk(self.cache, d))
 
     def info(self) -> dict:
         """What runs the plans: numba's version, threads and the cache folder."""
@@ -205,18 +212,20 @@ class CPUExecutor:
                 "cache": str(self.cache)}
 
     # ------------------------------------------------------------ kernels
-    def kernel(self, ps: Pass) -> Kernel:
-        """The compiled kernel of a pass's shape (for float32 and float16 sources alike)."""
-        hit = self._by_pass.get(id(ps))
+    def kernel(self, ps: Pass, dtype=np.float32) -> Kernel:
+        """The compiled kernel of a pass's shape (for float32 and float16 sources alike; at float64 where
+        ``dtype``, the working type, is float64)."""
+        t = _work(dtype)
+        hit = self._by_pass.get((id(ps), t))
         if hit is not None and hit[0] is ps:  # the shape of a pass run before (exact Fractions: not free)
             return hit[1]
         s = shape(ps)
-        k = self._kernels.get(s)
+        k = self._kernels.get((s, t))
         if k is None:
-            k = self._kernels[s] = self._build(s)
+            k = self._kernels[(s, t)] = self._build(s, t)
         if len(self._by_pass) > 4096:
             self._by_pass.clear()
-        self._by_pass[id(ps)] = (ps, k)  # the pass is held, so its id is not reused while the entry lives
+        self._by_pass[(id(ps), t)] = (ps, k)  # the pass is held, so its id is not reused while the entry lives
         return k
 
     def _ready(self, fn, sig: str, compile_=compile_plain) -> None:
@@ -227,10 +236,10 @@ class CPUExecutor:
         elif done == "compiled":
             self.compiles += 1
 
-    def _build(self, s: PassShape) -> Kernel:
-        source = kernel_source(s)
+    def _build(self, s: PassShape, t: str = "float32") -> Kernel:
+        source = kernel_source(s, t)
         fn = load(source, self.cache)
-        self._ready(fn, signature(s.n_sources, s.period[1]), compile_vectorised)
+        self._ready(fn, signature(s.n_sources, s.period[1], t), compile_vectorised)
         terms = {ph: phase_terms(taps) for ph, taps in s.phases}
         extents = []
         for k in range(s.n_sources):
@@ -242,34 +251,38 @@ class CPUExecutor:
     def prepare(self, plan: Plan, dtype=np.float32) -> None:
         """Compile (or load from the disk cache) the kernels of ``plan`` before running it.
 
-        ``dtype`` is the inputs' storage (float32, or float16 for half files); the same kernels serve both.
+        ``dtype`` is the inputs' storage (float32, or float16 for half files; the same kernels serve both), or
+        float64 for a float64 run (its own kernels).
         """
+        t = _work(dtype)
         for ps in plan.passes:
             if isinstance(ps, ResamplePass):
-                self.resample_kernel()
+                self.resample_kernel(t)
             elif isinstance(ps, PointwisePass):
-                self.pointwise_kernel()
+                self.pointwise_kernel(t)
             else:
-                self.kernel(ps)
+                self.kernel(ps, t)
 
     # ------------------------------------------------------------ resampling
-    def resample_kernel(self) -> Callable[..., None]:
-        """The compiled table-driven kernel of every :class:`ResamplePass`, either axis (cached like the others)."""
-        key = "resample"
+    def resample_kernel(self, dtype=np.float32) -> Callable[..., None]:
+        """The compiled table-driven kernel of every :class:`ResamplePass`, either axis (cached like the others),
+        at the working type ``dtype`` (float32 or float64)."""
+        key = ("resample", _work(dtype))
         k = self._kernels.get(key)
         if k is None:
-            fn = load(resample_source(), self.cache)
-            self._ready(fn, RESAMPLE_SIGNATURE)
+            fn = load(resample_source(key[1]), self.cache)
+            self._ready(fn, resample_signature(key[1]))
             k = self._kernels[key] = fn
         return k
 
     def _resample(self, plan: Plan, ps: ResamplePass, src: np.ndarray) -> np.ndarray:
-        """One :class:`ResamplePass` on a stored (H, W, C) float32 source; bands of output rows on the pool."""
-        fn = self.resample_kernel()
+        """One :class:`ResamplePass` on a stored (H, W, C) float32 (or float64) source; bands of output rows on
+        the pool."""
+        fn = self.resample_kernel(src.dtype)
         h, w, channels = src.shape
-        idx, weights = resample_table(ps, plan.images[ps.source], np.float32)
+        idx, weights = resample_table(ps, plan.images[ps.source], src.dtype)
         size = plan.images[ps.target].size
-        out = np.empty(size + (channels,), dtype=np.float32)
+        out = np.empty(size + (channels,), dtype=src.dtype)
         flat_out, flat_src = out.reshape(size[0], -1), src.reshape(h, -1)
         args = (flat_out, flat_src, np.ascontiguousarray(idx), np.ascontiguousarray(weights), channels)
         n = size[0]  # both kernels split their work by output rows
@@ -297,9 +310,11 @@ class CPUExecutor:
             Any plan (paper §3–§5 filters, written chains, pyramids, every border mode).
         images : ndarray or list of ndarray
             (H, W) or (H, W, C) arrays, any C, one per ``plan.inputs``; float32 or float16
-            (read as is), anything else converted to float32.
-        dtype : float32 or float16
-            Output type; float16 is rounded to nearest even from the float32 result.
+            (read as is), anything else converted to float32; every one converted to float64 for a
+            float64 run.
+        dtype : float32, float16 or float64
+            Output type; float16 is rounded to nearest even from the float32 result. float64 computes
+            in float64 throughout, on the float64 kernels.
 
         Returns
         -------
@@ -308,8 +323,9 @@ class CPUExecutor:
         """
         dtype = np.dtype(dtype)
         if dtype not in OUT_DTYPES:
-            raise ValueError(f"outputs are float32 or float16, not {dtype}")
-        arrays = _inputs(plan, images)
+            raise ValueError(f"outputs are float32, float16 or float64, not {dtype}")
+        wt = np.dtype(np.float64) if dtype == np.float64 else np.dtype(np.float32)  # the working type
+        arrays = plan_inputs(plan, images, np.float64 if wt == np.float64 else None)
         flat = arrays[0].ndim == 2
         arrays = [a[:, :, None] if flat else a for a in arrays]
         channels = arrays[0].shape[2]
@@ -322,7 +338,7 @@ class CPUExecutor:
 
         def retire(k: int) -> None:
             a = stored.pop(k)
-            if k not in plan.inputs and a.dtype == np.float32:
+            if k not in plan.inputs and a.dtype == wt:
                 spare.setdefault(a.shape, []).append(a)
 
         for i, ps in enumerate(plan.passes):
@@ -340,11 +356,11 @@ class CPUExecutor:
             # a page fault per page at its first write, about as much as the pass's own stores
             shape_ = target.stored + (channels,)
             free = spare.get(shape_)
-            out = free.pop() if free else np.empty(shape_, dtype=np.float32)
+            out = free.pop() if free else np.empty(shape_, dtype=wt)
             if isinstance(ps, PointwisePass):
                 self._run_pointwise(ps, out, [self._float(stored[s]) if s in half else stored[s] for s in srcs])
             else:
-                kern = self.kernel(ps)
+                kern = self.kernel(ps, wt)
                 self._run_pass(plan, ps, kern, out, [stored[s] for s in srcs], srcs)
             stored[ps.target] = out
             for s in released[i]:
@@ -360,28 +376,29 @@ class CPUExecutor:
             if flat:
                 a = a[:, :, 0]
             if k in plan.inputs:  # an input read back as given (level 0 of a pyramid): a copy
-                a = np.array(a, dtype=np.float32)
+                a = np.array(a, dtype=wt)
             results.append(a.astype(dtype) if dtype != a.dtype else np.ascontiguousarray(a))
         return results
 
-    def pointwise_kernel(self) -> Callable[..., None]:
+    def pointwise_kernel(self, dtype=np.float32) -> Callable[..., None]:
         """The compiled kernel of every pointwise op (:func:`pointwise_source`: the op and its parameter are
-        arguments)."""
-        key = "pointwise"
+        arguments), at the working type ``dtype`` (float32 or float64)."""
+        key = ("pointwise", _work(dtype))
         fn = self._kernels.get(key)
         if fn is None:
-            fn = load(pointwise_source(), self.cache)
-            self._ready(fn, POINTWISE_SIGNATURE)
+            fn = load(pointwise_source(key[1]), self.cache)
+            self._ready(fn, pointwise_signature(key[1]))
             self._kernels[key] = fn
         return fn
 
     def _run_pointwise(self, ps: PointwisePass, out: np.ndarray, srcs: list[np.ndarray]) -> None:
         """Every element of ``out`` by the op, in bands on the thread pool when large."""
-        fn = self.pointwise_kernel()
+        wt = out.dtype
+        fn = self.pointwise_kernel(wt)
         flat = out.reshape(-1)
-        operands = [np.ascontiguousarray(a, dtype=np.float32).reshape(-1) for a in srcs]
-        operands += [_NO_F32_1D] * (3 - len(operands))  # operands the op does not read
-        args = [*operands, np.float32(float(ps.param)), POINTWISE_CODES[ps.op]]
+        operands = [np.ascontiguousarray(a, dtype=wt).reshape(-1) for a in srcs]
+        operands += [_NO_FLOAT_1D[wt.name]] * (3 - len(operands))  # operands the op does not read
+        args = [*operands, wt.type(float(ps.param)), POINTWISE_CODES[ps.op]]
         n = flat.size
         if self.threads == 1 or n < SMALL:
             fn(flat, *args, 0, n)
@@ -446,11 +463,12 @@ class CPUExecutor:
         self._call(kern, out, wins, rows, cols, woffs, yoff, xoff, parallel=False)
 
     def _call(self, kern: Kernel, out, srcs, rows, cols, offs, yoff, xoff, parallel: bool) -> None:
-        half = sum(1 << k for k, a in enumerate(srcs) if a.dtype == np.uint16)
-        extra = [self._half_lut() if half else _NO_F32_1D, half, out.shape[2]]
+        half = sum(1 << k for k, a in enumerate(srcs) if a.dtype == np.uint16)  # float32 runs only
+        none = _NO_FLOAT[out.dtype.name]
+        extra = [self._half_lut() if half else _NO_FLOAT_1D[out.dtype.name], half, out.shape[2]]
         out = out.reshape(out.shape[0], -1)
         flat = [a.reshape(a.shape[0], -1) for a in srcs]
-        srcs = [v for a in flat for v in ((_NO_F32, a) if a.dtype == np.uint16 else (a, _NO_U16))]
+        srcs = [v for a in flat for v in ((none, a) if a.dtype == np.uint16 else (a, _NO_U16))]
         tail = [yoff, xoff] + [v for lo_hi in cols for v in lo_hi] + [v for o in offs for v in o]
         m0, m1 = rows
         floats = (m1 - m0) * kern.shape.period[0] * out.shape[1]  # out is (rows, columns·C) here
@@ -477,25 +495,33 @@ class CPUExecutor:
 
 
 # placeholders for the arguments a call does not use (a source's other storage, an op's missing operands)
-_NO_F32 = np.zeros((1, 1), np.float32)
+_NO_FLOAT = {t: np.zeros((1, 1), t) for t in ("float32", "float64")}
 _NO_U16 = np.zeros((1, 1), np.uint16)
-_NO_F32_1D = np.zeros(1, np.float32)
-_RESAMPLE_DIGEST = source_digest(resample_source())
-_POINTWISE_DIGEST = source_digest(pointwise_source())
+_NO_FLOAT_1D = {t: np.zeros(1, t) for t in ("float32", "float64")}
 
 
-def kernel_digest(ps: Pass | ResamplePass | PointwisePass) -> str:
+def _work(dtype) -> str:
+    """The kernels' working type of a run or a storage ``dtype``: float64 for float64, else float32 (float16
+    sources run on the float32 kernels)."""
+    return "float64" if np.dtype(dtype) == np.float64 else "float32"
+
+
+@lru_cache(maxsize=8)
+def _shared_digest(kind: str, t: str) -> str:
+    """The digest of the resampling or the pointwise kernel at working type ``t`` (made when first asked)."""
+    return source_digest(resample_source(t) if kind == "resample" else pointwise_source(t))
+
+
+def kernel_digest(ps: Pass | ResamplePass | PointwisePass, dtype=np.float32) -> str:
     """The digest of the source of the kernel a pass runs on: one per pass shape (float32 and float16 sources
-    alike), one for every resampling pass, one for every pointwise pass. Pure Python: numba is not imported."""
+    alike), one for every resampling pass, one for every pointwise pass; the float64 kernel's where ``dtype``
+    is float64. Pure Python: numba is not imported."""
+    t = _work(dtype)
     if isinstance(ps, ResamplePass):
-        return _RESAMPLE_DIGEST
+        return _shared_digest("resample", t)
     if isinstance(ps, PointwisePass):
-        return _POINTWISE_DIGEST
-    return source_digest(kernel_source(shape(ps)))
+        return _shared_digest("pointwise", t)
+    return source_digest(kernel_source(shape(ps), t))
 
 
-def _inputs(plan: Plan, images) -> list[np.ndarray]:
-    return plan_inputs(plan, images)
-
-
-__all__ = ["CPUExecutor", "Kernel", "OUT_DTYPES", "SMALL", "TINY", "default_threads"]
+__all__ = ["CPUExecutor", "Kernel", "OUT_DTYPES", "SMALL", "TINY", "default_threads", "kernel_digest"]
