@@ -87,6 +87,26 @@ class _State:
     emitted: int = 0
     consumers: list = field(default_factory=list)
 
+    def kept(self) -> tuple[int, int]:
+        """``cols``: set by the strip for every image it reads or writes."""
+        assert self.cols is not None, "an image outside the strip's demand"
+        return self.cols
+
+    def computed(self) -> tuple[int, int]:
+        """``comp``: set by the strip for the target of every pass it runs."""
+        assert self.comp is not None, "an image no pass of the strip computes"
+        return self.comp
+
+    def held(self) -> tuple[int, int]:
+        """``(start, done)``: set when the image is first advanced."""
+        assert self.start is not None and self.done is not None, "an image read before it is advanced"
+        return self.start, self.done
+
+    def pixels(self) -> np.ndarray:
+        """``buf``: set when the first rows are appended."""
+        assert self.buf is not None, "an image read before rows are appended"
+        return self.buf
+
 
 class Scheduler:
     """Runs ``plan`` strip by strip, band by band: see the module docstring.
@@ -190,10 +210,11 @@ class Scheduler:
         self.active = []
         for ps in reversed(plan.passes):
             st = self.state[ps.target]
-            if demand[ps.target] is None:
+            wanted = demand[ps.target]
+            if wanted is None:
                 continue
             self.active.append(ps)
-            st.cols = _restrict(demand[ps.target], st.colext, st.border)
+            st.cols = _restrict(wanted, st.colext, st.border)
             st.comp = ps.tile((0, 1), st.cols).cols
             for s, (_, cc) in ps.reads((0, ps_period(ps)), st.comp).items():
                 demand[s] = _union(demand[s], cc)
@@ -201,8 +222,9 @@ class Scheduler:
         self.active.reverse()
         for k in plan.inputs:
             st = self.state[k]
-            if demand[k] is not None:
-                st.cols = _restrict(demand[k], st.colext, st.border)
+            wanted = demand[k]
+            if wanted is not None:
+                st.cols = _restrict(wanted, st.colext, st.border)
 
     def _emit(self, k: int, hi: int) -> None:
         st = self.state[k]
@@ -210,9 +232,10 @@ class Scheduler:
         if span is None or hi <= st.emitted:
             return
         self._advance(k, st.emitted, hi)
-        rows = slice(st.emitted - st.start, hi - st.start)
-        cols = slice(span[0] - st.cols[0], span[1] - st.cols[0])
-        self.sink(k, st.emitted, span[0], st.buf[rows, cols])
+        start, kept = st.held()[0], st.kept()
+        rows = slice(st.emitted - start, hi - start)
+        cols = slice(span[0] - kept[0], span[1] - kept[0])
+        self.sink(k, st.emitted, span[0], st.pixels()[rows, cols])
         st.emitted = hi
         self._trim(k)
 
@@ -222,42 +245,44 @@ class Scheduler:
         st = self.state[k]
         if st.done is None:
             st.start = st.done = st.rows[0] if st.border == "wrap" else lo  # wrap: the last rows read the first
-        assert lo >= st.start, f"image {k}: row {lo} was dropped (kept from {st.start})"
-        if hi <= st.done:
+        start, done = st.held()
+        assert lo >= start, f"image {k}: row {lo} was dropped (kept from {start})"
+        if hi <= done:
             return
         ps = self.writer.get(k)
         if ps is None:  # an input
-            px = self.source(k, (st.done, hi), st.cols)
+            px = self.source(k, (done, hi), st.kept())
             self._append(st, px)
             return
-        step = ps.tile((st.done, hi), st.comp)
+        step = ps.tile((done, hi), st.computed())
         reads = sorted(ps.reads(step.rows, step.cols).items())
         for s, (rr, _) in reads:  # every source first: advancing one may append to another (a shared ancestor)
             self._advance(s, *_restrict(rr, self.state[s].rows, self.state[s].border))
         windows = [self._window(self.state[s], rr, cc) for s, (rr, cc) in reads]  # views, valid until the next append
         origins = [(s, step.origins[s], rr, cc) for s, (rr, cc) in reads]
         out = self._run(ps.target, step, windows, origins)
-        r0, (k0, k1) = st.done, st.cols
+        r0, (k0, k1) = st.held()[1], st.kept()
         self._append(st, out[r0 - step.rows[0]:, k0 - step.cols[0]:k1 - step.cols[0]])
         for s, *_ in origins:
             self._trim(s)
 
     def _append(self, st: _State, px: np.ndarray) -> None:
         st.buf = px.copy() if st.buf is None else np.concatenate([st.buf, px])  # (a ring buffer measured no
-        st.done += px.shape[0]                                                   # faster, and held more)
+        st.done = st.held()[1] + px.shape[0]                                     # faster, and held more)
         self.peak_pixels = max(self.peak_pixels, sum(s.buf.shape[0] * s.buf.shape[1] for s in self.state.values()
                                                  if s.buf is not None))
 
     def _window(self, src: _State, rr: tuple[int, int], cc: tuple[int, int]):
         """(pixels, origin): what a pass reads of ``src`` over ``rr × cc``."""
+        (start, done), kept, buf = src.held(), src.kept(), src.pixels()
         if src.border == "clamp":
             (a, b), (c, d) = _restrict(rr, src.rows, "clamp"), _restrict(cc, src.colext, "clamp")
-            assert src.start <= a and b <= src.done and src.cols[0] <= c and d <= src.cols[1]
-            px = src.buf[a - src.start:b - src.start, c - src.cols[0]:d - src.cols[0]]
+            assert start <= a and b <= done and kept[0] <= c and d <= kept[1]
+            px = buf[a - start:b - start, c - kept[0]:d - kept[0]]
             return px, (a, c)
         ri = _fold(np.arange(*rr), src.rows, src.border)
         ci = _fold(np.arange(*cc), src.colext, src.border)
-        px = src.buf[np.ix_(np.maximum(ri - src.start, 0), np.maximum(ci - src.cols[0], 0))]
+        px = buf[np.ix_(np.maximum(ri - start, 0), np.maximum(ci - kept[0], 0))]
         if src.border == "zero":
             px[ri < src.rows[0]] = 0
             px[:, ci < src.colext[0]] = 0
@@ -286,9 +311,10 @@ class Scheduler:
     def _trim(self, s: int) -> None:
         """Drop the rows of ``s`` that no later step reads (and that are emitted, for an output)."""
         st = self.state[s]
-        if st.buf is None or st.border == "wrap":
+        buf = st.buf
+        if buf is None or st.border == "wrap":
             return
-        keep = st.done
+        start, keep = st.held()
         if s in self.out_cols:
             keep = min(keep, st.emitted)
         for ps in st.consumers:
@@ -297,12 +323,12 @@ class Scheduler:
                 return  # a consumer that has not started yet reads from the top
             if t.done >= t.rows[1] and (ps.target not in self.out_cols or t.emitted >= t.rows[1]):
                 continue
-            step = ps.tile((t.done, max(t.rows[1], t.done + 1)), t.comp)  # every row still to come
+            step = ps.tile((t.done, max(t.rows[1], t.done + 1)), t.computed())  # every row still to come
             rr = ps.reads(step.rows, step.cols).get(s)
             if rr is not None:
                 keep = min(keep, _restrict(rr[0], st.rows, st.border)[0])
-        if keep > st.start:
-            st.buf = st.buf[keep - st.start:]
+        if keep > start:
+            st.buf = buf[keep - start:]
             st.start = keep
 
 

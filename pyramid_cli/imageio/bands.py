@@ -6,7 +6,7 @@ from __future__ import annotations
 import contextlib
 import math
 import os
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 
 import numpy as np
 import OpenImageIO as oiio
@@ -160,7 +160,7 @@ class BandWriter:
         self.next = 0      # rows handed over
         self.written = 0   # rows encoded and written
         self.spec: oiio.ImageSpec | None = None
-        self._out = None
+        self._out: oiio.ImageOutput | None = None
         self._pending: list[np.ndarray] = []  # rows waiting for a whole row of tiles, or 8 rows of dither
 
     def write(self, y0: int, pixels: np.ndarray) -> None:
@@ -197,7 +197,8 @@ class BandWriter:
         """What a subclass adds to the file's header before it opens (nothing here)."""
 
     def _flush(self, final: bool) -> None:
-        s = self.spec
+        s, out = self.spec, self._out
+        assert s is not None and out is not None, "the first rows opened the file"
         tiled = s.tile_width > 0 and s.tile_height > 0
         quantum = band_quantum(s.tile_height if tiled else 1, self.options.get("dither", False))
         rows = self.next - self.written
@@ -211,21 +212,23 @@ class BandWriter:
         if tiled:
             for a in range(0, whole, quantum):
                 b = min(a + quantum, whole)
-                ok = self._out.write_tiles(s.x, s.x + s.width, s.y + start + a, s.y + start + b, s.z, s.z + 1,
-                                           np.ascontiguousarray(data[a:b]))
-                checked(self._out, ok, "write")
+                ok = out.write_tiles(s.x, s.x + s.width, s.y + start + a, s.y + start + b, s.z, s.z + 1,
+                                     np.ascontiguousarray(data[a:b]))
+                checked(out, ok, "write")
         else:
-            checked(self._out, self._out.write_scanlines(s.y + start, s.y + start + whole, s.z, data), "write")
+            checked(out, out.write_scanlines(s.y + start, s.y + start + whole, s.z, data), "write")
         self.written += whole
 
     def finish(self) -> None:
         """Close the file and check it reads back (OutputError naming the user's path)."""
         if self.written != self.height:
             raise ValueError(f"{self.written} of {self.height} rows written")
+        out, spec = self._out, self.spec
+        assert out is not None and spec is not None, "every row written: the file is open and its spec known"
         try:
-            out, self._out = self._out, None
+            self._out = None
             checked(out, out.close(), "close")
-            verify(self.tmp, self.fmt, [(self.spec, None)], "single")
+            verify(self.tmp, self.fmt, [(spec, None)], "single")
         except WriteFailed as exc:
             raise OutputError(f"cannot write {self.path}: {str(exc).replace(self.tmp, self.path)}"
                               f"{diagnosis(self.tmp)}") from None
@@ -238,7 +241,7 @@ class BandWriter:
 
 
 @contextlib.contextmanager
-def stream_writers(paths: list[str | os.PathLike[str]], infos: list[ImageInfo], shapes: list[tuple[int, int, int]],
+def stream_writers(paths: Sequence[str | os.PathLike[str]], infos: list[ImageInfo], shapes: list[tuple[int, int, int]],
                    *, pixel_type: str | None = None, colorspace: str | None = None, alpha: str | None = None,
                    dither: bool = False, compression: str | None = None, force: bool = False,
                    inputs: Iterable[str | os.PathLike[str]] = ()):

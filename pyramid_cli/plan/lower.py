@@ -63,7 +63,7 @@ def plan(expr: Expr, size: tuple[int, int], strategy: str = "cost", border: str 
     "cost" lets the cost model fuse a filter into one pass where that is cheaper.
     ``border`` is how every written operator reads past its input's edges (docs/design.md §1).
     """
-    return plan_steps(steps(expr), tuple(size), text=_text(expr), paper=algebra.paper_fetches(expr),
+    return plan_steps(steps(expr), (size[0], size[1]), text=_text(expr), paper=algebra.paper_fetches(expr),
                       strategy=strategy, border=border)
 
 
@@ -74,7 +74,7 @@ class Builder:
         from pyramid_cli.core.border import Border
 
         self.border = Border.parse(border).value
-        self.images = [Image(tuple(size), border=self.border)]
+        self.images = [Image((size[0], size[1]), border=self.border)]
         self.passes: list[Pass | ResamplePass | PointwisePass] = []
         self.inputs = [0]
         self.strategy = strategy  # "cost": cheapest of paper/fused per filter; "paper": always the paper's
@@ -82,7 +82,7 @@ class Builder:
     def add_input(self, size: tuple[int, int]) -> int:
         """Another uploaded image (before any pass); returns its index."""
         assert not self.passes
-        self.images.append(Image(tuple(size), border=self.border))
+        self.images.append(Image((size[0], size[1]), border=self.border))
         self.inputs.append(len(self.images) - 1)
         return self.inputs[-1]
 
@@ -102,7 +102,8 @@ class Builder:
         first = len(self.images)
         sizes = stage_sizes(stages, self.images[source].size)
         if crop is not None:
-            sizes[-1] = tuple(crop)
+            sizes[-1] = (crop[0], crop[1])
+        added: list[Pass] = []
         for i, st in enumerate(stages):
             self.images.append(Image(sizes[i]))
             phases = {}
@@ -112,8 +113,9 @@ class Builder:
                     taps += taps_for(dict(items), source if src == -1 else first + src)
                 phases[ph] = taps
             name = label + (f" [{i + 1}/{len(stages)}]" if len(stages) > 1 else "")
-            self.passes.append(Pass(name, first + i, st.period, st.stride, phases, why if i == 0 else ""))
-        infer_guards(self.images, self.passes[-len(stages):], first)
+            added.append(Pass(name, first + i, st.period, st.stride, phases, why if i == 0 else ""))
+        self.passes += added
+        infer_guards(self.images, added, first)
         self.images[-1].border = self.border  # the result of a written operator is a boundary
         return len(self.images) - 1
 
@@ -129,9 +131,8 @@ class Builder:
     def resample(self, source: int, axis: int, starts, weights, label: str, why: str = "") -> int:
         """One :class:`ResamplePass` of image ``source`` along ``axis`` (0 rows, 1 columns) with the table
         ``starts``/``weights`` (:func:`pyramid_cli.plan.resample.axis_table`); the result is a boundary."""
-        size = list(self.images[source].size)
-        size[axis] = len(starts)
-        self.images.append(Image(tuple(size), border=self.border))
+        rows, cols = self.images[source].size
+        self.images.append(Image((len(starts), cols) if axis == 0 else (rows, len(starts)), border=self.border))
         self.passes.append(ResamplePass(label, len(self.images) - 1, source, axis, tuple(starts),
                                         tuple(tuple(row) for row in weights), why))
         return len(self.images) - 1

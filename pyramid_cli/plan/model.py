@@ -89,7 +89,7 @@ class TileStep:
 
     rows: tuple[int, int]                       # computed rows of the target (⊇ the ones asked), 0-based
     cols: tuple[int, int]
-    run: object                                 # the pass to execute over the rectangle
+    run: Pass | ResamplePass | PointwisePass    # the pass to execute over the rectangle
     origins: dict[int, tuple[int, int]]         # per source: its coordinate at the tile's logical (0, 0)
 
 
@@ -210,11 +210,11 @@ class PointwisePass:
 
     def reads(self, rows: tuple[int, int], cols: tuple[int, int]) -> dict[int, tuple[tuple[int, int], tuple[int, int]]]:
         """Each source is read over the output rectangle itself (0-based half-open logical rows, columns)."""
-        return {s: (tuple(rows), tuple(cols)) for s in self.srcs}
+        return {s: ((rows[0], rows[1]), (cols[0], cols[1])) for s in self.srcs}
 
     def tile(self, rows: tuple[int, int], cols: tuple[int, int]) -> TileStep:
         """The pass over ``rows × cols``: every source's window starts where the tile does."""
-        return TileStep(tuple(rows), tuple(cols), self, {s: (rows[0], cols[0]) for s in self.srcs})
+        return TileStep((rows[0], rows[1]), (cols[0], cols[1]), self, {s: (rows[0], cols[0]) for s in self.srcs})
 
 
 @dataclass
@@ -275,7 +275,7 @@ class ResamplePass:
         origin = min(starts, default=0)
         sliced = replace(self, starts=tuple(s - origin for s in starts), weights=self.weights[max(0, a):max(0, b)])
         at = (origin, cols[0]) if self.axis == 0 else (rows[0], origin)
-        return TileStep(tuple(rows), tuple(cols), sliced, {self.source: at})
+        return TileStep((rows[0], rows[1]), (cols[0], cols[1]), sliced, {self.source: at})
 
 
 @dataclass

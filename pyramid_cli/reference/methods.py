@@ -47,7 +47,7 @@ def fill(colour: np.ndarray, weight: np.ndarray, levels: int | None = None,
     sweeps, each one number or a pair (level 1, every coarser level; no sweep at level 0 or the coarsest).
     Pixels with weight 0 may hold anything finite: they never enter a sum.
     """
-    scale, sweeps = (tuple(v) if isinstance(v, (tuple, list)) else (v, v) for v in (scale, sweeps))
+    scales, sweep_counts = (tuple(v) if isinstance(v, (tuple, list)) else (v, v) for v in (scale, sweeps))
     x = [np.asarray(colour, dtype=np.float64)]
     w = [np.asarray(weight, dtype=np.float64)]
     m = mip_levels(x[0].shape[:2]) if levels is None else levels
@@ -56,12 +56,12 @@ def fill(colour: np.ndarray, weight: np.ndarray, levels: int | None = None,
         swx = _down(w[-1] * x[-1], analysis, border)        # Σ h̃ w_k x_k
         with np.errstate(divide="ignore", invalid="ignore"):
             x.append(np.where(sw > 0, swx / np.where(sw > 0, sw, 1), 0.0))
-        w.append(np.minimum(1.0, scale[min(len(w) - 1, 1)] * sw))
+        w.append(np.minimum(1.0, scales[min(len(w) - 1, 1)] * sw))
     out = x[m]  # the coarsest level: every pixel with a positive weight holds its mean colour
     for k in range(m - 1, -1, -1):  # push
         expanded = expand_to(out, synthesis, x[k].shape[:2], border)
         out = w[k] * x[k] + (1 - w[k]) * expanded
-        for _ in range(sweeps[min(k, 2) - 1] if k > 0 else 0):
+        for _ in range(sweep_counts[min(k, 2) - 1] if k > 0 else 0):
             out = w[k] * x[k] + (1 - w[k]) * _bartlett(out, border)
     return out
 

@@ -40,8 +40,8 @@ def _read_mask(path: str, shape: tuple[int, ...], ro: ReadOptions, reporter: Rep
 
 def fill_file(input_path: str, output_path: str, session: Session, *, mask: str | None = None,
               holes: str | None = None, levels: int | None = None, analysis: str = catalogue.FILL_ANALYSIS,
-              synthesis: str = catalogue.FILL_SYNTHESIS, weight_scale: int = catalogue.FILL_SCALE,
-              sweeps: int = catalogue.FILL_SWEEPS, keep_alpha: bool = False, border: str = "clamp",
+              synthesis: str = catalogue.FILL_SYNTHESIS, weight_scale: int | tuple[int, int] = catalogue.FILL_SCALE,
+              sweeps: int | tuple[int, int] = catalogue.FILL_SWEEPS, keep_alpha: bool = False, border: str = "clamp",
               allow_mixed_lattice: bool = False, read: ReadOptions | None = None, write: WriteOptions | None = None,
               reporter: Reporter | None = None, memory: int | None = None) -> dict:
     """Pull-push fill of one image file (:func:`pyramid_cli.api.fill`); returns what ``--json`` prints.

@@ -114,18 +114,17 @@ class Reader(_Side):
             raise ValueError(f"rows are read in order: row {self._at} or later expected, not {y0}")
         parts = []
         while True:
-            held = 0 if self._held is None else len(self._held)
-            if self._at + held > y0:
+            held = self._held
+            if held is not None and self._at + len(held) > y0:
                 lo = y0 - self._at
-                hi = min(held, y1 - self._at)
-                parts.append(self._held[lo:hi])
+                hi = min(len(held), y1 - self._at)
+                parts.append(held[lo:hi])
                 y0 = self._at + hi
                 if y0 >= y1:
-                    break
-            self._at += held
+                    self._held, self._at = held[y1 - self._at:], y1
+                    return parts[0] if len(parts) == 1 else np.concatenate(parts)
+            self._at += 0 if held is None else len(held)
             self._held = self._next()
-        self._held, self._at = self._held[y1 - self._at:], y1
-        return parts[0] if len(parts) == 1 else np.concatenate(parts)
 
 
 class Writer(_Side):

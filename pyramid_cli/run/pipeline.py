@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import os
 import re
+from typing import TYPE_CHECKING
 
 from pyramid_cli import imageio as io
 from pyramid_cli.core import catalogue
@@ -26,8 +27,11 @@ from pyramid_cli.run.local import run_jobs
 from pyramid_cli.run.report import Reporter, announce_compiles
 from pyramid_cli.run.settings import ReadOptions, WriteOptions
 
+if TYPE_CHECKING:  # importing the cluster package imports distributed
+    from pyramid_cli.run.cluster import SessionSpec
 
-def process(paths: list[str], template: str | None, work: Work, session: Session | None, *,
+
+def process(paths: list[str], template: str | None, work: Work, session: Session | SessionSpec | None, *,
             read: ReadOptions | None = None, write: WriteOptions | None = None, reporter: Reporter | None = None,
             keep_going: bool = False, skip_existing: bool = False, jobs: int = 2,
             mip_tile: int | None = None, frames: str | None = None, shard=None, cluster=None,
@@ -44,9 +48,9 @@ def process(paths: list[str], template: str | None, work: Work, session: Session
     ``shard`` (``"K/N"``, ``"auto"`` or a :class:`pyramid_cli.run.shard.Shard`) keeps one
     contiguous chunk of the job list; ``cluster`` (an address, ``"local:N"`` or a
     ``distributed.Client``) runs the jobs on a Dask cluster in chunks of ``chunk`` jobs,
-    each worker with its own session like ``session`` (``session`` may then be None:
-    ``Session()``'s defaults), connecting and waiting for workers up to ``cluster_timeout``
-    seconds (:mod:`pyramid_cli.run.cluster`).
+    each worker with its own session like ``session`` (``session`` may then be a
+    :class:`~pyramid_cli.run.cluster.worker.SessionSpec`, or None: ``Session()``'s defaults),
+    connecting and waiting for workers up to ``cluster_timeout`` seconds (:mod:`pyramid_cli.run.cluster`).
 
     One input of ``apply`` or ``blur`` streams from file to file in bands (:mod:`pyramid_cli.run.stream`),
     decoding, computing and encoding at once, when it is large enough to be faster so
@@ -76,7 +80,7 @@ def process(paths: list[str], template: str | None, work: Work, session: Session
         from pyramid_cli.run.sequence import drop_missing
 
         job_list = drop_missing(job_list, keep_going, reporter.warn)
-    if session is not None and cluster is None and job_list:  # auto decides for the batch; numba loads meanwhile
+    if isinstance(session, Session) and cluster is None and job_list:  # auto decides for all; numba loads meanwhile
         first = _header(job_list[0].input, keep_half=not mip_tile)
         if first is not None:
             session.prepare_async(work, [first[0]], count=len(job_list), dtype=first[1])
@@ -100,6 +104,7 @@ def process(paths: list[str], template: str | None, work: Work, session: Session
                              keep_going=keep_going, skip_existing=skip_existing, jobs=jobs, mip_tile=mip_tile,
                              chunk=chunk, many=many, timeout=cluster_timeout)
     else:
+        assert isinstance(session, Session), "a session, unless the jobs run on a cluster"
         report = run_jobs(job_list, work, session, read=ro, write=wo, reporter=reporter, keep_going=keep_going,
                           skip_existing=skip_existing, jobs=jobs, mip_tile=mip_tile, many=many)
     if not many and report.failed:
@@ -161,7 +166,7 @@ def write_levels_files(input_path: str, pattern: str, work: Levels | Laplacian, 
             written = [level_path(pattern, k) for k in range(n)]
             options = wo.for_inputs([input_path])
             attributes = None
-            if laplacian:
+            if isinstance(work, Laplacian):
                 options["pixel_type"] = wo.pixel_type or "float"
                 attributes = {"pyramid:synthesis": work.synthesis, "pyramid:border": work.border}
                 if wo.tocolorspace is None:  # in the space they were computed in, as whole (below): the header's
@@ -181,7 +186,7 @@ def write_levels_files(input_path: str, pattern: str, work: Levels | Laplacian, 
     stack = session.run(work, [image.pixels])
     images = [io.Image(px, image.spec) for px in stack]
     options = wo.for_inputs([input_path])
-    if laplacian:
+    if isinstance(work, Laplacian):
         options["pixel_type"] = wo.pixel_type or "float"
         # band-pass detail is signed linear light: it stays in the space it was computed in
         options["colorspace"] = wo.tocolorspace or image.spec.linear_space

@@ -79,7 +79,8 @@ class Choice:
         return said
 
     def to_json(self) -> dict:
-        doc = {"budget": self.budget, "whole": self.whole, "band": self.band, "working_set": self.working_set}
+        doc: dict[str, object] = {"budget": self.budget, "whole": self.whole, "band": self.band,
+                                  "working_set": self.working_set}
         if self.kept:
             doc.update(kept=self.kept, spill=self.spill)
         if self.level0:
@@ -209,13 +210,12 @@ def choose(plan: Plan, channels: int, budget: int, *, in_bytes: int = 4, out_byt
     ``force`` streams even when the whole picture fits; so does a picture whose textures the executor would
     pad, and one for which bands of about ``prefer`` rows are faster (:func:`_pick`, :func:`speed_band`).
     DataError when not even the smallest band fits."""
-    kw = {"in_bytes": in_bytes, "out_bytes": out_bytes, "work_bytes": work_bytes, "texture": texture,
-          "keeps_input": keeps_input}
-    whole = estimate(plan, channels, None, **kw)
-    rows = max(plan.images[k].size[0] for k in plan.outputs)
+    def cost(band: int | None) -> int:
+        return estimate(plan, channels, band, in_bytes=in_bytes, out_bytes=out_bytes, work_bytes=work_bytes,
+                        texture=texture, keeps_input=keeps_input)
 
-    def cost(band: int) -> int:
-        return estimate(plan, channels, band, **kw)
+    whole = cost(None)
+    rows = max(plan.images[k].size[0] for k in plan.outputs)
 
     def fit(avail: int) -> Choice | None:
         band = _band_within(cost, rows, avail)
@@ -235,13 +235,13 @@ def choose_mip(plan: Plan, channels: int, budget: int, *, in_bytes: int = 4, wor
     (``level0`` bytes, as read; 0: never) is kept in memory under the same rule when it fits, and the input
     is then read once (``Choice.level0``); otherwise twice (:func:`run_mip`). On disk it would not pay:
     spilling 512 MiB of level 0 at 8K took as long as decoding the input again."""
-    kw = {"in_bytes": in_bytes, "out_bytes": 4, "work_bytes": work_bytes, "texture": texture, "keeps_input": True}
-    whole = estimate(plan, channels, None, **kw)
+    def cost(band: int | None) -> int:
+        return estimate(plan, channels, band, in_bytes=in_bytes, out_bytes=4, work_bytes=work_bytes, texture=texture,
+                        keeps_input=True)
+
+    whole = cost(None)
     anchor = max(plan.images[k].size[0] for k in plan.outputs)
     kept = sum(a * b * channels * 4 for a, b in (plan.images[k].size for k in plan.outputs))
-
-    def cost(band: int) -> int:
-        return estimate(plan, channels, band, **kw)
 
     def fit(avail: int) -> Choice | None:
         for level0_held, kept_held in ((True, True), (True, False), (False, True), (False, False)):
@@ -375,6 +375,7 @@ def stream_file(in_path: str, out_path: str | list[str], work, session, choice: 
             started = time.thread_time()
             scheduler.run()
             computed = time.thread_time() - started
+        assert reader is not None, "overlapped reads stream.read"
         if reporter is not None:
             reporter.detail(f"{in_path}: CPU seconds: decoding {reader.busy:.2f}, computing {computed:.2f} (this "
                             f"thread), encoding and writing {writer.busy:.2f}, each on a thread of its own")

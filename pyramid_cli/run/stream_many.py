@@ -65,16 +65,18 @@ class _Tee:
             else:
                 self.held = [np.concatenate([a, b]) for a, b in zip(self.held, new, strict=True)]
             self.done = y1
-        out = self.held[self.feed.keys.index(k)][y0 - self.start:y1 - self.start]
+        held = self.held
+        assert held is not None, "rows are read before they are handed out"
+        out = held[self.feed.keys.index(k)][y0 - self.start:y1 - self.start]
         self.taken[k] = max(self.taken[k], y1)
         keep = min(self.taken.values())
         if keep > self.start:  # no key asks for rows before what it took (the scheduler reads in order)
-            self.held = [a[keep - self.start:] for a in self.held]
+            self.held = [a[keep - self.start:] for a in held]
             self.start = keep
         return out
 
 
-def decide(plan: Plan, channels: int, session, memory: int | None, *, where: str, reporter=None,
+def decide(plan: Plan | None, channels: int, session, memory: int | None, *, where: str, reporter=None,
            in_bytes: int = 4) -> Choice | None:
     """The :class:`~pyramid_cli.run.stream.Choice` of a job of ``plan`` when it streams, else None (it runs whole:
     it fits and is no faster in bands; the reference backend without ``memory``, which is then refused)."""
@@ -82,6 +84,7 @@ def decide(plan: Plan, channels: int, session, memory: int | None, *, where: str
         if memory is not None:
             executor_of(session)  # refuses with the reason
         return None
+    assert plan is not None, "a plan to decide on wherever there is an executor"
     given = resolve(memory)
     if reporter is not None:
         reporter.detail(f"{where}: {given.describe()}")
@@ -128,13 +131,16 @@ def stream_plan(plan: Plan, feeds: Sequence[Feed], out_path: str, info, channels
     from pyramid_cli import imageio as io
     from pyramid_cli.exec import tiles
 
+    band = choice.band
+    if band is None:
+        raise ValueError("stream_plan runs a Choice that streams (decide's)")
     executor = executor_of(session)
     emu = executor.work_dtype == np.float64
     (out,) = plan.outputs
     h, w = plan.images[out].size
     with (io.stream_writers([out_path], [info], [(h, w, channels)], **options) as (bw,),
           overlapped(None, 0, 1) as (_, writer),
-          _reading(feeds, plan, choice.band) as tees):
+          _reading(feeds, plan, band) as tees):
         def source(k, rows, cols):
             px = tees[k].rows(k, *rows)
             px = px[:, cols[0]:cols[1]] if (cols[0], cols[1]) != (0, px.shape[1]) else px
@@ -143,7 +149,7 @@ def stream_plan(plan: Plan, feeds: Sequence[Feed], out_path: str, info, channels
         def sink(k, r, c0, px):  # px is the scheduler's buffer: the writer keeps rows, so a copy
             writer.call(bw.write, r, np.array(finish(r, px) if finish else px, dtype=np.float32))
 
-        scheduler = tiles.Scheduler(executor, plan, source, sink, band=choice.band,
+        scheduler = tiles.Scheduler(executor, plan, source, sink, band=band,
                                     dtype=np.float64 if emu else np.float32)
         started = time.thread_time()
         scheduler.run()
@@ -392,7 +398,8 @@ def fill_streamed(input_path: str, output_path: str, session, work_for: Callable
         choice = decide(plan, cc, session, memory, where=input_path, reporter=reporter)
         if choice is None:
             return None
-        layout = mask_layout(mask, ms.info, ms.shape, st.shape, reporter.warn) if ms is not None else None
+        layout = (mask_layout(mask, ms.info, ms.shape, st.shape, reporter.warn)
+                  if ms is not None and mask is not None else None)
         for message in work.warnings((h, w)):
             reporter.warn(message)
         counts = {"known": 0, "partial": 0, "empty": 0}
@@ -403,7 +410,7 @@ def fill_streamed(input_path: str, output_path: str, session, work_for: Callable
         def prepare(y0: int, raw: list[np.ndarray]) -> list[np.ndarray]:
             px = raw[0]
             weights = None
-            if ms is not None:
+            if ms is not None and mask is not None:  # (a mask stream is opened for a mask path)
                 mk = raw[1] if layout is None else raw[1][:, :, layout:layout + 1]
                 said.add(mk)
                 weights = mask_weights(mk, px, mask, quiet)
@@ -436,8 +443,10 @@ def fill_streamed(input_path: str, output_path: str, session, work_for: Callable
         spec = dataclasses.replace(info, alpha_mode="none") if keep_alpha else info
         stream_plan(plan, [feed], output_path, spec, c, write.for_inputs([input_path] + ([mask] if mask else [])),
                     session, choice, where=input_path, reporter=reporter, finish=finish)
-        said.say(mask, reporter.warn, NAN_HINT)  # (a whole fill says nothing of the image's NaN/Inf: its holes)
+        if mask is not None:  # (a whole fill says nothing of the image's NaN/Inf: its holes)
+            said.say(mask, reporter.warn, NAN_HINT)
         reporter.detail(f"{io.describe_rules(info)}; executor {session.ran}")
+    assert choice.band is not None, "decide returns a Choice that streams"
     return (h, w), counts, choice.band
 
 

@@ -125,7 +125,8 @@ def fill_options(scale: int | tuple[int, int], sweeps: int | tuple[int, int]) ->
         if len(v) != 2 or not all(isinstance(x, (int, np.integer)) and lo <= x <= hi for x in v):
             raise UsageError(f"the {name} must be one integer from {lo} to {hi}, or two (level 1, coarser levels), "
                              f"not {value!r}")
-        pairs.append(tuple(int(x) for x in v))
+        first, coarser = (int(x) for x in v)
+        pairs.append((first, coarser))
     return tuple(pairs)
 
 
@@ -239,7 +240,7 @@ def fill_output(filled: np.ndarray, pixels: np.ndarray, holes: str = "alpha",
     if holes == "alpha":
         channels = a.shape[2]
         ch = alpha_channel if alpha_channel is not None else channels - 1
-        out = np.empty(f3.shape[:2] + (channels,), dtype=np.float32)
+        out: np.ndarray = np.empty(f3.shape[:2] + (channels,), dtype=np.float32)
         colours = [c for c in range(channels) if c != ch]
         rows = max(1, OUTPUT_BAND // max(1, out.shape[1] * channels))
         for r in range(0, out.shape[0], rows):  # in bands: each band's colours and alpha written while cached
