@@ -54,7 +54,7 @@ from numpy.typing import ArrayLike, DTypeLike
 
 from pyramid_cli import imageio as io
 from pyramid_cli.core import catalogue, errors, options
-from pyramid_cli.core.border import canonical
+from pyramid_cli.core.border import aliases_text, canonical
 from pyramid_cli.core.errors import BackendWarning, MaskWarning, MixedLatticeWarning, PyramidWarning
 from pyramid_cli.core.expr import Expr, Op
 from pyramid_cli.core.geometry import reduced
@@ -207,9 +207,8 @@ def reduce(array: ArrayLike, *, analysis: str = catalogue.DEFAULT_ANALYSIS, bord
     scikit-image's ``pyramid_reduce``, with the paper's filters and lattice instead of a Gaussian).
 
     ``analysis`` is a ⊗↓ filter (box, box4, quadratic, cubic) or a one-step expression (``"box *v^2 g"``);
-    ``border``, ``dtype``, ``backend``, ``session`` as in :func:`apply`: ``border`` one of clamp (edge,
-    nearest, replicate), mirror (symmetric, grid-mirror), wrap (periodic, grid-wrap), zero (constant,
-    grid-constant, black). The result is ``dtype`` (default the input's).
+    ``border``, ``dtype``, ``backend``, ``session`` as in :func:`apply`: ``border`` one of {borders}. The
+    result is ``dtype`` (default the input's).
 
     Examples
     --------
@@ -228,9 +227,8 @@ def expand(array: ArrayLike, *, synthesis: str = catalogue.DEFAULT_SYNTHESIS, bo
     scikit-image's ``pyramid_expand``, with the paper's filters and lattice).
 
     ``synthesis`` is a ⊗↑ filter (nearest, midpoint, doosabin, cubic, fourpoint) or a one-step expression;
-    ``border``, ``dtype``, ``backend``, ``session`` as in :func:`apply`: ``border`` one of clamp (edge,
-    nearest, replicate), mirror (symmetric, grid-mirror), wrap (periodic, grid-wrap), zero (constant,
-    grid-constant, black). The result is ``dtype`` (default the input's).
+    ``border``, ``dtype``, ``backend``, ``session`` as in :func:`apply`: ``border`` one of {borders}. The
+    result is ``dtype`` (default the input's).
 
     Examples
     --------
@@ -265,9 +263,7 @@ def blur(array: ArrayLike, levels: int = 4, *, sigma: float | None = None,
     quasi : bool
         Apply the §5.5 quasi-interpolation prefilter at the coarsest level.
     border, dtype, backend, session, out, memory
-        As in :func:`apply` (``out`` and memory-mapped inputs run band by band); ``border`` one of clamp
-        (edge, nearest, replicate), mirror (symmetric, grid-mirror), wrap (periodic, grid-wrap), zero
-        (constant, grid-constant, black).
+        As in :func:`apply` (``out`` and memory-mapped inputs run band by band); ``border`` one of {borders}.
 
     Returns
     -------
@@ -311,8 +307,7 @@ def pyramid(array: ArrayLike, *, analysis: str = catalogue.DEFAULT_ANALYSIS, lev
     levels : int, optional
         Reductions after level 0 (0 to 16); None goes down to 1×1 (scikit-image's convention).
     border, dtype, backend, session, memory
-        As in :func:`apply`: ``border`` one of clamp (edge, nearest, replicate), mirror (symmetric,
-        grid-mirror), wrap (periodic, grid-wrap), zero (constant, grid-constant, black).
+        As in :func:`apply`: ``border`` one of {borders}.
     out : sequence of numpy.ndarray, optional
         One array per level after level 0 to write into (memmaps, say); with it, ``memory`` or a
         memory-mapped input the pyramid runs band by band, as in :func:`apply`, and level 0 is ``array``
@@ -348,9 +343,7 @@ def laplacian(array: ArrayLike, levels: int = 4, *, analysis: str = catalogue.DE
 
     Returns a :class:`Bands` list that records ``synthesis`` and ``border``: :func:`collapse` sums it
     back to the input with them, exactly up to float rounding. ``out`` (one array per band), ``memory``
-    or a memory-mapped input run it band by band, as in :func:`apply`. ``border`` is one of clamp (edge,
-    nearest, replicate), mirror (symmetric, grid-mirror), wrap (periodic, grid-wrap), zero (constant,
-    grid-constant, black).
+    or a memory-mapped input run it band by band, as in :func:`apply`. ``border`` is one of {borders}.
 
     Bands are signed: a float input's keep its dtype, an integer input's are float32 (``dtype=`` asks for
     another).
@@ -391,8 +384,7 @@ def collapse(bands: Sequence[ArrayLike], *, synthesis: str | None = None, border
     refused (ValueError), as ``pyramid collapse`` refuses what contradicts a file's record. A plain list
     of arrays cannot say: its defaults are the paper's Doo-Sabin and ``"clamp"``, and a wrong one gives
     a wrong image without an error. Band sizes and channel counts are checked either way. ``border``
-    as in :func:`apply` (clamp, edge, nearest, replicate, mirror, symmetric, grid-mirror, wrap, periodic,
-    grid-wrap, zero, constant, grid-constant, black); the result is ``dtype``, default the bands' (all
+    as in :func:`apply` (one of {borders}); the result is ``dtype``, default the bands' (all
     the bands' dtypes combined, as ``numpy.result_type``).
 
     Examples
@@ -441,9 +433,8 @@ def mipmap(array: ArrayLike, *, analysis: str = catalogue.MIP_ANALYSIS_DEFAULT, 
            memory: int | str | None = None) -> list[np.ndarray]:
     """MIP levels down to 1×1, level 0 (a copy of the input) first, as ``pyramid mipmap`` writes them.
 
-    Every level is of ``dtype`` (default the input's). ``border`` as in :func:`apply` (clamp, edge,
-    nearest, replicate, mirror, symmetric, grid-mirror, wrap, periodic, grid-wrap, zero, constant,
-    grid-constant, black). ``out`` (one array per level after level 0), ``memory`` or a memory-mapped
+    Every level is of ``dtype`` (default the input's). ``border`` as in :func:`apply` (one of {borders}).
+    ``out`` (one array per level after level 0), ``memory`` or a memory-mapped
     input run it band by band, as in :func:`apply` (level 0 is then ``array`` itself).
 
     ``rounding`` "down" (maketx's and OpenEXR's sizes ``max(1, ⌊n/2⌋)``): a level that halves
@@ -507,8 +498,7 @@ def fill(array: ArrayLike, *, mask: ArrayLike | None = None, holes: str | None =
         With ``holes="alpha"``: return the input's alpha beside the filled colours, which are
         then straight (not multiplied by alpha), instead of an opaque image.
     border, dtype, backend, session
-        As in :func:`apply`: ``border`` one of clamp (edge, nearest, replicate), mirror (symmetric,
-        grid-mirror), wrap (periodic, grid-wrap), zero (constant, grid-constant, black).
+        As in :func:`apply`: ``border`` one of {borders}.
 
     Returns
     -------
@@ -579,8 +569,7 @@ def blend(a: ArrayLike, b: ArrayLike, mask: ArrayLike, *, levels: int | None = N
         ⊗↓ and ⊗↑ filters (§4, §5); the defaults are the paper's Figure 3b. A pair on two
         lattices moves the seam (7.5 px at 4 levels) and warns (MixedLatticeWarning).
     border, dtype, backend, session
-        As in :func:`apply`: ``border`` one of clamp (edge, nearest, replicate), mirror (symmetric,
-        grid-mirror), wrap (periodic, grid-wrap), zero (constant, grid-constant, black).
+        As in :func:`apply`: ``border`` one of {borders}.
 
     Returns
     -------
@@ -692,6 +681,10 @@ def process_files(work: Work, inputs: Sequence[str], output: str | None = None, 
                    skip_existing=skip_existing, jobs=jobs, frames=frames, shard=shard, cluster=cluster, chunk=chunk,
                    cluster_timeout=cluster_timeout)
 
+
+# The border aliases in the docstrings come from core.border's one table.
+for _f in (reduce, expand, blur, pyramid, laplacian, collapse, mipmap, fill, blend):
+    _f.__doc__ = (_f.__doc__ or "").replace("{borders}", aliases_text())
 
 __all__ = ["fill", "blend", "apply", "reduce", "expand", "blur", "pyramid", "laplacian", "collapse", "mipmap",
            "read_image", "write_image", "process_files", "as_pixels", "Session", "Work", "Filter", "Blur", "SigmaBlur",

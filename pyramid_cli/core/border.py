@@ -36,6 +36,12 @@ BORDER_ALIASES: dict[str, str] = {
     "constant": "zero", "grid-constant": "zero", "black": "zero",
 }
 
+def aliases_text() -> str:
+    """Each mode with its aliases, as the API's docstrings list them: ``clamp (edge, nearest, replicate), …``."""
+    return ", ".join(f"{mode} ({', '.join(a for a, m in BORDER_ALIASES.items() if m == mode)})"
+                     for mode in dict.fromkeys(BORDER_ALIASES.values()))
+
+
 # Names that mean another mode in another library, or a mode we do not have: refused, saying which of ours is near.
 BORDER_REFUSED: dict[str, str] = {
     "reflect": "means two things: numpy's and scikit-image's 'reflect' (d c b | a b c d, the edge sample not "

@@ -66,3 +66,11 @@ def test_other_libraries_names_map_to_one_mode_each_and_reflect_is_refused():
         canonical("reflect")
     with pytest.raises(UsageError, match=r"must be one of clamp, mirror, wrap, zero \(or edge, nearest"):
         canonical("reflex")
+
+
+def test_the_aliases_text_names_every_alias_beside_its_mode():
+    from pyramid_cli.core.border import BORDER_ALIASES, aliases_text
+
+    text = aliases_text()
+    for alias, mode in BORDER_ALIASES.items():
+        assert f"{mode} (" in text and alias in text.split(f"{mode} (")[1].split(")")[0], (alias, mode)
