@@ -316,6 +316,15 @@ def open_input(path: str, read):
                           colorconfig=read.colorconfig)
 
 
+def warn_nonfinite(streams, read, reporter) -> None:
+    """Say, as a whole read does (:func:`pyramid_cli.run.inputs.read_input`), how many NaN/Inf each stream kept."""
+    if reporter is None or read.nan != "keep":
+        return
+    for st in streams:
+        if st.nonfinite:
+            reporter.warn(nonfinite_kept(st.path, st.nonfinite))
+
+
 def stream_file(in_path: str, out_path: str | list[str], work, session, choice: Choice | None = None, *,
                 budget: int, read=None, write=None, reporter=None, stream=None, attributes: dict | None = None
                 ) -> Choice:
@@ -380,8 +389,7 @@ def stream_file(in_path: str, out_path: str | list[str], work, session, choice: 
             reporter.detail(f"{in_path}: CPU seconds: decoding {reader.busy:.2f}, computing {computed:.2f} (this "
                             f"thread), encoding and writing {writer.busy:.2f}, each on a thread of its own")
         session.ran = session.name
-        if reporter is not None and stream.nonfinite and ro.nan == "keep":
-            reporter.warn(nonfinite_kept(in_path, stream.nonfinite))
+        warn_nonfinite([stream], ro, reporter)
         return choice
     finally:
         if owned:
@@ -477,4 +485,4 @@ def run_levels(in_path: str, paths: list[str], work, session, *, memory: int | N
 
 __all__ = ["Choice", "choose", "choose_mip", "estimate", "parse_size", "default_memory", "available_memory",
            "stream_file", "open_input", "format_size", "run_job", "run_levels", "costs", "executor_of", "read_step",
-           "speed_band", "MIN_BAND", "STREAM_PIXELS", "BAND_PIXELS"]
+           "speed_band", "warn_nonfinite", "MIN_BAND", "STREAM_PIXELS", "BAND_PIXELS"]

@@ -30,8 +30,16 @@ from pyramid_cli.core.errors import DataError, InputError
 from pyramid_cli.plan import Plan
 from pyramid_cli.run.budget import resolve
 from pyramid_cli.run.overlap import Reader, overlapped
-from pyramid_cli.run.report import nonfinite_kept
-from pyramid_cli.run.stream import MIN_BAND, Choice, choose, costs, executor_of, speed_band
+from pyramid_cli.run.stream import (
+    MIN_BAND,
+    Choice,
+    choose,
+    costs,
+    executor_of,
+    open_input,
+    speed_band,
+    warn_nonfinite,
+)
 
 Prepare = Callable[[int, list[np.ndarray]], list[np.ndarray]]
 
@@ -161,15 +169,6 @@ def stream_plan(plan: Plan, feeds: Sequence[Feed], out_path: str, info, channels
     session.ran = session.name
 
 
-def warn_nonfinite(streams, read, reporter) -> None:
-    """Say, as a whole read does (:func:`pyramid_cli.run.inputs.read_input`), how many NaN/Inf each stream kept."""
-    if reporter is None or read.nan != "keep":
-        return
-    for st in streams:
-        if st.nonfinite:
-            reporter.warn(nonfinite_kept(st.path, st.nonfinite))
-
-
 def mask_layout(path: str, info, mask_shape: tuple[int, ...], shape: tuple[int, ...], warn) -> int | None:
     """Which channel of a mask or weight image (header ``info``, (H, W, C) ``mask_shape``) weights an image of
     ``shape``: None, every channel as it is (one, or one per channel); else its alpha channel's index, with
@@ -240,9 +239,7 @@ def blend_streamed(a_path: str, b_path: str, mask_path: str, output_path: str, w
         return None
     ro = read
     with contextlib.ExitStack() as stack:
-        a, b = (stack.enter_context(io.open_stream(p, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan,
-                                                   colorconfig=ro.colorconfig))
-                for p in (a_path, b_path))
+        a, b = (stack.enter_context(open_input(p, ro)) for p in (a_path, b_path))
         m = stack.enter_context(io.open_stream(mask_path, colorspace="linear", alpha="none", nan=ro.nan,
                                                colorconfig=ro.colorconfig))
         if a.shape != b.shape or a.shape[:2] != m.shape[:2]:
@@ -290,7 +287,6 @@ def collapse_streamed(paths: list[str], output_path: str, session, settle: Calla
     ``options_from``: the inputs the write options follow. Returns the choice it ran with, or None when the
     job runs whole (it fits and is no faster in bands, an output encoded whole, or bands that do not make a
     pyramid: the whole run then says why as before)."""
-    from pyramid_cli import imageio as io
     from pyramid_cli.core.geometry import halved
     from pyramid_cli.jobs.work import Collapse
 
@@ -298,8 +294,7 @@ def collapse_streamed(paths: list[str], output_path: str, session, settle: Calla
         return None
     ro = read
     with contextlib.ExitStack() as stack:
-        streams = [stack.enter_context(io.open_stream(p, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan,
-                                                      colorconfig=ro.colorconfig)) for p in paths]
+        streams = [stack.enter_context(open_input(p, ro)) for p in paths]
         shapes = [st.shape for st in streams]
         if (len({s[2] for s in shapes}) > 1
                 or any(tuple(shapes[k][:2]) != halved(tuple(shapes[k - 1][:2])) for k in range(1, len(shapes)))):
@@ -372,8 +367,7 @@ def fill_streamed(input_path: str, output_path: str, session, work_for: Callable
     ro = read
     quiet = lambda _: None  # noqa: E731 - the per-band calls' messages are said once, over the bands
     with contextlib.ExitStack() as stack:
-        st = stack.enter_context(io.open_stream(input_path, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan,
-                                                colorconfig=ro.colorconfig))
+        st = stack.enter_context(open_input(input_path, ro))
         ms = (stack.enter_context(io.open_stream(mask, colorspace="linear", alpha="none", nan=ro.nan,
                                                  colorconfig=ro.colorconfig)) if mask else None)
         info = st.info

@@ -15,8 +15,7 @@ import numpy as np
 from pyramid_cli.core.errors import DataError, OutputError, UsageError
 from pyramid_cli.run.budget import resolve
 from pyramid_cli.run.overlap import overlapped
-from pyramid_cli.run.report import nonfinite_kept
-from pyramid_cli.run.stream import MIN_BAND, choose_mip, costs, executor_of, open_input, read_step
+from pyramid_cli.run.stream import MIN_BAND, choose_mip, costs, executor_of, open_input, read_step, warn_nonfinite
 
 
 class _Kept:
@@ -272,8 +271,7 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
         for i in range(len(shapes) - 1):
             writer.append_level(lambda r0, r1, i=i: kept.rows(i, r0, r1))
     session.ran = session.name
-    if st.nonfinite and ro.nan == "keep":
-        reporter.warn(nonfinite_kept(in_path, st.nonfinite))
+    warn_nonfinite([st], ro, reporter)
     reporter.result(f"wrote {out_path} ({w}×{h}, {len(shapes)} MIP levels, {session.ran}, streamed in bands of "
                     f"{band} rows{', the input read once' if once else ''})")
     return True
