@@ -25,9 +25,9 @@ from pyramid_cli.imageio.formats import (
     pixel_type_name,
 )
 from pyramid_cli.imageio.image import Image, ImageInfo
+from pyramid_cli.imageio.ocio import check_names
 from pyramid_cli.imageio.read import (
     apply_nan_policy,
-    check_colorspace,
     check_input_file,
     decode_stored,
     describe_spec,
@@ -57,7 +57,7 @@ class ImageStream:
 
     def __init__(self, path: str, *, colorspace: str = "auto", alpha: str = "auto", nan: str = "keep",
                  keep_half: bool = False, colorconfig: str | None = None):
-        check_colorspace(colorspace, colorconfig)
+        check_names(colorspace, colorconfig=colorconfig)
         check_choice("alpha mode", alpha, ("auto", *ALPHA_MODES))
         check_choice("nan mode", nan, options.NAN_POLICIES)
         self.path = p = os.fspath(path)

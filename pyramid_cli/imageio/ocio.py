@@ -209,8 +209,8 @@ def input_space(meta: object, path: str, integer: bool, colorspace: str,
         return short_name(colorspace, colorconfig), "option"
     if isinstance(meta, str) and known(meta.strip(), colorconfig):
         return short_name(meta.strip(), colorconfig), "metadata"
-    config = load(colorconfig)
-    if path and not config.filepathOnlyMatchesDefaultRule(path):
+    config = load(colorconfig) if path else None  # no file rule without a file name: no config to load
+    if config is not None and not config.filepathOnlyMatchesDefaultRule(path):
         rule = config.getColorSpaceFromFilepath(path)
         if known(rule, colorconfig):
             return short_name(rule, colorconfig), "file rule"

@@ -100,7 +100,7 @@ def read_image(path: str | os.PathLike[str], *, colorspace: str = "auto",
         An unknown ``colorspace``, ``alpha`` or ``nan`` value, or a colour
         config that does not load.
     """
-    check_colorspace(colorspace, colorconfig)
+    check_names(colorspace, colorconfig=colorconfig)
     check_choice("alpha mode", alpha, ("auto", *ALPHA_MODES))
     check_choice("nan mode", nan, options.NAN_POLICIES)
     p = os.fspath(path)
@@ -117,11 +117,6 @@ def read_image(path: str | os.PathLike[str], *, colorspace: str = "auto",
     pixels = decode_stored(data, info)
     apply_nan_policy(pixels, nan, info, p, floats=data.dtype.kind == "f")
     return Image(pixels=pixels, spec=info)
-
-
-def check_colorspace(colorspace: str, colorconfig: str | None = None) -> None:
-    """Refuse (UsageError, exit 2) a config that does not load or a space it does not know."""
-    check_names(colorspace, colorconfig=colorconfig)
 
 
 def describe_spec(spec: oiio.ImageSpec, fmt: str, p: str, colorspace: str, alpha: str,
