@@ -237,7 +237,7 @@ class CPUExecutor:
             self.compiles += 1
 
     def _build(self, s: PassShape, t: str = "float32") -> Kernel:
-        source = kernel_source(s, t)
+        source = _pass_source(s, t)
         fn = load(source, self.cache)
         self._ready(fn, signature(s.n_sources, s.period[1], t), compile_vectorised)
         terms = {ph: phase_terms(taps) for ph, taps in s.phases}
@@ -506,6 +506,13 @@ def _work(dtype) -> str:
     return "float64" if np.dtype(dtype) == np.float64 else "float32"
 
 
+@lru_cache(maxsize=256)
+def _pass_source(s: PassShape, t: str) -> str:
+    """The kernel source of pass shape ``s`` at working type ``t``, made once: :func:`kernel_digest` (``auto``'s
+    count of kernels to load) and the executor's build both ask for it."""
+    return kernel_source(s, t)
+
+
 @lru_cache(maxsize=8)
 def _shared_digest(kind: str, t: str) -> str:
     """The digest of the resampling or the pointwise kernel at working type ``t`` (made when first asked)."""
@@ -521,7 +528,7 @@ def kernel_digest(ps: Pass | ResamplePass | PointwisePass, dtype=np.float32) -> 
         return _shared_digest("resample", t)
     if isinstance(ps, PointwisePass):
         return _shared_digest("pointwise", t)
-    return source_digest(kernel_source(shape(ps), t))
+    return source_digest(_pass_source(shape(ps), t))
 
 
 __all__ = ["CPUExecutor", "Kernel", "OUT_DTYPES", "SMALL", "TINY", "default_threads", "kernel_digest"]
