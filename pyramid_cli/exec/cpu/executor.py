@@ -324,7 +324,7 @@ class CPUExecutor:
         dtype = np.dtype(dtype)
         if dtype not in OUT_DTYPES:
             raise ValueError(f"outputs are float32, float16 or float64, not {dtype}")
-        wt = np.dtype(np.float64) if dtype == np.float64 else np.dtype(np.float32)  # the working type
+        wt = np.dtype(_work(dtype))  # the working type
         arrays = plan_inputs(plan, images, np.float64 if wt == np.float64 else None)
         flat = arrays[0].ndim == 2
         arrays = [a[:, :, None] if flat else a for a in arrays]
