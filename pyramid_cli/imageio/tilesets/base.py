@@ -1,0 +1,131 @@
+"""What every viewer layout's writer is: levels of rows in, a tile set on disk out.
+
+The run layer (:mod:`pyramid_cli.run.tiles`) makes every level of the pyramid band by band
+(level 0 is the input itself, level k is ⌈n/2⌉ of level k − 1 on each axis: the paper's ⊗↓ with
+the odd sizes of docs/design.md) and hands each level's rows to one :class:`TileSetWriter`, in
+order within each level, but interleaved across levels as the band pipeline makes them. The writer
+encodes them (the input's type and colour space, as :func:`~pyramid_cli.imageio.encode.encoded_rows`
+stores them for a file of its format), cuts its tiles or chunks as soon as their rows (and overlap)
+are complete, and writes them under a staging path (:mod:`~pyramid_cli.imageio.tilesets.staging`)
+that :meth:`TileSetWriter.finish` moves into place, descriptor last; :meth:`TileSetWriter.abort`
+removes it and leaves whatever was at the output untouched.
+"""
+
+from __future__ import annotations
+
+import abc
+import os
+from dataclasses import dataclass, field
+from typing import ClassVar
+
+import numpy as np
+
+from pyramid_cli.core.geometry import halved
+from pyramid_cli.imageio.encode import encoded_rows
+from pyramid_cli.imageio.image import Image, ImageInfo
+
+
+@dataclass(frozen=True)
+class TileOptions:
+    """What the user asked of the tile set; None: the layout's default.
+
+    Attributes
+    ----------
+    tile_size, overlap : int or None
+        Tile edge and overlap in pixels (Deep Zoom: 254 and 1, as ``vips dzsave``).
+    suffix : str or None
+        Tile file format of the folder layouts (``"jpeg"``, ``"png"``, ``"webp"``, ``"tif"``), without dot.
+    quality : int or None
+        JPEG/WebP quality (``vips dzsave``'s Q, 75 by default).
+    compression : str or None
+        Codec of the chunks or TIFF tiles (``"jpeg"``, ``"deflate"``, ``"zstd"``, ``"none"``...).
+    write : dict
+        The write options of the other commands (``pixel_type``, ``colorspace`` (the output's),
+        ``alpha``, ``dither``), passed to :func:`~pyramid_cli.imageio.encode.encoded_rows`.
+    """
+
+    tile_size: int | None = None
+    overlap: int | None = None
+    suffix: str | None = None
+    quality: int | None = None
+    compression: str | None = None
+    write: dict = field(default_factory=dict)
+
+
+def ceil_levels(size: tuple[int, int], count: int) -> list[tuple[int, int]]:
+    """(rows, cols) of levels 0..count−1, each ⌈n/2⌉ of the one before."""
+    out = [tuple(size)]
+    for _ in range(count - 1):
+        out.append(halved(out[-1]))
+    return [(int(h), int(w)) for h, w in out]
+
+
+class TileSetWriter(abc.ABC):
+    """One tile set being written (see the module). Subclasses set :attr:`layout` and implement
+    :meth:`level_count`, :meth:`_rows`, :meth:`_finish` and :meth:`_abort`.
+
+    Parameters
+    ----------
+    path : str
+        The user's output path (``name.dzi``, ``folder/`` for IIIF, ``name.ome.zarr``, ``name.tif``).
+    info : ImageInfo
+        How the input was stored: the tiles keep its type and colour space where the format can.
+    size : (int, int)
+        (rows, cols) of the input, level 0.
+    channels : int
+        Channels of the pixels handed to :meth:`rows` (alpha included, premultiplied).
+    options : TileOptions
+        What the user asked.
+    """
+
+    layout: ClassVar[str]            # the --layout name: "dz", "iiif3", "iiif", "ome-zarr", "tiff", "ome-tiff"
+    encode_as: ClassVar[str] = "x.tif"  # a file name whose format decides how rows are stored (folders: the suffix)
+
+    def __init__(self, path: str, info: ImageInfo, size: tuple[int, int], channels: int, options: TileOptions):
+        self.path, self.info, self.channels, self.options = os.fspath(path), info, channels, options
+        self.sizes = ceil_levels(size, self.level_count(size, options))
+
+    @classmethod
+    @abc.abstractmethod
+    def level_count(cls, size: tuple[int, int], options: TileOptions) -> int:
+        """Levels the layout holds for an input of ``size`` (level 0 included): Deep Zoom's down to 1×1,
+        a TIFF's until a level fits in one tile, ..."""
+
+    def check(self) -> None:
+        """Refuse, before any work, what this layout cannot hold (UsageError/OutputError, one line with the
+        path): a suffix, type, channel count or option it would ignore. Nothing here."""
+        return None
+
+    def encode(self, pixels: np.ndarray, y0: int = 0) -> np.ndarray:
+        """Stored values of linear premultiplied float rows (the input's type and colour space where
+        :attr:`encode_as`'s format holds them). ``y0``: the rows' first row (dithering lines up at multiples
+        of 8)."""
+        del y0  # the 8-row dither pattern starts at each band: bands are multiples of 8 rows
+        return encoded_rows(self.encode_as, Image(pixels, self.info), **self.options.write)
+
+    def rows(self, level: int, y0: int, pixels: np.ndarray) -> None:
+        """Linear, premultiplied float32 rows ``y0 ..`` of level ``level`` (0 = the input), (h, W, C), each row of
+        each level exactly once and in order; ``pixels`` may be reused by the caller after the call."""
+        self._rows(level, y0, pixels)
+
+    @abc.abstractmethod
+    def _rows(self, level: int, y0: int, pixels: np.ndarray) -> None: ...
+
+    def finish(self) -> dict:
+        """Write what is left (the descriptor last), move the tile set into place, and describe it for
+        ``--json``: ``{"layout", "path", "tile_size", "overlap", "format", "levels": [{"level" (the layout's own
+        number), "reduction" (k), "size": [w, h], "scale": 2**k, "rule": "ceil-half", "tiles" or "chunks"}]}``."""
+        return self._finish()
+
+    @abc.abstractmethod
+    def _finish(self) -> dict: ...
+
+    def abort(self) -> None:
+        """Remove everything written so far; whatever was at the output before stays as it was."""
+        self._abort()
+
+    @abc.abstractmethod
+    def _abort(self) -> None: ...
+
+
+__all__ = ["TileOptions", "TileSetWriter", "ceil_levels"]

@@ -1,0 +1,56 @@
+"""A tile set built beside its output and moved into place at the end, descriptor last.
+
+A tile set is several paths (Deep Zoom: ``name_files/`` and ``name.dzi``; IIIF and OME-Zarr: one
+folder; a TIFF: one file). :class:`Staging` gives each a path inside a hidden folder beside the
+first one (``.NAME.tmp-XXXX``, on the same file system, so every move is a rename); :meth:`Staging.commit`
+moves them onto their paths in the order given (the descriptor last: a viewer that opens the
+descriptor finds its tiles), each previous output moved aside first and removed only after every new
+path is in place; :meth:`Staging.discard` (any failure or interruption) removes the hidden folder and
+leaves the previous output as it was.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+from collections.abc import Sequence
+
+from pyramid_cli.core.errors import OutputError
+from pyramid_cli.imageio.atomic import ensure_output_dir, error_reason
+
+
+class Staging:
+    """Hidden staging paths for ``paths`` (the user's outputs, the descriptor last); see the module."""
+
+    def __init__(self, paths: Sequence[str]):
+        self.paths = [os.fspath(p) for p in paths]
+        first = self.paths[0].rstrip(os.sep) or self.paths[0]
+        ensure_output_dir(first)
+        folder = os.path.dirname(os.path.abspath(first))
+        try:
+            self.root = tempfile.mkdtemp(prefix=f".{os.path.basename(first)}.tmp-", dir=folder)
+        except OSError as exc:
+            raise OutputError(f"cannot write {self.paths[0]}: {error_reason(exc)}") from None
+        self.staged = [os.path.join(self.root, os.path.basename(p.rstrip(os.sep))) for p in self.paths]
+
+    def commit(self) -> None:
+        """Move every staged path onto its output, in order; the previous outputs are removed last."""
+        old = os.path.join(self.root, ".previous")
+        os.mkdir(old)
+        try:
+            for k, (path, staged) in enumerate(zip(self.paths, self.staged, strict=True)):
+                target = path.rstrip(os.sep) or path
+                if os.path.lexists(target):
+                    os.replace(target, os.path.join(old, str(k)))
+                os.replace(staged, target)
+        except OSError as exc:
+            raise OutputError(f"cannot write {self.paths[0]}: {error_reason(exc)}") from None
+        self.discard()
+
+    def discard(self) -> None:
+        """Remove the hidden folder and everything in it (what a failed run wrote, or the previous outputs)."""
+        shutil.rmtree(self.root, ignore_errors=True)
+
+
+__all__ = ["Staging"]
