@@ -325,6 +325,55 @@ def warn_nonfinite(streams, read, reporter) -> None:
             reporter.warn(nonfinite_kept(st.path, st.nonfinite))
 
 
+@dataclass(frozen=True)
+class BandTimes:
+    """CPU seconds of a band run's three threads (:func:`run_bands`)."""
+
+    decoding: float
+    computing: float
+    encoding: float
+
+    def describe(self) -> str:
+        return (f"CPU seconds: decoding {self.decoding:.2f}, computing {self.computing:.2f} (this thread), "
+                f"encoding and writing {self.encoding:.2f}, each on a thread of its own")
+
+
+def run_bands(read: Callable[[int, int], np.ndarray], plan: Plan, executor, band: int,
+              output_rows: Callable[[int, int, np.ndarray], None],
+              input_rows: Callable[[int, np.ndarray], None] | None = None) -> BandTimes:
+    """The band engine: ``plan`` (one input) on the row-band scheduler of :mod:`pyramid_cli.exec.tiles` in bands of
+    ``band`` output rows, the input decoded ahead by ``read(y0, y1)`` and the rows handed behind
+    (:mod:`pyramid_cli.run.overlap`).
+
+    ``output_rows(j, y0, px)``: rows of ``plan.outputs[j]`` (a copy, the executor's working type), in order within
+    each output; ``input_rows(y0, px)``: each input row once, in order, as decoded (a job that keeps its input
+    writes it as level 0). Both are called on the writer's thread, in the order the scheduler makes the rows.
+    Whatever they hold is theirs to release; an error on any thread, or an interruption, stops and joins both
+    threads before it goes on (:func:`~pyramid_cli.run.overlap.overlapped`)."""
+    from pyramid_cli.exec import tiles
+
+    emu = executor.work_dtype == np.float64
+    (h, w), = (plan.images[k].size for k in plan.inputs)
+    slot = {k: i for i, k in enumerate(plan.outputs)}
+    with overlapped(read, h, read_step(plan, band)) as (reader, writer):
+        def source(k, rows, cols):
+            px = reader.rows(*rows)
+            if input_rows is not None:
+                writer.call(input_rows, rows[0], px)
+            px = px[:, cols[0]:cols[1]] if (cols[0], cols[1]) != (0, w) else px
+            return px.astype(np.float64) if emu else px
+
+        def sink(k, r, c0, px):  # px is the scheduler's buffer: the writer keeps rows, so a copy
+            writer.call(output_rows, slot[k], r, px.copy())
+
+        scheduler = tiles.Scheduler(executor, plan, source, sink, band=band, dtype=np.float64 if emu else np.float32)
+        started = time.thread_time()
+        scheduler.run()
+        computed = time.thread_time() - started
+    assert reader is not None, "overlapped reads read"
+    return BandTimes(reader.busy, computed, writer.busy)
+
+
 def stream_file(in_path: str, out_path: str | list[str], work, session, choice: Choice | None = None, *,
                 budget: int, read=None, write=None, reporter=None, stream=None, attributes: dict | None = None
                 ) -> Choice:
@@ -334,7 +383,6 @@ def stream_file(in_path: str, out_path: str | list[str], work, session, choice: 
     ``stream``: an open :class:`pyramid_cli.imageio.ImageStream` of ``in_path`` (opened here if None);
     ``attributes``: metadata added to every output. Returns the :class:`Choice` it ran with."""
     from pyramid_cli import imageio as io
-    from pyramid_cli.exec import tiles
     from pyramid_cli.run.settings import ReadOptions, WriteOptions
 
     ro, wo = read or ReadOptions(), write or WriteOptions()
@@ -358,36 +406,20 @@ def stream_file(in_path: str, out_path: str | list[str], work, session, choice: 
         half = stream.dtype == np.float16
         dtypes = [np.float16 if half and io.stores_half_unchanged(p, info, pixel_type=options.get("pixel_type"))
                   else np.float32 for p in paths]
-        emu = executor.work_dtype == np.float64
         if choice is None:
             choice = choose(plan, c, budget, in_bytes=stream.dtype.itemsize, out_bytes=4, force=True, where=in_path,
                             keeps_input=bool(kept), **costs(executor))
         band = choice.band or MIN_BAND
-        slot = {k: kept + i for i, k in enumerate(plan.outputs)}
-        with (io.stream_writers(paths, [info] * len(paths), [s + (c,) for s in sizes], **options) as writers,
-              overlapped(stream.read, h, read_step(plan, band)) as (reader, writer)):
-            def source(k, rows, cols):
-                px = reader.rows(*rows)
-                if kept:  # level 0 is the input: written as it is read (each row once, in order)
-                    writer.call(writers[0].write, rows[0], px.astype(dtypes[0], copy=False))
-                px = px[:, cols[0]:cols[1]] if (cols[0], cols[1]) != (0, w) else px
-                return px.astype(np.float64) if emu else px
+        with io.stream_writers(paths, [info] * len(paths), [s + (c,) for s in sizes], **options) as writers:
+            def keep(y0: int, px: np.ndarray) -> None:  # level 0 is the input: each row once, in order
+                writers[0].write(y0, px.astype(dtypes[0], copy=False))
 
             def encode(j: int, r: int, px: np.ndarray) -> None:  # on the writer's thread
-                writers[j].write(r, px.astype(dtypes[j], copy=False))  # float32 to half: slow, so here
+                writers[kept + j].write(r, px.astype(dtypes[kept + j], copy=False))  # float32 to half: slow, so here
 
-            def sink(k, r, c0, px):  # px is the scheduler's buffer: the writer keeps rows, so a copy
-                writer.call(encode, slot[k], r, px.copy())
-
-            scheduler = tiles.Scheduler(executor, plan, source, sink, band=band,
-                                        dtype=np.float64 if emu else np.float32)
-            started = time.thread_time()
-            scheduler.run()
-            computed = time.thread_time() - started
-        assert reader is not None, "overlapped reads stream.read"
+            times = run_bands(stream.read, plan, executor, band, encode, keep if kept else None)
         if reporter is not None:
-            reporter.detail(f"{in_path}: CPU seconds: decoding {reader.busy:.2f}, computing {computed:.2f} (this "
-                            f"thread), encoding and writing {writer.busy:.2f}, each on a thread of its own")
+            reporter.detail(f"{in_path}: {times.describe()}")
         session.ran = session.name
         warn_nonfinite([stream], ro, reporter)
         return choice
@@ -483,6 +515,7 @@ def run_levels(in_path: str, paths: list[str], work, session, *, memory: int | N
     return True
 
 
-__all__ = ["Choice", "choose", "choose_mip", "estimate", "parse_size", "default_memory", "available_memory",
-           "stream_file", "open_input", "format_size", "run_job", "run_levels", "costs", "executor_of", "read_step",
-           "speed_band", "warn_nonfinite", "MIN_BAND", "STREAM_PIXELS", "BAND_PIXELS"]
+__all__ = ["BandTimes", "Choice", "choose", "choose_mip", "estimate", "parse_size", "default_memory",
+           "available_memory", "stream_file", "open_input", "format_size", "run_job", "run_levels", "costs",
+           "executor_of", "read_step", "run_bands", "speed_band", "warn_nonfinite", "MIN_BAND", "STREAM_PIXELS",
+           "BAND_PIXELS"]
