@@ -2,7 +2,7 @@
 
 ``import pyramid_cli as pyr`` gives the Python API (:mod:`pyramid_cli.api`):
 ``pyr.apply``, ``pyr.reduce``, ``pyr.expand``, ``pyr.blur``, ``pyr.pyramid``, ``pyr.laplacian``,
-``pyr.collapse``, ``pyr.mipmap``, ``pyr.fill``, ``pyr.blend``, ``pyr.read_image``, ``pyr.write_image``,
+``pyr.collapse``, ``pyr.mipmap``, ``pyr.tiles``, ``pyr.fill``, ``pyr.blend``, ``pyr.read_image``, ``pyr.write_image``,
 ``pyr.process_files``, ``pyr.Session``, the job values ``process_files`` takes (``pyr.Blur``, ``pyr.Fill``,
 ``pyr.TextureLevels``, …) and the warning categories (``pyr.PyramidWarning``, …). They load on first use,
 so importing the core (parser, algebra, planner) pulls in no third-party module.
@@ -20,7 +20,7 @@ if TYPE_CHECKING:  # what a type checker sees of the names loaded on first use
 _API = ("apply", "reduce", "expand", "blur", "pyramid", "laplacian", "collapse", "mipmap", "read_image",
         "write_image", "process_files", "as_pixels", "Session", "Work", "Filter", "Blur", "SigmaBlur", "Levels",
         "Laplacian", "Collapse", "Fill", "Blend", "TextureLevels", "fill", "blend", "Bands", "Report",
-        "PyramidWarning", "MixedLatticeWarning", "MaskWarning", "BackendWarning")
+        "PyramidWarning", "MixedLatticeWarning", "MaskWarning", "BackendWarning", "tiles")
 __all__ = list(_API)
 
 

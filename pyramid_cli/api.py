@@ -79,6 +79,7 @@ from pyramid_cli.run import arrays
 from pyramid_cli.run.arrays import ArrayInput
 from pyramid_cli.run.joblist import Report
 from pyramid_cli.run.report import PythonReporter
+from pyramid_cli.run.tiles import tiles  # pyr.tiles: a viewer's tile set, streamed (its body lives in run/)
 
 #: The logger of what ``-v`` says (the executor chosen and why, a sigma blur's blend): INFO records.
 log = logging.getLogger("pyramid_cli")
@@ -686,7 +687,7 @@ def process_files(work: Work, inputs: Sequence[str], output: str | None = None, 
 for _f in (reduce, expand, blur, pyramid, laplacian, collapse, mipmap, fill, blend):
     _f.__doc__ = (_f.__doc__ or "").replace("{borders}", aliases_text())
 
-__all__ = ["fill", "blend", "apply", "reduce", "expand", "blur", "pyramid", "laplacian", "collapse", "mipmap",
+__all__ = ["fill", "blend", "apply", "reduce", "expand", "blur", "pyramid", "laplacian", "collapse", "mipmap", "tiles",
            "read_image", "write_image", "process_files", "as_pixels", "Session", "Work", "Filter", "Blur", "SigmaBlur",
            "Levels", "Laplacian", "Collapse", "Fill", "Blend", "TextureLevels", "Bands", "Report", "PyramidWarning",
            "MixedLatticeWarning", "MaskWarning", "BackendWarning"]

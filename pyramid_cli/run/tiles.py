@@ -1,0 +1,368 @@
+"""``pyramid tiles``: every level of an analysis pyramid, streamed band by band into a viewer's tile set.
+
+One input (a file, or an array of the Python API) goes to one
+:class:`~pyramid_cli.imageio.tilesets.TileSetWriter` (Deep Zoom, IIIF, OME-Zarr, pyramidal TIFF: the
+layout named or read from the output's name, :func:`~pyramid_cli.imageio.tilesets.layout_of`). Its
+levels are the writer's sizes, each ⌈n/2⌉ of the one before (``w.sizes``): level 0 is the input, passed
+through as it is decoded; levels 1.. come from one plan (:func:`pyramid_cli.workflows.pyramids.levels_plan`,
+the paper's ⊗↓ analysis filter in linear light on premultiplied alpha, exact at every border and odd size)
+run by the band engine of :mod:`pyramid_cli.run.stream` (:func:`~pyramid_cli.run.stream.run_bands`): the
+input decoded ahead on a thread, the levels made band by band, every level's rows handed to the writer
+on a thread behind as soon as they are made. Nothing holds a whole level (the writer holds the rows of
+the tile row it completes), so memory stays flat with the picture's size.
+
+The writer builds beside its output and moves it into place at the end, descriptor last; any error or
+interruption (Ctrl-C, SIGTERM) calls its ``abort``, which removes what was written and leaves the previous
+output as it was.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from pyramid_cli.core import catalogue
+from pyramid_cli.core.errors import OutputError, PyramidError, UsageError
+from pyramid_cli.imageio import tilesets
+from pyramid_cli.imageio.tilesets import TileOptions
+from pyramid_cli.run.budget import format_size, resolve
+from pyramid_cli.run.joblist import Report
+from pyramid_cli.run.report import Reporter
+from pyramid_cli.run.stream import MIN_BAND, choose, costs, executor_of, run_bands, warn_nonfinite
+
+FOLDER_LAYOUTS = ("dz", "iiif3", "iiif")   # a folder of tile files: --format picks their format
+TILE_FORMATS = ("jpeg", "png", "webp", "tif")
+ALPHA_FORMATS = ("png", "webp", "tif")     # tile formats that hold alpha
+FORMAT_ALIASES = {"jpg": "jpeg", "tiff": "tif"}
+PASS_ROWS = 64                             # rows at a time of a one-level tile set (no plan: level 0 only)
+
+
+@dataclass(frozen=True)
+class TileSettings:
+    """What the user asked of every tile set of a run.
+
+    Attributes
+    ----------
+    layout : str or None
+        ``--layout`` (None: from the output's name).
+    analysis : str
+        The ⊗↓ filter or one-step expression each level is reduced with.
+    border : str
+        How the analysis reads past the edges (odd sizes are padded by it).
+    options : TileOptions
+        Tile size, overlap, tile format, quality, compression and the write options.
+    """
+
+    layout: str | None = None
+    analysis: str = catalogue.MIP_ANALYSIS_DEFAULT
+    border: str = "clamp"
+    options: TileOptions = dataclasses.field(default_factory=TileOptions)
+
+
+class ArraySource:
+    """An array of linear, premultiplied pixels read as a stream is (:meth:`read` of rows), for the API.
+
+    ``info`` says how the tiles store them (:func:`pyramid_cli.imageio.info_for_array`: float, linear,
+    channels named by count, alpha premultiplied)."""
+
+    def __init__(self, pixels: np.ndarray, info):
+        self.pixels = pixels if pixels.ndim == 3 else pixels[:, :, None]
+        self.info, self.path = info, "array"
+        self.shape = self.pixels.shape
+        self.dtype = np.dtype(np.float32)
+        self.nonfinite, self.nan = 0, "keep"
+
+    def read(self, y0: int, y1: int) -> np.ndarray:
+        return np.ascontiguousarray(self.pixels[y0:y1], dtype=np.float32)
+
+    def close(self) -> None:
+        return None
+
+
+def tile_format(layout: str, options: TileOptions, info, reporter: Reporter, where: str) -> TileOptions:
+    """``options`` with the folder layouts' tile format settled: as asked (aliases spelled out), else JPEG as
+    ``vips dzsave`` writes, or PNG when the input has alpha (-v says so). JPEG tiles of an input with alpha are
+    refused (JPEG holds no alpha; flattening would choose a background for the user); the other layouts refuse
+    ``--format``."""
+    asked = FORMAT_ALIASES.get(options.suffix or "", options.suffix)
+    alpha = getattr(info, "alpha_channel", -1) >= 0
+    if layout not in FOLDER_LAYOUTS:
+        if asked is not None:
+            raise UsageError(f"--format {options.suffix}: the {layout} layout stores no tile files "
+                             "(--compression picks its codec)")
+        return options
+    if asked is not None and asked not in TILE_FORMATS:
+        raise UsageError(f"--format {options.suffix}: not one of {', '.join(TILE_FORMATS)}")
+    if asked is None:
+        asked = "png" if alpha else "jpeg"
+        if alpha:
+            reporter.detail(f"{where}: PNG tiles, not JPEG: the input has alpha (JPEG holds none)")
+    elif asked not in ALPHA_FORMATS and alpha:
+        raise UsageError(f"{where}: --format {options.suffix}: JPEG tiles hold no alpha and the input has it; "
+                         "give --format png or webp, or --alpha ignore to drop it")
+    return dataclasses.replace(options, suffix=asked)
+
+
+def writer_memory(sizes: list[tuple[int, int]], channels: int, options: TileOptions) -> int:
+    """Bytes a writer holds at most, by the contract: per level the rows of the tile row it completes (tile edge
+    plus twice the overlap), as float32 and once encoded (upper bound: 4 bytes per value)."""
+    rows = (options.tile_size or 512) + 2 * (options.overlap or 0)
+    return sum(2 * min(h, rows) * w * channels * 4 for h, w in sizes)
+
+
+def _check_not_input(where: str, out: str, force: bool) -> None:
+    if force or where == "array" or not os.path.exists(out):
+        return
+    try:
+        same = os.path.samefile(where, out)
+    except OSError:
+        return
+    if same:
+        raise OutputError(f"refusing to overwrite input {out} (use --force)")
+
+
+def tile_source(source, where: str, out: str, settings: TileSettings, session, *, memory: int | None = None,
+                reporter: Reporter | None = None, force: bool = False) -> dict:
+    """Write the tile set of ``source`` (an :class:`~pyramid_cli.imageio.ImageStream` or :class:`ArraySource`,
+    named ``where`` in messages) at ``out`` (see the module); returns the writer's ``finish()`` description with
+    ``input``, ``backend``, ``analysis``, ``border``, ``band`` (rows per band; None: one level, or run whole on
+    the reference backend) and ``seconds`` added."""
+    reporter = reporter or Reporter()
+    started = time.perf_counter()
+    layout = tilesets.layout_of(os.fspath(out), settings.layout)
+    cls = tilesets.writer_class(layout)
+    h, w, c = source.shape
+    _check_not_input(where, out, force)
+    options = tile_format(layout, settings.options, source.info, reporter, where)
+    writer = cls(out, source.info, (h, w), c, options)
+    try:
+        writer.check()
+        sizes = writer.sizes
+        reporter.detail(_describe_rules(source.info))
+        reporter.detail(f"{out}: layout {layout}, {len(sizes)} level(s) "
+                        f"({' '.join(f'{b}×{a}' for a, b in sizes)}), each ⌈n/2⌉ of the one before, reduced with "
+                        f"{settings.analysis} ⊗↓ (--border {settings.border})"
+                        + (f", {options.suffix} tiles" if options.suffix else ""))
+        band = _make_levels(source, where, writer, sizes, options, settings, session, memory, reporter)
+        report = writer.finish()
+    except BaseException:
+        try:
+            writer.abort()
+        except Exception:  # noqa: BLE001 - the first error is the one to say
+            pass
+        raise
+    warn_nonfinite([source], source, reporter)  # its .nan: the policy it was read with
+    ran = getattr(session, "ran", "") or ""
+    report = {**report, "input": where, "backend": ran, "analysis": settings.analysis, "border": settings.border,
+              "band": band, "seconds": round(time.perf_counter() - started, 3)}
+    reporter.result(f"wrote {out} ({w}×{h}, {len(sizes)} levels, {layout}, {ran})")
+    return report
+
+
+def _describe_rules(info) -> str:
+    from pyramid_cli import imageio as io
+
+    return io.describe_rules(info)
+
+
+def _make_levels(source, where: str, writer, sizes, options: TileOptions, settings: TileSettings, session,
+                 memory: int | None, reporter: Reporter) -> int | None:
+    """Every row of every level to ``writer.rows``; the band it ran in (None: no plan)."""
+    from pyramid_cli.jobs.work import Levels
+
+    h, w, c = source.shape
+    if len(sizes) == 1:  # one level (a 1×1 input, or a layout whose one tile holds it): no plan to run
+        for y in range(0, h, PASS_ROWS):
+            writer.rows(0, y, source.read(y, min(h, y + PASS_ROWS)))
+        session.ran = "none (one level: the input itself)"
+        return None
+    work = Levels(levels=len(sizes) - 1, analysis=settings.analysis, border=settings.border)
+    work.check(((h, w),), where=where)
+    session.prepare_async(work, [(h, w, c)], dtype=source.dtype)  # auto decides for this job; numba loads meanwhile
+    if session.executor is None:  # the reference backend: the float64 oracle holds whole pictures
+        if memory is not None:
+            executor_of(session)  # refuses with the reason
+        reporter.detail(f"{where}: runs whole (the reference backend holds whole pictures)")
+        levels = session.run(work, [source.read(0, h)], np.float32)
+        for k, px in enumerate(levels):
+            writer.rows(k, 0, np.ascontiguousarray(px, dtype=np.float32))
+        session.ran = session.name
+        return None
+    plan = session.plan(work, [(h, w)])
+    made = [plan.images[k].size for k in plan.outputs]
+    if [tuple(s) for s in made] != [tuple(s) for s in sizes[1:]]:
+        raise RuntimeError(f"the levels plan makes {made}, the writer holds {sizes[1:]}")
+    executor = executor_of(session)
+    given = resolve(memory)
+    held = writer_memory(sizes, c, options)
+    reporter.detail(f"{where}: {given.describe()}; the tile writer holds about {format_size(held)}")
+    try:
+        choice = choose(plan, c, max(0, given.size - held), in_bytes=source.dtype.itemsize, out_bytes=4, force=True,
+                        where=where, keeps_input=True, **costs(executor))
+    except PyramidError as exc:
+        from pyramid_cli.core.errors import DataError
+
+        raise (given.refusal(exc) if isinstance(exc, DataError) else exc) from None
+    reporter.detail(f"{where}: {choice.describe()}")
+    band = choice.band or MIN_BAND
+
+    def level0(y0: int, px: np.ndarray) -> None:  # on the writer's thread: each input row once, in order
+        writer.rows(0, y0, px.astype(np.float32, copy=False))
+
+    def level(j: int, y0: int, px: np.ndarray) -> None:  # on the writer's thread
+        writer.rows(j + 1, y0, px.astype(np.float32, copy=False))
+
+    times = run_bands(source.read, plan, executor, band, level, level0)
+    reporter.detail(f"{where}: {times.describe()}")
+    session.ran = session.name
+    return band
+
+
+def tile_file(in_path: str, out: str, settings: TileSettings, session, *, memory: int | None = None, read=None,
+              reporter: Reporter | None = None, force: bool = False) -> dict:
+    """:func:`tile_source` of the image file ``in_path`` decoded as ``read`` (ReadOptions) says."""
+    from pyramid_cli import imageio as io
+    from pyramid_cli.run.settings import ReadOptions
+
+    ro = read or ReadOptions()
+    with io.open_stream(in_path, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan, keep_half=False,
+                        colorconfig=ro.colorconfig) as st:
+        return tile_source(st, in_path, out, settings, session, memory=memory, reporter=reporter, force=force)
+
+
+def tile_files(paths: list[str], template: str | None, settings: TileSettings, session, *, read=None,
+               reporter: Reporter | None = None, memory: int | None = None, force: bool = False,
+               keep_going: bool = False, skip_existing: bool = False, frames: str | None = None,
+               shard=None) -> tuple[Report, list[dict]]:
+    """``pyramid tiles`` of ``IN OUT`` or ``IN... -o TEMPLATE`` (frame sequences, ``shard`` ``K/N`` or ``auto``,
+    as :func:`pyramid_cli.run.pipeline.process` takes them), one input at a time, each streamed.
+
+    Returns the report (done, skipped, failed) and each written tile set's description, in job order. A
+    single job's failure is raised; a batch's are reported and collected (``keep_going`` goes on past them)."""
+    from pyramid_cli.run import batch
+
+    reporter = reporter or Reporter()
+    job_list = batch.plan_jobs(list(paths), template, frames=frames)
+    many = len(job_list) > 1
+    if shard is not None:
+        from pyramid_cli.run import shard as shards
+
+        shard = shards.parse(shard) if isinstance(shard, str) else shard
+        job_list = shards.select(job_list, shard)
+        reporter.detail(f"shard {shard} ({shard.source}): {len(job_list)} job(s)")
+    if frames is not None or any(getattr(j, "frame", None) is not None for j in job_list):
+        from pyramid_cli.run.sequence import drop_missing
+
+        job_list = drop_missing(job_list, keep_going, reporter.warn)
+    report, described = Report(), []
+    for job in job_list:
+        if report.failed and not keep_going:
+            break
+        if skip_existing and batch.is_fresh(job):
+            report.skipped.append(job)
+            continue
+        try:
+            described.append(tile_file(job.input, job.output, settings, session, memory=memory, read=read,
+                                       reporter=reporter, force=force))
+        except PyramidError as exc:
+            if not many:
+                raise
+            report.failed.append((job, exc))
+            reporter.error(str(exc))
+        else:
+            report.done.append(job)
+    if many and not reporter.quiet:
+        reporter.err(f"pyramid: {len(report.done)} written, {len(report.skipped)} up to date, "
+                     f"{len(report.failed)} failed")
+    return report, described
+
+
+def tiles(path_or_array, out: str | os.PathLike[str], *, layout: str | None = None,
+          analysis: str = catalogue.MIP_ANALYSIS_DEFAULT, border: str = "clamp", tile_size: int | None = None,
+          overlap: int | None = None, format: str | None = None, quality: int | None = None,  # noqa: A002
+          compression: str | None = None, memory: int | str | None = None, backend: str = "auto", session=None,
+          colorspace: str = "auto", alpha: str = "auto", nan: str = "keep", colorconfig: str | None = None,
+          pixel_type: str | None = None, tocolorspace: str | None = None, dither: bool = False) -> dict:
+    """Write a viewer's tile set of an image file or an array: Deep Zoom, IIIF, OME-Zarr or pyramidal TIFF.
+
+    The levels are the analysis pyramid of Kraus & Strengert (§4): each ⌈n/2⌉ of the one before, reduced with
+    ``analysis`` in linear light on premultiplied alpha, exact at every border and odd size, streamed band by
+    band in bounded memory (``pyramid tiles``; :mod:`pyramid_cli.run.tiles`). Level 0 is the input itself.
+
+    Parameters
+    ----------
+    path_or_array : str, os.PathLike or array_like
+        An image file (decoded as ``colorspace``, ``alpha``, ``nan``, ``colorconfig`` say, as
+        :func:`pyramid_cli.api.read_image` does), or H×W or H×W×C pixels taken as linear light, alpha (a 2nd or 4th
+        channel) premultiplied, as :func:`pyramid_cli.api.read_image` returns them: integer arrays are read as
+        normalised codes (:func:`pyramid_cli.api.as_pixels`), not as sRGB. An array's tiles store floats where the
+        format holds them (TIFF, OME-Zarr), else 8-bit codes of ``tocolorspace`` (default: sRGB for JPEG/PNG).
+    out : str or os.PathLike
+        ``name.dzi`` (Deep Zoom), a folder with ``layout="iiif3"`` or ``"iiif"``, ``name.ome.zarr``/``name.zarr``,
+        ``name.tif`` (pyramidal TIFF) or ``name.ome.tif``; replaced whole when the tile set is complete.
+    layout : {"dz", "iiif3", "iiif", "ome-zarr", "tiff", "ome-tiff"}, optional
+        Default: from ``out``'s name (:func:`pyramid_cli.imageio.tilesets.layout_of`).
+    analysis : str
+        A ⊗↓ filter (``box``, ``box4``, ``quadratic``, ``cubic``) or one-step expression.
+    border : {"clamp", "mirror", "wrap", "zero"}
+        How the analysis reads past the edges; odd sizes are padded by it.
+    tile_size, overlap, quality, compression : optional
+        The layout's defaults when None (Deep Zoom: ``vips dzsave``'s 254, 1 and Q 75).
+    format : {"jpeg", "png", "webp", "tif"}, optional
+        Tile files of the folder layouts: JPEG, or PNG when the input has alpha (JPEG with alpha is refused).
+    memory : int or str, optional
+        Working-set budget in bytes or as ``"2G"`` (default: what the process's limits leave).
+    backend, session
+        As in :func:`pyramid_cli.api.apply`.
+    pixel_type, tocolorspace, dither
+        How the tiles store the levels (``--type``, ``--tocolorspace``, ``--dither``).
+
+    Returns
+    -------
+    dict
+        What ``pyramid tiles --json`` prints: ``layout``, ``path``, ``tile_size``, ``overlap``, ``format``,
+        ``levels`` (each its ``level``, ``reduction``, ``size``, ``scale``, ``rule``), ``input``, ``backend``,
+        ``analysis``, ``border``, ``band``, ``seconds``.
+
+    References
+    ----------
+    Kraus & Strengert, "Pyramid Filters Based on Bilinear Interpolation", GRAPP 2007, §4 (analysis ⊗↓).
+    """
+    from pyramid_cli import imageio as io
+    from pyramid_cli.exec.session import Session
+    from pyramid_cli.imageio import dtypes
+    from pyramid_cli.run.budget import parse_size
+    from pyramid_cli.run.report import PythonReporter
+    from pyramid_cli.run.settings import ReadOptions
+
+    write: dict = {"pixel_type": pixel_type, "dither": dither}
+    if tocolorspace is not None:
+        write["colorspace"] = tocolorspace
+    settings = TileSettings(layout, analysis, border, TileOptions(tile_size, overlap, format, quality, compression,
+                                                                  write))
+    budget = parse_size(memory) if isinstance(memory, str) else memory
+    own = session is None
+    session = Session(backend) if own else session
+    reporter = PythonReporter(quiet=True)
+    try:
+        if isinstance(path_or_array, (str, os.PathLike)):
+            return tile_file(os.fspath(path_or_array), os.fspath(out), settings, session, memory=budget,
+                             read=ReadOptions(colorspace, alpha, nan, colorconfig), reporter=reporter)
+        pixels = dtypes.as_pixels(path_or_array, "path_or_array")
+        pixels = pixels if pixels.ndim == 3 else pixels[:, :, None]
+        info = io.info_for_array(os.fspath(out), pixels.shape[2])
+        if colorconfig is not None:
+            info.colorconfig = colorconfig
+        return tile_source(ArraySource(pixels, info), "array", os.fspath(out), settings, session, memory=budget,
+                           reporter=reporter)
+    finally:
+        if own:
+            session.close()
+
+
+__all__ = ["TileSettings", "ArraySource", "tile_format", "writer_memory", "tile_source", "tile_file", "tile_files",
+           "tiles", "FOLDER_LAYOUTS", "TILE_FORMATS"]
