@@ -89,6 +89,12 @@ def border_option(f):
 
 def batch_options(f):
     """Many inputs in one process: an output template, failure and freshness policies, I/O overlap."""
+    return batch_options_of()(f)
+
+
+def batch_options_of(jobs: bool = True, cluster: bool = True):
+    """:func:`batch_options` as a decorator, without ``-j/--jobs`` or the --cluster options when a command has no
+    use for them (``pyramid tiles`` streams one input at a time)."""
     options = [
         click.option("-o", "--output", "template", metavar="TEMPLATE",
                      help="Output path template: {stem} {name} {ext} (with its dot, e.g. '.exr') {dir} of each "
@@ -97,18 +103,23 @@ def batch_options(f):
                           "token it is a path as it is. Output folders are created."),
         click.option("--keep-going", is_flag=True, help="Go on past a bad file; report failures at the end."),
         click.option("--skip-existing", is_flag=True, help="Skip inputs whose output is newer (like make)."),
-        click.option("-j", "--jobs", type=click.IntRange(1, 64), default=2, show_default=True,
-                     help="Threads decoding/encoding images while the executor works on another."),
-        *sequence_options(),
+        *([click.option("-j", "--jobs", type=click.IntRange(1, 64), default=2, show_default=True,
+                        help="Threads decoding/encoding images while the executor works on another.")] if jobs else []),
+        *sequence_options(cluster),
     ]
-    for option in reversed(options):
-        f = option(f)
-    return f
+
+    def decorate(f):
+        for option in reversed(options):
+            f = option(f)
+        return f
+
+    return decorate
 
 
-def sequence_options() -> list:
-    """--frames, --shard, --cluster, --chunk, --cluster-timeout (frame sequences, array jobs, a Dask cluster)."""
-    return [
+def sequence_options(cluster: bool = True) -> list:
+    """--frames, --shard, --cluster, --chunk, --cluster-timeout (frame sequences, array jobs, a Dask cluster);
+    without ``cluster`` the first two."""
+    options = [
         click.option("--frames", metavar="RANGE", help="Frames of sequence inputs (plate.####.exr, plate.%04d.exr, "
                      "plate.1001-1240#.exr, tex.<UDIM>.exr) to process: 1001-1240, 1001-1240x2 or 1001-1240:2 (both "
                      "every other frame), 1,5-9, -5--1; descending ranges are the same frames; run in ascending "
@@ -119,6 +130,10 @@ def sequence_options() -> list:
                      "count (Kubernetes), auto/FIRST-LAST[:STEP] the array's range as submitted (LSF, PBS, Torque: "
                      "auto/5-9 for bsub -J 'x[5-9]'), or PYRAMID_SHARD_COUNT / PYRAMID_SHARD_ARRAY. A task that "
                      "cannot be placed exits 2 before any work."),
+    ]
+    if not cluster:
+        return options
+    return options + [
         click.option("--cluster", metavar="ADDRESS", help="Run on a Dask cluster: a scheduler address "
                      "(tcp://HOST:8786, HOST:PORT, tls://, ws://, ...), a scheduler file (dask scheduler "
                      "--scheduler-file), or local:N for N worker processes on this machine (needs pip install "
@@ -148,5 +163,5 @@ def mixed_lattice_option(f):
                              "lattice).")(f)
 
 
-__all__ = ["choice", "ExpressionType", "EXPR", "io_options", "border_option", "batch_options", "sequence_options",
-           "memory_option", "mixed_lattice_option"]
+__all__ = ["choice", "ExpressionType", "EXPR", "io_options", "border_option", "batch_options", "batch_options_of",
+           "sequence_options", "memory_option", "mixed_lattice_option"]
