@@ -26,18 +26,29 @@ from dataclasses import dataclass
 import numpy as np
 
 from pyramid_cli.core import catalogue
-from pyramid_cli.core.errors import OutputError, PyramidError, UsageError
+from pyramid_cli.core.errors import DataError, OutputError, PyramidError, UsageError
 from pyramid_cli.imageio import tilesets
 from pyramid_cli.imageio.tilesets import TileOptions
 from pyramid_cli.run.budget import format_size, resolve
 from pyramid_cli.run.joblist import Report
 from pyramid_cli.run.report import Reporter
-from pyramid_cli.run.stream import MIN_BAND, choose, costs, executor_of, run_bands, warn_nonfinite
+from pyramid_cli.run.stream import (
+    BAND_PIXELS,
+    MIN_BAND,
+    choose,
+    costs,
+    estimate,
+    executor_of,
+    run_bands,
+    speed_band,
+    warn_nonfinite,
+)
 
 FOLDER_LAYOUTS = ("dz", "iiif3", "iiif")   # a folder of tile files: --format picks their format
 TILE_FORMATS = ("jpeg", "png", "webp", "tif")
 ALPHA_FORMATS = ("png", "webp", "tif")     # tile formats that hold alpha
 FORMAT_ALIASES = {"jpg": "jpeg", "tiff": "tif"}
+DEFAULT_TILE = 256                         # a layout's default tile edge, for the memory estimate (dz: 254)
 PASS_ROWS = 64                             # rows at a time of a one-level tile set (no plan: level 0 only)
 
 
@@ -108,9 +119,10 @@ def tile_format(layout: str, options: TileOptions, info, reporter: Reporter, whe
 
 
 def writer_memory(sizes: list[tuple[int, int]], channels: int, options: TileOptions) -> int:
-    """Bytes a writer holds at most, by the contract: per level the rows of the tile row it completes (tile edge
-    plus twice the overlap), as float32 and once encoded (upper bound: 4 bytes per value)."""
-    rows = (options.tile_size or 512) + 2 * (options.overlap or 0)
+    """Bytes a writer holds at most, by the contract: per level the rows of the tile row it completes (tile edge,
+    :data:`DEFAULT_TILE` when the layout decides, plus twice the overlap), as float32 and once encoded (upper
+    bound: 4 bytes per value)."""
+    rows = (options.tile_size or DEFAULT_TILE) + 2 * (options.overlap if options.overlap is not None else 1)
     return sum(2 * min(h, rows) * w * channels * 4 for h, w in sizes)
 
 
@@ -200,13 +212,14 @@ def _make_levels(source, where: str, writer, sizes, options: TileOptions, settin
     given = resolve(memory)
     held = writer_memory(sizes, c, options)
     reporter.detail(f"{where}: {given.describe()}; the tile writer holds about {format_size(held)}")
-    try:
-        choice = choose(plan, c, max(0, given.size - held), in_bytes=source.dtype.itemsize, out_bytes=4, force=True,
-                        where=where, keeps_input=True, **costs(executor))
-    except PyramidError as exc:
-        from pyramid_cli.core.errors import DataError
-
-        raise (given.refusal(exc) if isinstance(exc, DataError) else exc) from None
+    kw = {"in_bytes": source.dtype.itemsize, "out_bytes": 4, "keeps_input": True, **costs(executor)}
+    least = estimate(plan, c, MIN_BAND, **kw) + held
+    if least > given.size:
+        raise given.refusal(DataError(
+            f"{where}: this tile set needs at least {format_size(least)} of memory (bands of {MIN_BAND} rows and "
+            f"its guard bands at every level, and {format_size(held)} for the tile rows the writer holds), over "
+            f"the budget of {format_size(given.size)}; give more with --memory (memory= in Python)"))
+    choice = choose(plan, c, given.size - held, force=True, where=where, prefer=_prefer(plan, executor), **kw)
     reporter.detail(f"{where}: {choice.describe()}")
     band = choice.band or MIN_BAND
 
@@ -220,6 +233,17 @@ def _make_levels(source, where: str, writer, sizes, options: TileOptions, settin
     reporter.detail(f"{where}: {times.describe()}")
     session.ran = session.name
     return band
+
+
+def _prefer(plan, executor) -> int:
+    """Rows of the bands a tile set streams in whatever the budget (flat memory, and the speed of
+    :func:`pyramid_cli.run.stream.speed_band`): about :data:`~pyramid_cli.run.stream.BAND_PIXELS` pixels of the
+    widest level made."""
+    band = speed_band(plan, executor)
+    if band is not None:
+        return band
+    cols = max(plan.images[k].size[1] for k in plan.outputs)
+    return max(MIN_BAND, BAND_PIXELS // cols // MIN_BAND * MIN_BAND)
 
 
 def tile_file(in_path: str, out: str, settings: TileSettings, session, *, memory: int | None = None, read=None,

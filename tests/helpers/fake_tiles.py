@@ -10,6 +10,7 @@ written by :class:`FileWriter` (``python -c 'from helpers.fake_tiles import main
 from __future__ import annotations
 
 import os
+import time
 
 import numpy as np
 
@@ -19,6 +20,7 @@ from pyramid_cli.imageio.tilesets import TileSetWriter
 from pyramid_cli.imageio.tilesets.staging import Staging
 
 TRAILER = b"END OF FAKE TILE SET\n"
+DELAY = float(os.environ.get("FAKE_TILES_DELAY", "0"))  # seconds FileWriter waits per band of level 0
 
 
 class RecordingWriter(TileSetWriter):
@@ -96,6 +98,8 @@ class FileWriter(TileSetWriter):
             raise OutputError(f"cannot write {self.path}: {exc.strerror or exc}") from None
 
     def _rows(self, level, y0, pixels):
+        if level == 0 and DELAY:  # a slow disk: signals reach the run mid-way at any load
+            time.sleep(DELAY)
         self._write(np.ascontiguousarray(pixels, dtype=np.float32).tobytes())
 
     def _finish(self):

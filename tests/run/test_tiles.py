@@ -163,3 +163,4 @@ def test_writer_memory_is_a_tile_row_per_level():
     sizes = [(1000, 2000), (500, 1000), (250, 500)]
     held = run_tiles.writer_memory(sizes, 3, TileOptions(tile_size=254, overlap=1))
     assert held == sum(2 * min(h, 256) * w * 3 * 4 for h, w in sizes)
+    assert run_tiles.writer_memory(sizes[2:], 1, TileOptions()) == 2 * 250 * 500 * 4
