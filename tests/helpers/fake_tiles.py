@@ -21,6 +21,7 @@ from pyramid_cli.imageio.tilesets.staging import Staging
 
 TRAILER = b"END OF FAKE TILE SET\n"
 DELAY = float(os.environ.get("FAKE_TILES_DELAY", "0"))  # seconds FileWriter waits per band of level 0
+DISCARD = bool(os.environ.get("FAKE_TILES_DISCARD"))  # FileWriter counts the rows only (memory measurements)
 
 
 class RecordingWriter(TileSetWriter):
@@ -100,7 +101,9 @@ class FileWriter(TileSetWriter):
     def _rows(self, level, y0, pixels):
         if level == 0 and DELAY:  # a slow disk: signals reach the run mid-way at any load
             time.sleep(DELAY)
-        self._write(np.ascontiguousarray(pixels, dtype=np.float32).tobytes())
+        self.rows_seen = getattr(self, "rows_seen", 0) + len(pixels)
+        if not DISCARD:
+            self._write(np.ascontiguousarray(pixels, dtype=np.float32).tobytes())
 
     def _finish(self):
         self._write(TRAILER)
