@@ -48,9 +48,10 @@ def assert_reference(writer, pixels, analysis="quadratic", border="clamp"):
     ((1, 1), "quadratic", "clamp", None),         # one level: no plan
     ((1, 1000), "cubic", "zero", None),           # a row: 11 levels
 ])
-def test_every_level_is_the_reference_at_every_pixel(recording, session, size, analysis, border, memory):
+def test_every_level_is_the_reference_at_every_pixel(recording, session, tmp_path, size, analysis, border, memory):
     px = premultiplied(*size)
-    report = tiles(px, "x.dzi", analysis=analysis, border=border, memory=memory, session=session, tile_size=8)
+    report = tiles(px, tmp_path / "x.dzi", analysis=analysis, border=border, memory=memory, session=session,
+                   tile_size=8)
     (writer,) = recording
     assert writer.state == "finished"
     assert_reference(writer, px, analysis, border)
@@ -63,22 +64,22 @@ def test_every_level_is_the_reference_at_every_pixel(recording, session, size, a
         assert first_of_level1 < last_of_level0
 
 
-def test_a_very_wide_row_streams(recording, session):
+def test_a_very_wide_row_streams(recording, session, tmp_path):
     px = np.random.default_rng(1).random((1, 100000, 1))
-    report = tiles(px, "wide.dzi", session=session)
+    report = tiles(px, tmp_path / "wide.dzi", session=session)
     (writer,) = recording
     assert len(report["levels"]) == 18 and writer.sizes[-1] == (1, 1)
     assert_reference(writer, px)
 
 
-def test_the_reference_backend_runs_whole_and_refuses_memory(recording):
+def test_the_reference_backend_runs_whole_and_refuses_memory(recording, tmp_path):
     px = premultiplied(9, 7)
     with Session("reference") as s:
-        report = tiles(px, "x.dzi", session=s)
+        report = tiles(px, tmp_path / "x.dzi", session=s)
         assert report["band"] is None
         assert_reference(recording[0], px)
         with pytest.raises(UsageError, match="reference"):
-            tiles(px, "x.dzi", session=s, memory="1G")
+            tiles(px, tmp_path / "x.dzi", session=s, memory="1G")
 
 
 def test_a_file_level_0_is_the_decoded_input(recording, session, tmp_path):
