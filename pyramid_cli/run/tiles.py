@@ -18,6 +18,7 @@ output as it was.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import os
 import time
@@ -258,6 +259,25 @@ def tile_file(in_path: str, out: str, settings: TileSettings, session, *, memory
         return tile_source(st, in_path, out, settings, session, memory=memory, reporter=reporter, force=force)
 
 
+def remove_stale_staging(outputs: list[str]) -> int:
+    """Remove the staging folders (``.NAME.tmp-*``, :class:`~pyramid_cli.imageio.tilesets.staging.Staging`) a killed
+    run left beside ``outputs``, this shard's own (no other process writes them); returns how many."""
+    import glob
+    import shutil
+
+    removed = 0
+    for out in outputs:
+        folder, base = os.path.split(os.path.abspath(out.rstrip(os.sep) or out))
+        for tmp in glob.glob(os.path.join(glob.escape(folder), f".{glob.escape(base)}.tmp-*")):
+            if os.path.isdir(tmp) and not os.path.islink(tmp):
+                shutil.rmtree(tmp, ignore_errors=True)
+            else:
+                with contextlib.suppress(OSError):
+                    os.unlink(tmp)
+            removed += 1
+    return removed
+
+
 def tile_files(paths: list[str], template: str | None, settings: TileSettings, session, *, read=None,
                reporter: Reporter | None = None, memory: int | None = None, force: bool = False,
                keep_going: bool = False, skip_existing: bool = False, frames: str | None = None,
@@ -278,6 +298,7 @@ def tile_files(paths: list[str], template: str | None, settings: TileSettings, s
         shard = shards.parse(shard) if isinstance(shard, str) else shard
         job_list = shards.select(job_list, shard)
         reporter.detail(f"shard {shard} ({shard.source}): {len(job_list)} job(s)")
+        remove_stale_staging([j.output for j in job_list])
     if frames is not None or any(getattr(j, "frame", None) is not None for j in job_list):
         from pyramid_cli.run.sequence import drop_missing
 
@@ -389,4 +410,4 @@ def tiles(path_or_array, out: str | os.PathLike[str], *, layout: str | None = No
 
 
 __all__ = ["TileSettings", "ArraySource", "tile_format", "writer_memory", "tile_source", "tile_file", "tile_files",
-           "tiles", "FOLDER_LAYOUTS", "TILE_FORMATS"]
+           "tiles", "remove_stale_staging", "FOLDER_LAYOUTS", "TILE_FORMATS"]

@@ -150,10 +150,13 @@ def test_batches_and_shards(recording, session, tmp_path):
     for k in range(4):
         write(tmp_path / f"in{k}.png", np.full((5, 6, 3), 40 * k, np.uint8), "uint8")
     settings = dataclasses.replace(TileSettings(), layout="dz")
+    stale = tmp_path / "out" / ".in3.dzi.tmp-killed"  # a SIGKILLed run's staging folder
+    (stale / "in3_files").mkdir(parents=True)
     report, described = tile_files([str(tmp_path / "in*.png")], str(tmp_path / "out" / "{stem}.dzi"), settings,
                                    session, shard="2/2", reporter=Reporter(quiet=True))
     assert [j.input.rsplit("/", 1)[1] for j in report.done] == ["in2.png", "in3.png"]
     assert [d["path"].rsplit("/", 1)[1] for d in described] == ["in2.dzi", "in3.dzi"]
+    assert not stale.exists()
     (tmp_path / "in1.png").write_bytes(b"not a picture")
     report, described = tile_files([str(tmp_path / "in*.png")], str(tmp_path / "out" / "{stem}.dzi"), settings,
                                    session, keep_going=True, reporter=Reporter(quiet=True))
