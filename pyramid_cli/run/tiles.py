@@ -23,13 +23,12 @@ import dataclasses
 import os
 import time
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from pyramid_cli.core import catalogue
 from pyramid_cli.core.errors import DataError, OutputError, PyramidError, UsageError
-from pyramid_cli.imageio import tilesets
-from pyramid_cli.imageio.tilesets import TileOptions
 from pyramid_cli.run.budget import format_size, resolve
 from pyramid_cli.run.joblist import Report
 from pyramid_cli.run.report import Reporter
@@ -44,6 +43,9 @@ from pyramid_cli.run.stream import (
     speed_band,
     warn_nonfinite,
 )
+
+if TYPE_CHECKING:  # the writers load OpenImageIO: imported when a tile set is written (pyr.tiles is in the API)
+    from pyramid_cli.imageio.tilesets import TileOptions
 
 FOLDER_LAYOUTS = ("dz", "iiif3", "iiif")   # a folder of tile files: --format picks their format
 TILE_FORMATS = ("jpeg", "png", "webp", "tif")
@@ -72,7 +74,13 @@ class TileSettings:
     layout: str | None = None
     analysis: str = catalogue.MIP_ANALYSIS_DEFAULT
     border: str = "clamp"
-    options: TileOptions = dataclasses.field(default_factory=TileOptions)
+    options: TileOptions = dataclasses.field(default_factory=lambda: _options())
+
+
+def _options(*args, **kw) -> TileOptions:
+    from pyramid_cli.imageio.tilesets import TileOptions
+
+    return TileOptions(*args, **kw)
 
 
 class ArraySource:
@@ -144,6 +152,8 @@ def tile_source(source, where: str, out: str, settings: TileSettings, session, *
     named ``where`` in messages) at ``out`` (see the module); returns the writer's ``finish()`` description with
     ``input``, ``backend``, ``analysis``, ``border``, ``band`` (rows per band; None: one level, or run whole on
     the reference backend) and ``seconds`` added."""
+    from pyramid_cli.imageio import tilesets
+
     reporter = reporter or Reporter()
     started = time.perf_counter()
     layout = tilesets.layout_of(os.fspath(out), settings.layout)
@@ -387,8 +397,7 @@ def tiles(path_or_array, out: str | os.PathLike[str], *, layout: str | None = No
     write: dict = {"pixel_type": pixel_type, "dither": dither}
     if tocolorspace is not None:
         write["colorspace"] = tocolorspace
-    settings = TileSettings(layout, analysis, border, TileOptions(tile_size, overlap, format, quality, compression,
-                                                                  write))
+    settings = TileSettings(layout, analysis, border, _options(tile_size, overlap, format, quality, compression, write))
     budget = parse_size(memory) if isinstance(memory, str) else memory
     own = session is None
     session = Session(backend) if own else session
