@@ -31,9 +31,10 @@ The tile set is built in a hidden folder beside the output (:class:`~pyramid_cli
 the metadata written last, and renamed into place; a ``zarr.Group`` given as the output (the Python API) is
 written in place, its metadata last, and :meth:`OmeZarrWriter.abort` removes the levels written there.
 
-Memory: each level holds one row of chunks (T rows of that level) until it is complete; one chunk row
-at a time is written by a worker thread (zarr compresses its chunks in parallel) while the next rows
-are encoded.
+Memory: each level holds one row of chunks (T rows of that level, stored values) until it is complete;
+one chunk row at a time is written by a worker thread (zarr compresses its chunks in parallel) while the
+next rows are encoded: at most about ``(levels' widths + the widest) · T · C`` stored values, linear in the
+picture's width, not its area (8-bit RGB 16K wide: about 72 MiB; float32: four times that).
 """
 
 from __future__ import annotations
@@ -157,6 +158,7 @@ class OmeZarrWriter(TileSetWriter):
 
     layout = "ome-zarr"
     encode_as = "x.tif"
+    default_tile_size = DEFAULT_CHUNK  # the chunk edge without --tile-size (for the run layer's memory estimate)
 
     def __init__(self, path: Any, info: ImageInfo, size: tuple[int, int], channels: int, options: TileOptions, *,
                  levels: int | None = None, dtype: Any = None, analysis: str | None = None):
@@ -210,7 +212,11 @@ class OmeZarrWriter(TileSetWriter):
             try:
                 self.encode(np.zeros((1, 1, self.channels), np.float32))
             except UsageError as exc:
-                raise UsageError(str(exc).replace("x.tif", self.path)) from None
+                text = str(exc).replace("x.tif", self.path)
+                if "--tocolorspace" in text:
+                    text = (f"{self.path}: --tocolorspace {self.options.write.get('colorspace')}: OME-Zarr has no "
+                            "colour space field, so it stores linear or sRGB values only (as a TIFF)")
+                raise UsageError(text) from None
 
     # ------------------------------------------------------------------ rows in
     def _rows(self, level: int, y0: int, pixels: np.ndarray) -> None:

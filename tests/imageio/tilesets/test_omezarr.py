@@ -195,7 +195,7 @@ def test_a_write_error_is_one_output_error_and_abort_cleans_up(tmp_path):
     (TileOptions(suffix="jpeg"), "not tile files"),
     (TileOptions(compression="jpeg"), "unknown --compression jpeg"),
     (TileOptions(compression="none:3"), "unknown --compression"),
-    (TileOptions(write={"colorspace": "ACEScg"}), "o.zarr: --tocolorspace"),
+    (TileOptions(write={"colorspace": "ACEScg"}), "o.zarr: --tocolorspace ACEScg: OME-Zarr has no colour"),
 ])
 def test_options_it_cannot_honour_are_refused(tmp_path, options, message):
     info = pio.info_for_array("x.exr", 3)
