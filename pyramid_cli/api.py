@@ -61,7 +61,6 @@ from pyramid_cli.core.geometry import reduced
 from pyramid_cli.core.parse import one_step, parse
 from pyramid_cli.exec.session import Session
 from pyramid_cli.imageio import dtypes
-from pyramid_cli.imageio.tilesets import omezarr
 from pyramid_cli.jobs.texture import TextureLevels
 from pyramid_cli.jobs.work import (
     Blend,
@@ -331,9 +330,9 @@ def pyramid(array: ArrayLike, *, analysis: str = catalogue.DEFAULT_ANALYSIS, lev
     if levels is not None:
         _check_levels(levels, 0)
     work = Levels(levels=levels, analysis=analysis, border=border)
-    if omezarr.is_output(out):
-        return iter(omezarr.write_levels(out, list(pyramid(array, analysis=analysis, levels=levels, border=border,
-                    dtype=dtype, backend=backend, session=session, memory=memory)), analysis=analysis))
+    if arrays.zarr_out(out):
+        return iter(arrays.to_zarr(out, list(pyramid(array, analysis=analysis, levels=levels, border=border,
+                    dtype=dtype, backend=backend, session=session, memory=memory)), analysis))
     if arrays.wanted(array, out, memory):
         outs = arrays.banded(_session(session, backend), work, array, out, memory, dtype)
         return iter([arrays.as_array(array), *outs])

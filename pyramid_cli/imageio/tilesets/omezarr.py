@@ -78,13 +78,6 @@ def modules(path: object) -> Any:
     return zarr
 
 
-def is_output(out: object) -> bool:
-    """Whether ``out`` is an OME-Zarr output: a ``zarr.Group``, or a path whose name ends in ``.zarr``."""
-    if isinstance(out, (str, os.PathLike)):
-        return os.fspath(out).rstrip("/\\").lower().endswith(".zarr")
-    return type(out).__module__.split(".")[0] == "zarr" and type(out).__name__ == "Group"
-
-
 def level_transforms(k: int) -> list[dict]:
     """NGFF coordinate transformations of level ``k`` (axes c, y, x): its scale, then (k ≥ 1) the
     translation that puts each pixel's centre at the centre of the input pixels it was made from."""
@@ -391,5 +384,5 @@ def write_levels(out: Any, levels: list[np.ndarray], *, tile_size: int | None = 
     return w.levels()
 
 
-__all__ = ["OmeZarrWriter", "write_levels", "is_output", "level_transforms", "codecs", "channel_metadata",
+__all__ = ["OmeZarrWriter", "write_levels", "level_transforms", "codecs", "channel_metadata",
            "DEFAULT_CHUNK"]
