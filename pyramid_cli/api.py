@@ -293,8 +293,8 @@ def blur(array: ArrayLike, levels: int = 4, *, sigma: float | None = None,
 
 def pyramid(array: ArrayLike, *, analysis: str = catalogue.DEFAULT_ANALYSIS, levels: int | None = None,
             border: str = "clamp", dtype: DTypeLike | None = None, backend: str = "auto",
-            session: Session | None = None, out: Sequence[np.ndarray] | None = None,
-            memory: int | str | None = None) -> Iterator[np.ndarray]:
+            session: Session | None = None, out: Sequence[np.ndarray] | Any = None,
+            memory: int | str | None = None) -> Iterator[Any]:
     """The analysis pyramid (§4), level 0 (a copy of the input) first, as scikit-image's ``pyramid_gaussian``.
 
     The levels are computed (and the arguments checked) when it is called; it returns an iterator over them.
@@ -312,7 +312,8 @@ def pyramid(array: ArrayLike, *, analysis: str = catalogue.DEFAULT_ANALYSIS, lev
     out : sequence of numpy.ndarray, optional
         One array per level after level 0 to write into (memmaps, say); with it, ``memory`` or a
         memory-mapped input the pyramid runs band by band, as in :func:`apply`, and level 0 is ``array``
-        itself (not a copy: a memmap stays on disk).
+        itself (not a copy: a memmap stays on disk). Or a ``zarr.Group`` or ``.zarr`` path: every level is written
+        there as OME-Zarr (:mod:`~pyramid_cli.imageio.tilesets.omezarr`) and comes back as a zarr array (c, y, x).
 
     Returns
     -------
@@ -330,6 +331,9 @@ def pyramid(array: ArrayLike, *, analysis: str = catalogue.DEFAULT_ANALYSIS, lev
     if levels is not None:
         _check_levels(levels, 0)
     work = Levels(levels=levels, analysis=analysis, border=border)
+    if arrays.zarr_out(out):
+        return iter(arrays.to_zarr(out, list(pyramid(array, analysis=analysis, levels=levels, border=border,
+                    dtype=dtype, backend=backend, session=session, memory=memory)), analysis))
     if arrays.wanted(array, out, memory):
         outs = arrays.banded(_session(session, backend), work, array, out, memory, dtype)
         return iter([arrays.as_array(array), *outs])

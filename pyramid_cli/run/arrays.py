@@ -3,6 +3,7 @@ rules of :mod:`pyramid_cli.imageio.dtypes` (what each result is stored as, at wh
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 
 import numpy as np
@@ -95,6 +96,22 @@ def wanted(array: object, out: object, memory: object) -> bool:
     return out is not None or memory is not None or isinstance(array, np.memmap)
 
 
+def zarr_out(out: object) -> bool:
+    """Whether ``out`` is an OME-Zarr output: a ``zarr.Group`` or a path whose name ends in ``.zarr`` (told
+    without loading zarr or image I/O)."""
+    if isinstance(out, (str, os.PathLike)):
+        return os.fspath(out).rstrip("/\\").lower().endswith(".zarr")
+    return type(out).__module__.split(".")[0] == "zarr" and type(out).__name__ == "Group"
+
+
+def to_zarr(out: object, levels: list[np.ndarray], analysis: str) -> list:
+    """A pyramid's ``levels`` written into ``out`` as OME-Zarr, as zarr arrays (c, y, x):
+    :func:`pyramid_cli.imageio.tilesets.omezarr.write_levels`."""
+    from pyramid_cli.imageio.tilesets import omezarr
+
+    return omezarr.write_levels(out, levels, analysis=analysis)
+
+
 def banded(session: Session, work: Work, array: ArrayLike, out: Sequence[np.ndarray] | None,
            memory: int | str | None, dtype: DTypeLike | None = None) -> list[np.ndarray]:
     """One image through ``work`` band by band (:mod:`pyramid_cli.exec.tiles`), computed in float32: a
@@ -136,4 +153,5 @@ def banded(session: Session, work: Work, array: ArrayLike, out: Sequence[np.ndar
     return outs if out is not None or store == want else [dtypes.to_dtype(o, want) for o in outs]
 
 
-__all__ = ["ArrayInput", "run", "fill_colour", "fill_result", "as_array", "wanted", "banded"]
+__all__ = ["ArrayInput", "run", "fill_colour", "fill_result", "as_array", "wanted", "zarr_out", "to_zarr",
+           "banded"]

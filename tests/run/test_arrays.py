@@ -39,3 +39,13 @@ def test_a_kept_input_is_a_copy_and_fill_keeps_float64_pixels(session):
     assert colour.dtype == np.float64
     (filled,) = session.run(Fill(levels=2), [colour, weight], inp.compute)
     np.testing.assert_array_equal(filled[:, :, 0], a)
+
+
+def test_zarr_outputs_are_told_without_loading_zarr(tmp_path):
+    from pathlib import Path
+
+    zarr = pytest.importorskip("zarr")
+    group = zarr.open_group(zarr.storage.MemoryStore(), mode="w", zarr_format=3)
+    assert [arrays.zarr_out(o) for o in (group, "a.ome.zarr", Path("b.ZARR/"), tmp_path / "c.zarr")] == [True] * 4
+    assert [arrays.zarr_out(o) for o in (None, "a.tif", [np.zeros((2, 2))], (), zarr.storage.MemoryStore())] == \
+        [False] * 5
