@@ -40,6 +40,7 @@ of any 8-bit level.
 from __future__ import annotations
 
 import math
+import shutil
 import subprocess
 import sys
 import xml.etree.ElementTree as ET
@@ -181,9 +182,17 @@ def read_dz(dzi: Path) -> dict[int, np.ndarray]:
     return levels
 
 
+def fresh_dzi(out: Path) -> Path:
+    """``out``.dzi with no earlier tree there (a rerun must not read an earlier run's tiles, nor be refused)."""
+    dzi = out.with_suffix(".dzi")
+    dzi.unlink(missing_ok=True)
+    shutil.rmtree(dzi.with_name(dzi.stem + "_files"), ignore_errors=True)
+    return dzi
+
+
 def dzsave_levels(png: Path, out: Path) -> dict[int, np.ndarray]:
     """``vips dzsave --suffix .png`` of ``png`` in a fresh interpreter (bench/scripts/vips_tiles.py), read back."""
-    dzi = out.with_suffix(".dzi")
+    dzi = fresh_dzi(out)
     p = subprocess.run([sys.executable, str(SCRIPTS / "vips_tiles.py"), "dzsave", str(png), str(dzi), ".png"],
                        capture_output=True, text=True)
     if p.returncode:
@@ -193,7 +202,7 @@ def dzsave_levels(png: Path, out: Path) -> dict[int, np.ndarray]:
 
 def tiles_levels(png: Path, out: Path, pyramid: list[str], env: dict | None) -> dict[int, np.ndarray]:
     """``pyramid tiles PNG OUT.dzi --format png`` (this checkout's CLI), read back."""
-    dzi = out.with_suffix(".dzi")
+    dzi = fresh_dzi(out)
     p = subprocess.run([*pyramid, "tiles", str(png), str(dzi), "--format", "png"], capture_output=True, text=True,
                        env=env)
     if p.returncode:
