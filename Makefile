@@ -5,7 +5,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 OUT    := samples/out
 
-.PHONY: demo test docs docs-pictures lint bench bench-peers calibrate check-gl clean
+.PHONY: demo test docs docs-pictures lint bench bench-peers bench-tiles calibrate check-gl clean
 
 $(STAMP): pyproject.toml
 	@$(PYTHON) -c 'import sys; sys.exit(sys.version_info < (3, 10))' || \
@@ -61,6 +61,14 @@ REPEAT ?= 5
 bench-peers: $(STAMP) check-gl
 	$(PY) -m pip install -q -e '.[test,docs,plot,bench]'
 	$(PY) bench/peers.py --repeat $(REPEAT) $(PEERS_ARGS)
+
+# `pyramid tiles` against libvips `dzsave` and `tiffsave --tile --pyramid` (issue 27): a zone plate's levels against
+# the ideal reduction, then time and peak memory at 8K and 16K and ours alone at 32K (fresh processes, interleaved;
+# about 10 minutes on 2 cores): bench/results/tiles-DATE.json and .png. TILES_ARGS passes more (--only, --sizes,
+# --pyramid-tree); `pyramid tiles` missing from the checkout leaves its rows "not available".
+bench-tiles: $(STAMP)
+	$(PY) -m pip install -q -e '.[test,docs,plot,bench]'
+	$(PY) bench/tiles.py --repeat $(REPEAT) $(TILES_ARGS)
 
 # Re-measure the planner's cost model on this machine's GL (about a minute) and
 # check the docs' fetch table against the new model.

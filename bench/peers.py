@@ -73,14 +73,18 @@ DEFAULT_PYRAMID = f"{shlex.quote(sys.executable)} -m pyramid_cli.cli"
 
 
 # ====================================================================== inputs
-def content(rows: int, cols: int, channels: int, seed: int) -> np.ndarray:
-    """Smooth colour (a few low-frequency waves) plus a little Gaussian noise, float32 in about [0, 1]."""
-    y = np.linspace(0, 1, rows, dtype=np.float32)[:, None]
+def content(rows: int, cols: int, channels: int, seed: int, band: tuple[int, int] | None = None) -> np.ndarray:
+    """Smooth colour (a few low-frequency waves) plus a little Gaussian noise, float32 in about [0, 1].
+
+    ``band`` (y0, y1): only those rows of the ``rows``-high picture (its noise seeded by ``seed`` and y0), so
+    that bench/tiles.py can write pictures too big to hold whole."""
+    y = np.linspace(0, 1, rows, dtype=np.float32)[slice(*band) if band else slice(None), None]
     x = np.linspace(0, 1, cols, dtype=np.float32)[None, :]
     waves = [0.5 + 0.3 * np.sin(2 * np.pi * (3 * x + y)), 0.5 + 0.3 * np.cos(2 * np.pi * (2 * y - x)),
              0.2 + 0.6 * x * y, np.ones_like(x * y)]
     img = np.stack(waves[:channels], -1)
-    noise = np.random.default_rng(seed).normal(0, 0.02, (rows, cols, min(channels, 3))).astype(np.float32)
+    rng = np.random.default_rng([seed, band[0]] if band else seed)
+    noise = rng.normal(0, 0.02, (y.shape[0], cols, min(channels, 3))).astype(np.float32)
     img[..., :3] += noise
     return np.clip(img, 0, 1)
 
@@ -260,13 +264,17 @@ def verdict(ratio: float | None, limit: float | None) -> str:
     return "PASS" if ratio <= limit else "MISS"
 
 
-def ratio_entry(job_id: str, metric: str, ratio: float | None) -> dict:
-    limit = TARGETS.get(job_id, {}).get(metric)
+def ratio_entry(job_id: str, metric: str, ratio: float | None, targets: dict | None = None) -> dict:
+    limit = (TARGETS if targets is None else targets).get(job_id, {}).get(metric)
     return {"ratio": ratio, "target": limit, "verdict": verdict(ratio, limit)}
 
 
-def measure_job(job: Job, pyrs: list[Pyramid], out: Path, args) -> dict:
-    """Interleave every contender of ``job`` (each pyramid × our commands, the peer, the extras); medians, ratios."""
+def measure_job(job: Job, pyrs: list[Pyramid], out: Path, args, targets: dict | None = None,
+                runs: type[Runs] = Runs) -> dict:
+    """Interleave every contender of ``job`` (each pyramid × our commands, the peer, the extras); medians, ratios.
+
+    ``targets`` (default :data:`TARGETS`) and ``runs`` (a :class:`Runs` subclass) let bench/tiles.py reuse it.
+    """
     folder = out / job.id
     folder.mkdir(parents=True, exist_ok=True)
     cons: dict[str, Runs] = {}
@@ -274,12 +282,12 @@ def measure_job(job: Job, pyrs: list[Pyramid], out: Path, args) -> dict:
         for label, a in job.ours.items():
             name = f"{p.label} {label}".strip()
             o = folder / name.replace(" ", "_").replace("@", "_")
-            cons[name] = Runs(p.argv + outputs(a, o), o, p.env)
+            cons[name] = runs(p.argv + outputs(a, o), o, p.env)
     if job.peer_argv and not job.skipped:
-        cons["peer"] = Runs(outputs(job.peer_argv, folder / "peer"), folder / "peer")
+        cons["peer"] = runs(outputs(job.peer_argv, folder / "peer"), folder / "peer")
     for label, a in job.extras.items():
         o = folder / label.split()[0]
-        cons[label] = Runs(outputs(a, o), o)
+        cons[label] = runs(outputs(a, o), o)
     loads = [os.getloadavg()[0]]
     for _ in range(args.warmup):  # dropped: the kernel cache, the page cache
         for c in cons.values():
@@ -291,11 +299,11 @@ def measure_job(job: Job, pyrs: list[Pyramid], out: Path, args) -> dict:
     if job.skipped:
         res["skipped"] = job.skipped
     for p in pyrs:
-        res["rows"].append(job_row(job, p.label, res["contenders"]))
+        res["rows"].append(job_row(job, p.label, res["contenders"], targets))
     return res
 
 
-def job_row(job: Job, label: str, cons: dict) -> dict:
+def job_row(job: Job, label: str, cons: dict, targets: dict | None = None) -> dict:
     """One pyramid's line of a job: its time and memory, the peer's, the ratios and verdicts."""
     def med(name, key):
         return cons.get(name, {}).get(key)
@@ -306,12 +314,12 @@ def job_row(job: Job, label: str, cons: dict) -> dict:
         ratio = mine["auto"] / best if mine["auto"] and best else None
         return {"pyramid": label, "times_s": mine, "memory_mib": {k: med(f"{label} {k}", "peak_rss_mib")
                                                                   for k in job.ours},
-                "time": ratio_entry(job.id, "time", ratio)}
+                "time": ratio_entry(job.id, "time", ratio, targets)}
     t, m = med(label, "median_s"), med(label, "peak_rss_mib")
     pt, pm = med("peer", "median_s"), med("peer", "peak_rss_mib")
     return {"pyramid": label, "pyramid_s": t, "pyramid_mib": m, "peer_s": pt, "peer_mib": pm,
-            "time": ratio_entry(job.id, "time", t / pt if t and pt else None),
-            "memory": ratio_entry(job.id, "memory", m / pm if m and pm else None)}
+            "time": ratio_entry(job.id, "time", t / pt if t and pt else None, targets),
+            "memory": ratio_entry(job.id, "memory", m / pm if m and pm else None, targets)}
 
 
 def measure_cpu_opencv(pyrs: list[Pyramid], args) -> dict:
@@ -338,8 +346,9 @@ def measure_cpu_opencv(pyrs: list[Pyramid], args) -> dict:
 
 
 # ====================================================================== report
-def versions() -> dict:
-    """The peers' and pyramid's libraries (machine_info has numpy, OpenImageIO, OpenCV, moderngl)."""
+def versions(tools: tuple[str, ...] = ("maketx", "oiiotool"), numba: bool = True) -> dict:
+    """The peers' and pyramid's libraries (machine_info has numpy, OpenImageIO, OpenCV, moderngl): libvips, and
+    ``numba`` and the OpenImageIO ``tools`` unless told otherwise (bench/tiles.py needs only libvips)."""
     v = {}
     try:
         import pyvips
@@ -350,12 +359,10 @@ def versions() -> dict:
         v["pyvips"] = v["libvips"] = None
         v["pyvips_error"] = " ".join(str(e).split())[:160]
     try:
-        import numba
-
-        v["numba"] = numba.__version__
+        v["numba"] = __import__("numba").__version__ if numba else None
     except ImportError:
         v["numba"] = None
-    for name in ("maketx", "oiiotool"):
+    for name in tools:
         exe = tool(name)
         v[name] = exe and subprocess.run([exe, "--version"], capture_output=True, text=True).stdout.strip()
     return v
