@@ -23,7 +23,7 @@ import dataclasses
 import os
 import time
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -156,10 +156,12 @@ def tile_source(source, where: str, out: str, settings: TileSettings, session, *
 
     reporter = reporter or Reporter()
     started = time.perf_counter()
-    layout = tilesets.layout_of(os.fspath(out), settings.layout)
+    group = not isinstance(out, (str, os.PathLike))  # a zarr.Group: OME-Zarr written into it
+    layout = "ome-zarr" if group else tilesets.layout_of(os.fspath(out), settings.layout)
     cls = tilesets.writer_class(layout)
     h, w, c = source.shape
-    _check_not_input(where, out, force)
+    if not group:
+        _check_not_input(where, out, force)
     options = tile_format(layout, settings.options, source.info, reporter, where)
     writer = cls(out, source.info, (h, w), c, options)
     try:
@@ -336,7 +338,7 @@ def tile_files(paths: list[str], template: str | None, settings: TileSettings, s
     return report, described
 
 
-def tiles(path_or_array, out: str | os.PathLike[str], *, layout: str | None = None,
+def tiles(path_or_array, out: str | os.PathLike[str] | Any, *, layout: str | None = None,
           analysis: str = catalogue.MIP_ANALYSIS_DEFAULT, border: str = "clamp", tile_size: int | None = None,
           overlap: int | None = None, format: str | None = None, quality: int | None = None,  # noqa: A002
           compression: str | None = None, memory: int | str | None = None, backend: str = "auto", session=None,
@@ -356,9 +358,10 @@ def tiles(path_or_array, out: str | os.PathLike[str], *, layout: str | None = No
         channel) premultiplied, as :func:`pyramid_cli.api.read_image` returns them: integer arrays are read as
         normalised codes (:func:`pyramid_cli.api.as_pixels`), not as sRGB. An array's tiles store floats where the
         format holds them (TIFF, OME-Zarr), else 8-bit codes of ``tocolorspace`` (default: sRGB for JPEG/PNG).
-    out : str or os.PathLike
+    out : str, os.PathLike or zarr.Group
         ``name.dzi`` (Deep Zoom), a folder with ``layout="iiif3"`` or ``"iiif"``, ``name.ome.zarr``/``name.zarr``,
-        ``name.tif`` (pyramidal TIFF) or ``name.ome.tif``; replaced whole when the tile set is complete.
+        ``name.tif`` (pyramidal TIFF) or ``name.ome.tif``; replaced whole when the tile set is complete. A
+        ``zarr.Group`` (an array's tiles only) gets the OME-Zarr multiscales written into it.
     layout : {"dz", "iiif3", "iiif", "ome-zarr", "tiff", "ome-tiff"}, optional
         Default: from ``out``'s name (:func:`pyramid_cli.imageio.tilesets.layout_of`).
     analysis : str
@@ -408,10 +411,11 @@ def tiles(path_or_array, out: str | os.PathLike[str], *, layout: str | None = No
                              read=ReadOptions(colorspace, alpha, nan, colorconfig), reporter=reporter)
         pixels = dtypes.as_pixels(path_or_array, "path_or_array")
         pixels = pixels if pixels.ndim == 3 else pixels[:, :, None]
-        info = io.info_for_array(os.fspath(out), pixels.shape[2])
+        target = os.fspath(out) if isinstance(out, (str, os.PathLike)) else out  # a zarr.Group stays one
+        info = io.info_for_array(target if isinstance(target, str) else "x.zarr", pixels.shape[2])
         if colorconfig is not None:
             info.colorconfig = colorconfig
-        return tile_source(ArraySource(pixels, info), "array", os.fspath(out), settings, session, memory=budget,
+        return tile_source(ArraySource(pixels, info), "array", target, settings, session, memory=budget,
                            reporter=reporter)
     finally:
         if own:
