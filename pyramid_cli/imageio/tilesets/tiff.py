@@ -2,10 +2,10 @@
 
 ``name.tif`` (:class:`PyramidTiffWriter`): level 0 in the first page, every reduced level in a page of its
 own after it, marked NewSubfileType = 1 (reduced resolution), all tiled: the file ``vips tiffsave --tile
---pyramid`` writes, which OpenSlide (its generic tiled TIFF) and tifffile read as one pyramid, QuPath
-through either, and OpenImageIO as one subimage per level. ``name.ome.tif`` (:class:`OmeTiffWriter`): the OME-XML in the first IFD's ImageDescription and the
-reduced levels as SubIFDs of the full-resolution IFD, as ``bioformats2raw``/``raw2ometiff`` and tifffile's
-OME writer store them.
+--pyramid`` writes, which OpenSlide (its generic tiled TIFF) and tifffile read as one pyramid (QuPath reads
+it through either) and OpenImageIO as one subimage per level. ``name.ome.tif`` (:class:`OmeTiffWriter`): the
+OME-XML in the first IFD's ImageDescription and the reduced levels as SubIFDs of the full-resolution IFD, as
+``bioformats2raw``/``raw2ometiff`` and tifffile's OME writer store them (OpenImageIO sees level 0 only).
 
 A TIFF holds level 0's tiles first, so they are written as each row of tiles completes: tifffile's
 ``TiffWriter.write`` consumes a generator of tiles on a thread of its own, fed through a short queue by
@@ -50,6 +50,7 @@ CODECS = {"none": None, "jpeg": "jpeg", "deflate": "zlib", "zip": "zlib", "zstd"
 _LEVELLED = ("deflate", "zip", "zstd")  # take :LEVEL
 _IMAGECODECS = {"jpeg": "JPEG8", "deflate": "ZLIB", "zip": "ZLIB", "zstd": "ZSTD", "lzw": "LZW", "packbits": "PACKBITS"}
 _DTYPES = {"uint8": np.uint8, "uint16": np.uint16, "half": np.float16, "float": np.float32}
+_NAMES = {np.dtype(t).name: name for name, t in _DTYPES.items()}
 _UNITS = {"in": ("INCH", 25400.0), "inch": ("INCH", 25400.0), "cm": ("CENTIMETER", 1e4),
           "centimeter": ("CENTIMETER", 1e4)}  # OpenImageIO's ResolutionUnit -> tifffile's, µm per unit
 _QUEUED = 2  # rows of level-0 tiles waiting for the file at most
@@ -163,6 +164,8 @@ class PyramidTiffWriter(TileSetWriter):
         """Refuse a tile size that is not a multiple of 16, an overlap, a tile suffix, an unknown compression,
         a quality without JPEG, JPEG of anything but 8-bit grey or RGB, and a missing tifffile."""
         p, o = self.path, self.options
+        if os.path.isdir(p):
+            raise OutputError(f"cannot write {p}: it is a directory")
         if self.tile < 16 or self.tile % 16:
             raise UsageError(f"{p}: --tile-size {self.tile}: TIFF tiles are a multiple of 16 pixels")
         if o.overlap:
@@ -403,7 +406,7 @@ class PyramidTiffWriter(TileSetWriter):
         levels = [{"level": k, "reduction": k, "size": [w, h], "scale": 2 ** k, "rule": "ceil-half",
                    "tiles": [-(-w // t), -(-h // t)]} for k, (h, w) in enumerate(self.sizes)]
         return {"layout": self.layout, "path": self.path, "tile_size": t, "overlap": 0, "format": "tiff",
-                "compression": self.codec, "dtype": str(self._stored().format), "levels": levels}
+                "compression": self.codec, "dtype": _NAMES[self.dtype.name], "levels": levels}
 
     def _abort(self) -> None:
         self._stop.set()
@@ -424,10 +427,17 @@ class PyramidTiffWriter(TileSetWriter):
 
 class OmeTiffWriter(PyramidTiffWriter):
     """An OME-TIFF (``name.ome.tif``): OME-XML in the first IFD, the reduced levels as its SubIFDs (see the
-    module); options as :class:`PyramidTiffWriter`'s. The physical pixel size is the input's resolution."""
+    module); options as :class:`PyramidTiffWriter`'s. The physical pixel size is the input's resolution; half
+    is stored as float."""
 
     layout: ClassVar[str] = "ome-tiff"
     ome: ClassVar[bool] = True
+
+    @property
+    def dtype(self) -> np.dtype:
+        """The stored sample type; half is stored as float (OME-XML has no 16-bit float type), the same values."""
+        dtype = super().dtype
+        return np.dtype(np.float32) if dtype == np.float16 else dtype
 
     def _metadata(self) -> dict | None:
         spec = self._stored()

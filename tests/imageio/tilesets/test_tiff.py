@@ -25,6 +25,8 @@ def _info(kind: str, **attributes) -> ImageInfo:
         return ImageInfo("in.png", "png", "uint8", names[3], -1, "srgb", "none", attributes=attributes)
     if kind == "rgba8":
         return ImageInfo("in.png", "png", "uint8", names[4], 3, "srgb", "straight", attributes=attributes)
+    if kind == "rgbh":
+        return ImageInfo("in.exr", "openexr", "half", names[3], -1, "linear", "none", attributes=attributes)
     if kind == "rgba16":
         return ImageInfo("in.png", "png", "uint16", names[4], 3, "srgb", "straight", attributes=attributes)
     assert kind == "y32"
@@ -71,7 +73,7 @@ def _pyramid(px, count):
 
 
 CASES = [((37, 53, 3), "rgb8"), ((1, 1, 3), "rgb8"), ((1, 300, 3), "rgb8"), ((300, 1, 3), "rgb8"),
-         ((3, 300, 3), "rgb8"), ((37, 53, 4), "rgba16"), ((37, 53, 1), "y32")]
+         ((3, 300, 3), "rgb8"), ((37, 53, 4), "rgba16"), ((37, 53, 1), "y32"), ((37, 53, 3), "rgbh")]
 
 
 @pytest.mark.parametrize("name", ["p.tif", "p.ome.tif"])
@@ -86,7 +88,9 @@ def test_every_level_reads_back_as_stored(tmp_path, name, shape, kind):
         for k, level in enumerate(series.levels):
             got = level.asarray().reshape(levels[k].shape)
             np.testing.assert_array_equal(got, writer.encode(levels[k]))
-            assert got.dtype == {"rgb8": np.uint8, "rgba16": np.uint16, "y32": np.float32}[kind]
+            # half as half, but as float in OME-TIFF (OME-XML has no 16-bit float type)
+            half = np.float32 if tif.is_ome else np.float16
+            assert got.dtype == {"rgb8": np.uint8, "rgba16": np.uint16, "y32": np.float32, "rgbh": half}[kind]
             page = level.keyframe
             assert (page.tilewidth, page.tilelength) == (TILE, TILE)
             assert page.subfiletype == (1 if k else 0)
@@ -129,13 +133,17 @@ def test_jpeg_tiles_within_jpeg_error(tmp_path, name):
             assert _psnr(level.asarray(), want) > _psnr(alone, want) - 1
 
 
-@pytest.mark.parametrize("codec", ["deflate:9", "zstd", "lzw"])
-def test_lossless_codecs_keep_values(tmp_path, codec):
-    path = tmp_path / "c.tif"
-    writer, _, levels = _write(path, "rgba16", _pyramid, (37, 53, 4), compression=codec)
+@pytest.mark.parametrize(("codec", "tag", "kind", "name"), [
+    ("deflate:9", "ADOBE_DEFLATE", "rgba16", "c.tif"), ("zstd", "ZSTD", "rgbh", "c.tif"),
+    ("lzw", "LZW", "y32", "c.ome.tif"), ("packbits", "PACKBITS", "rgb8", "c.tif")])
+def test_lossless_codecs_keep_values(tmp_path, codec, tag, kind, name):
+    path = tmp_path / name
+    c = {"rgba16": 4, "y32": 1}.get(kind, 3)
+    writer, _, levels = _write(path, kind, _pyramid, (37, 53, c), compression=codec)
     with tifffile.TiffFile(path) as tif:
         for k, level in enumerate(tif.series[0].levels):
-            np.testing.assert_array_equal(level.asarray(), writer.encode(levels[k]))
+            assert level.keyframe.compression.name == tag
+            np.testing.assert_array_equal(level.asarray().reshape(levels[k].shape), writer.encode(levels[k]))
 
 
 def test_resolution_per_level_and_ome_physical_size(tmp_path):
@@ -183,14 +191,14 @@ def test_openimageio_reads_pages_as_subimages(tmp_path):
         inp.close()
 
 
-@pytest.mark.parametrize("kind", ["rgb8", "rgba8"])
-def test_openslide_opens_the_pyramid(tmp_path, kind):
+@pytest.mark.parametrize(("kind", "codec"), [("rgb8", None), ("rgba8", None), ("rgb8", "jpeg")])
+def test_openslide_opens_the_pyramid(tmp_path, kind, codec):
     openslide = pytest.importorskip("openslide")
     c = 4 if kind == "rgba8" else 3
     path = tmp_path / "s.tif"
     # 32-pixel tiles: OpenSlide 4.0.1 (its libtiff) fails on uncompressed 16-pixel tiles at the bottom edge,
     # vips tiffsave's as ours
-    writer, _, levels = _write(path, kind, _pyramid, (37, 53, c), tile=32)
+    writer, _, levels = _write(path, kind, _pyramid, (37, 53, c), tile=32, compression=codec)
     slide = openslide.OpenSlide(str(path))
     try:
         assert slide.properties["openslide.vendor"] == "generic-tiff"
@@ -199,6 +207,11 @@ def test_openslide_opens_the_pyramid(tmp_path, kind):
         for k, level in enumerate(levels):
             got = np.asarray(slide.read_region((0, 0), k, slide.level_dimensions[k])).astype(int)
             want = writer.encode(level).astype(int)
+            if codec == "jpeg":  # its libjpeg-turbo against tifffile's decoding of the same tiles
+                with tifffile.TiffFile(path) as tif:
+                    want = tif.series[0].levels[k].asarray().astype(int)
+                assert np.abs(got[..., :3] - want).max() <= 2
+                continue
             if c == 3:
                 np.testing.assert_array_equal(got[..., :3], want)
                 assert (got[..., 3] == 255).all()
@@ -243,15 +256,18 @@ def test_levels_as_vips_tiffsave_pyramid(tmp_path, shape):
     ({"compression": "jpeg", "quality": 0}, "rgb8", "1 to 100"),
     ({"compression": "jpeg"}, "rgba8", "without alpha"),
     ({"compression": "jpeg"}, "rgba16", "8-bit"),
+    ({}, "rgb8", "is a directory"),
 ])
 def test_refused_before_any_work(tmp_path, options, kind, says):
     c = 4 if kind.startswith("rgba") else 3
     path = tmp_path / "x.tif"
+    if says == "is a directory":
+        path.mkdir()
     writer = writer_class("tiff")(str(path), _info(kind), (37, 53), c,
                                   TileOptions(**{"tile_size": TILE, **options}))
-    with pytest.raises(UsageError, match=says):
+    with pytest.raises(UsageError if says != "is a directory" else OutputError, match=says):
         writer.check()
-    assert os.listdir(tmp_path) == []
+    assert os.listdir(tmp_path) == ([] if says != "is a directory" else ["x.tif"])
 
 
 def test_abort_leaves_the_previous_output(tmp_path):
@@ -280,5 +296,23 @@ def test_a_failing_file_is_an_output_error_and_aborts_clean(tmp_path, monkeypatc
         for y in range(0, 37, 8):
             writer.rows(0, y, levels[0][y:y + 8])
         writer.finish()
+    writer.abort()
+    assert os.listdir(tmp_path) == []
+
+
+def test_a_failing_spill_is_an_output_error(tmp_path, monkeypatch):
+    from pyramid_cli.imageio.tilesets import tiff
+
+    def full(*args):
+        raise OSError(28, "No space left on device")
+
+    path = tmp_path / "g.ome.tif"
+    writer = writer_class("ome-tiff")(str(path), _info("rgb8"), (37, 53), 3, TileOptions(tile_size=TILE))
+    levels = _pyramid(_picture(37, 53, 3), len(writer.sizes))
+    writer.rows(0, 0, levels[0])
+    monkeypatch.setattr(tiff.os, "pwrite", full)
+    with pytest.raises(OutputError, match="No space left on device .in the temporary file of its reduced levels"):
+        writer.rows(1, 0, levels[1])
+    monkeypatch.undo()
     writer.abort()
     assert os.listdir(tmp_path) == []
