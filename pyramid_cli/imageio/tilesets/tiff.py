@@ -308,12 +308,13 @@ class PyramidTiffWriter(TileSetWriter):
         pad = self.codec.startswith("jpeg")
         for _ in range(-(-self.sizes[0][0] // self.tile)):
             while True:
+                if self._stop.is_set():
+                    raise _Aborted
                 try:
                     band = self._queue.get(timeout=0.1)
                     break
                 except queue.Empty:
-                    if self._stop.is_set():
-                        raise _Aborted from None
+                    continue
             if band is None:
                 raise _Aborted
             yield from _tiles(band, self.tile, pad)
@@ -441,8 +442,12 @@ class OmeTiffWriter(PyramidTiffWriter):
 
     def _metadata(self) -> dict | None:
         spec = self._stored()
-        meta: dict[str, Any] = {"axes": "YXS" if spec.nchannels > 1 else "YX",
-                                "Name": os.path.basename(self.path).split(".")[0] or "image"}
+        name = os.path.basename(self.path)
+        for ends in (".ome.tiff", ".ome.tif", ".tiff", ".tif"):
+            if name.lower().endswith(ends):
+                name = name[:-len(ends)]
+                break
+        meta: dict[str, Any] = {"axes": "YXS" if spec.nchannels > 1 else "YX", "Name": name or "image"}
         res = self._resolution()
         if res is not None:
             (x, y), _, um = res

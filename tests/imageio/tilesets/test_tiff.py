@@ -99,6 +99,7 @@ def test_every_level_reads_back_as_stored(tmp_path, name, shape, kind):
         assert tif.is_ome == name.endswith(".ome.tif")
         if tif.is_ome:  # reduced levels as SubIFDs of the one full-resolution IFD
             assert len(tif.pages) == 1 and len(tif.pages[0].subifds or ()) == len(writer.sizes) - 1
+            assert '<Image ID="Image:0" Name="p">' in tif.ome_metadata
         else:  # reduced levels as further pages
             assert len(tif.pages) == len(writer.sizes) and not tif.pages[0].description
     assert [lv["size"] for lv in report["levels"]] == [[w, h] for h, w in writer.sizes]
