@@ -7,14 +7,16 @@ it through either) and OpenImageIO as one subimage per level. ``name.ome.tif`` (
 OME-XML in the first IFD's ImageDescription and the reduced levels as SubIFDs of the full-resolution IFD, as
 ``bioformats2raw``/``raw2ometiff`` and tifffile's OME writer store them (OpenImageIO sees level 0 only).
 
-A TIFF holds level 0's tiles first, so they are written as each row of tiles completes: tifffile's
-``TiffWriter.write`` consumes a generator of tiles on a thread of its own, fed through a short queue by
+Rows are encoded to their stored values on a pool of :data:`ENCODERS` threads (the 8-bit sRGB encoding is
+most of a writer's time) and stored in the order given. A TIFF holds level 0's tiles first, so they are
+written as each row of tiles completes: tifffile's ``TiffWriter.write`` consumes a generator of tiles on a
+thread of its own, fed through a short queue by
 :meth:`~pyramid_cli.imageio.tilesets.base.TileSetWriter.rows` (which waits when the file is behind). The
 coarser levels (a third of level 0 in all) are kept as stored values in a temporary file in the staging folder
 (explicit reads and writes: no mapping, nothing of them in the process's memory) and written
 from it at :meth:`~pyramid_cli.imageio.tilesets.base.TileSetWriter.finish`. Memory: a few rows of level 0's
 tiles (tile size × width × channels each: the one being filled, two queued for the file, and what tifffile
-gathers to compress on its threads), never a whole level.
+gathers to compress on its threads) and a few bands being encoded, never a whole level.
 
 Levels are ⌈n/2⌉ of the one before (``ceil-half``), as many as ``vips tiffsave --pyramid`` makes: it halves
 to ⌊n/2⌋ (dropping an odd last row or column) until a level fits in one tile or a side is 1 pixel (tifffile
@@ -30,7 +32,9 @@ import contextlib
 import os
 import queue
 import threading
+from collections import deque
 from collections.abc import Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any, ClassVar
 
 import numpy as np
@@ -54,6 +58,8 @@ _NAMES = {np.dtype(t).name: name for name, t in _DTYPES.items()}
 _UNITS = {"in": ("INCH", 25400.0), "inch": ("INCH", 25400.0), "cm": ("CENTIMETER", 1e4),
           "centimeter": ("CENTIMETER", 1e4)}  # OpenImageIO's ResolutionUnit -> tifffile's, µm per unit
 _QUEUED = 2  # rows of level-0 tiles waiting for the file at most
+ENCODERS = 2  # threads encoding rows to stored values beside the band pipeline
+_ENCODING = 4  # bands being encoded before rows() waits for the oldest
 
 
 class _Aborted(Exception):
@@ -144,7 +150,10 @@ class PyramidTiffWriter(TileSetWriter):
         self._stop = threading.Event()
         self._failure: BaseException | None = None
         self._band: np.ndarray | None = None  # level 0's row of tiles being completed (stored values)
-        self._done = [0] * len(self.sizes)    # rows received per level
+        self._given = [0] * len(self.sizes)   # rows received per level
+        self._done = [0] * len(self.sizes)    # rows stored per level
+        self._pool: ThreadPoolExecutor | None = None
+        self._encoding: deque[tuple[int, int, Future]] = deque()  # bands being encoded, in the order given
         self._spec: Any = None
 
     @classmethod
@@ -285,6 +294,7 @@ class PyramidTiffWriter(TileSetWriter):
             self._tif = tifffile.TiffWriter(self._staging.staged[0], bigtiff=total > 2**32 - 2**26, ome=self.ome)
         except OSError as exc:
             raise self._error(exc) from None
+        self._pool = ThreadPoolExecutor(ENCODERS, thread_name_prefix="tiff-encode")
         self._thread = threading.Thread(target=self._write_level0, name="tiff-level0", daemon=True)
         self._thread.start()
 
@@ -347,9 +357,25 @@ class PyramidTiffWriter(TileSetWriter):
     def _rows(self, level: int, y0: int, pixels: np.ndarray) -> None:
         if self._staging is None:
             self._start()
-        if y0 != self._done[level]:
-            raise ValueError(f"level {level}: rows from {y0} given, {self._done[level]} expected")
-        data = self.encode(pixels, y0)
+        assert self._pool is not None
+        if y0 != self._given[level]:
+            raise ValueError(f"level {level}: rows from {y0} given, {self._given[level]} expected")
+        self._given[level] = y0 + len(pixels)
+        # encoded on the pool (numpy's table lookups let go of the GIL), stored in the order given: a copy, since
+        # the caller may reuse its rows
+        self._encoding.append((level, y0, self._pool.submit(self.encode, np.array(pixels, np.float32), y0)))
+        self._take(_ENCODING)
+
+    def _take(self, keep: int) -> None:
+        """Store the encoded bands that are ready, in the order they came, waiting for the oldest while more than
+        ``keep`` are being encoded."""
+        while self._encoding and (len(self._encoding) > keep or self._encoding[0][2].done()):
+            level, y0, future = self._encoding.popleft()
+            self._store(level, y0, future.result())
+
+    def _store(self, level: int, y0: int, data: np.ndarray) -> None:
+        """Stored rows ``y0..`` of ``level``: levels 1.. to the spill, level 0 into its row of tiles, handed to
+        the file's thread when complete."""
         self._done[level] = y0 + len(data)
         if level:
             assert self._spill is not None, "levels 1.. have a spill"
@@ -373,6 +399,9 @@ class PyramidTiffWriter(TileSetWriter):
         if self._staging is None:
             raise ValueError("no rows were given")
         self._raise_failure()
+        assert self._pool is not None
+        self._take(0)
+        self._pool.shutdown()
         missing = [k for k, (h, _) in enumerate(self.sizes) if self._done[k] != h]
         if missing:
             raise ValueError(f"level(s) {missing} incomplete")
@@ -411,6 +440,9 @@ class PyramidTiffWriter(TileSetWriter):
 
     def _abort(self) -> None:
         self._stop.set()
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+        self._encoding.clear()
         with contextlib.suppress(queue.Full):
             self._queue.put_nowait(None)
         if self._thread is not None:

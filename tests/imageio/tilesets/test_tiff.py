@@ -314,6 +314,7 @@ def test_a_failing_spill_is_an_output_error(tmp_path, monkeypatch):
     monkeypatch.setattr(tiff.os, "pwrite", full)
     with pytest.raises(OutputError, match="No space left on device .in the temporary file of its reduced levels"):
         writer.rows(1, 0, levels[1])
+        writer.finish()
     monkeypatch.undo()
     writer.abort()
     assert os.listdir(tmp_path) == []
