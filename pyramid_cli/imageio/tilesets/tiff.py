@@ -259,8 +259,8 @@ class PyramidTiffWriter(TileSetWriter):
         if res is not None:
             (x, y), unit, _ = res
             kw["resolution"], kw["resolutionunit"] = (x / 2 ** k, y / 2 ** k), unit
-        icc = spec.getattribute("ICCProfile")
-        if icc is not None and k == 0:
+        icc = spec.getattribute("ICCProfile")  # the input's, kept when the stored values are in its space
+        if icc is not None:
             kw["iccprofile"] = bytes(np.asarray(icc, dtype=np.uint8))
         return kw
 

@@ -147,11 +147,13 @@ def test_lossless_codecs_keep_values(tmp_path, codec, tag, kind, name):
             np.testing.assert_array_equal(level.asarray().reshape(levels[k].shape), writer.encode(levels[k]))
 
 
-def test_resolution_per_level_and_ome_physical_size(tmp_path):
+def test_resolution_per_level_icc_profile_and_ome_physical_size(tmp_path):
+    icc = np.arange(200, dtype=np.uint8)
     for name in ("r.tif", "r.ome.tif"):
         path = tmp_path / name
         cls = writer_class(layout_of(str(path)))
-        info = _info("rgb8", XResolution=300.0, YResolution=150.0, ResolutionUnit="in")
+        info = _info("rgb8", XResolution=300.0, YResolution=150.0, ResolutionUnit="in", ICCProfile=icc)
+        info.attribute_types["ICCProfile"] = "uint8[200]"
         writer = cls(str(path), info, (37, 53), 3, TileOptions(tile_size=TILE))
         writer.check()
         for k, lv in enumerate(_pyramid(_picture(37, 53, 3), len(writer.sizes))):
@@ -162,6 +164,7 @@ def test_resolution_per_level_and_ome_physical_size(tmp_path):
                 page = level.keyframe
                 assert page.get_resolution() == pytest.approx((300 / 2 ** k, 150 / 2 ** k))
                 assert page.resolutionunit == 2
+                assert page.iccprofile == icc.tobytes()
             if tif.is_ome:
                 assert 'PhysicalSizeX="84.666' in tif.ome_metadata and 'PhysicalSizeY="169.333' in tif.ome_metadata
 
