@@ -59,7 +59,7 @@ _UNITS = {"in": ("INCH", 25400.0), "inch": ("INCH", 25400.0), "cm": ("CENTIMETER
           "centimeter": ("CENTIMETER", 1e4)}  # OpenImageIO's ResolutionUnit -> tifffile's, µm per unit
 _QUEUED = 2  # rows of level-0 tiles waiting for the file at most
 ENCODERS = 2  # threads encoding rows to stored values beside the band pipeline
-_ENCODING = 4  # bands being encoded before rows() waits for the oldest
+_ENCODING = 2  # bands being encoded before rows() waits for the oldest (copies of the caller's float rows)
 
 
 class _Aborted(Exception):
