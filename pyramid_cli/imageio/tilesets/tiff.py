@@ -7,7 +7,7 @@ it through either) and OpenImageIO as one subimage per level. ``name.ome.tif`` (
 OME-XML in the first IFD's ImageDescription and the reduced levels as SubIFDs of the full-resolution IFD, as
 ``bioformats2raw``/``raw2ometiff`` and tifffile's OME writer store them (OpenImageIO sees level 0 only).
 
-Rows are encoded to their stored values on a pool of :data:`ENCODERS` threads (the 8-bit sRGB encoding is
+Rows are encoded to their stored values on a pool of ``ENCODERS`` threads (the 8-bit sRGB encoding is
 most of a writer's time) and stored in the order given. A TIFF holds level 0's tiles first, so they are
 written as each row of tiles completes: tifffile's ``TiffWriter.write`` consumes a generator of tiles on a
 thread of its own, fed through a short queue by
