@@ -1,0 +1,491 @@
+"""Pyramidal tiled TIFF and OME-TIFF, written through tifffile as the levels stream in.
+
+``name.tif`` (:class:`PyramidTiffWriter`): level 0 in the first page, every reduced level in a page of its
+own after it, marked NewSubfileType = 1 (reduced resolution), all tiled: the file ``vips tiffsave --tile
+--pyramid`` writes, which OpenSlide (its generic tiled TIFF) and tifffile read as one pyramid (QuPath reads
+it through either) and OpenImageIO as one subimage per level. ``name.ome.tif`` (:class:`OmeTiffWriter`): the
+OME-XML in the first IFD's ImageDescription and the reduced levels as SubIFDs of the full-resolution IFD, as
+``bioformats2raw``/``raw2ometiff`` and tifffile's OME writer store them (OpenImageIO sees level 0 only).
+
+Rows are encoded to their stored values on a pool of ``ENCODERS`` threads (the 8-bit sRGB encoding is
+most of a writer's time) and stored in the order given. A TIFF holds level 0's tiles first, so they are
+written as each row of tiles completes: tifffile's ``TiffWriter.write`` consumes a generator of tiles on a
+thread of its own, fed through a short queue by
+:meth:`~pyramid_cli.imageio.tilesets.base.TileSetWriter.rows` (which waits when the file is behind). The
+coarser levels (a third of level 0 in all) are kept as stored values in a temporary file in the staging folder
+(explicit reads and writes: no mapping, nothing of them in the process's memory) and written
+from it at :meth:`~pyramid_cli.imageio.tilesets.base.TileSetWriter.finish`. Memory: a few rows of level 0's
+tiles (tile size × width × channels each: the one being filled, two queued for the file, and what tifffile
+gathers to compress on its threads) and a few bands being encoded, never a whole level.
+
+Levels are ⌈n/2⌉ of the one before (``ceil-half``), as many as ``vips tiffsave --pyramid`` makes: it halves
+to ⌊n/2⌋ (dropping an odd last row or column) until a level fits in one tile or a side is 1 pixel (tifffile
+finds a pyramid only down to there). So the level count is vips's and each level is vips's or one pixel wider
+or taller; the last level may then be one pixel more than a tile (a 257-pixel side with 128-pixel tiles: vips
+128, ours 129). vips keeps level 0's resolution tags on every level; here level k's resolution is level 0's
+/ 2^k, as tifffile's OME writer and bioformats2raw write it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import queue
+import threading
+from collections import deque
+from collections.abc import Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
+from typing import Any, ClassVar
+
+import numpy as np
+
+from pyramid_cli.core.errors import OutputError, UsageError
+from pyramid_cli.imageio.atomic import error_reason
+from pyramid_cli.imageio.encode import encode as encode_image
+from pyramid_cli.imageio.image import Image
+from pyramid_cli.imageio.tilesets.base import TileOptions, TileSetWriter
+from pyramid_cli.imageio.tilesets.staging import Staging
+
+TILE = 256  # the default tile edge (vips tiffsave's is 128: give --tile-size 128 for its grid)
+QUALITY = 75  # JPEG quality, vips's Q
+# --compression: name -> tifffile's name; "none" by default, as vips tiffsave
+CODECS = {"none": None, "jpeg": "jpeg", "deflate": "zlib", "zip": "zlib", "zstd": "zstd", "lzw": "lzw",
+          "packbits": "packbits"}
+_LEVELLED = ("deflate", "zip", "zstd")  # take :LEVEL
+_IMAGECODECS = {"jpeg": "JPEG8", "deflate": "ZLIB", "zip": "ZLIB", "zstd": "ZSTD", "lzw": "LZW", "packbits": "PACKBITS"}
+_DTYPES = {"uint8": np.uint8, "uint16": np.uint16, "half": np.float16, "float": np.float32}
+_NAMES = {np.dtype(t).name: name for name, t in _DTYPES.items()}
+_UNITS = {"in": ("INCH", 25400.0), "inch": ("INCH", 25400.0), "cm": ("CENTIMETER", 1e4),
+          "centimeter": ("CENTIMETER", 1e4)}  # OpenImageIO's ResolutionUnit -> tifffile's, µm per unit
+_QUEUED = 2  # rows of level-0 tiles waiting for the file at most
+ENCODERS = 2  # threads encoding rows to stored values beside the band pipeline
+_ENCODING = 2  # bands being encoded before rows() waits for the oldest (copies of the caller's float rows)
+
+
+class _Aborted(Exception):
+    """Raised in the tile generator to stop tifffile's write when the run is aborted."""
+
+
+class _Spill:
+    """Stored rows of levels 1.. in one raw file (each level's rows one after the other), read and written with
+    explicit I/O; a failure (a full disk) is an OutputError naming ``beside``, the user's output."""
+
+    def __init__(self, path: str, shapes: list[tuple[int, int, int]], dtype: np.dtype, beside: str):
+        self.shapes, self.dtype, self.beside = shapes, np.dtype(dtype), beside
+        self.offsets = [0]
+        for h, w, c in shapes:
+            self.offsets.append(self.offsets[-1] + h * w * c * self.dtype.itemsize)
+        self.fd: int | None = os.open(path, os.O_RDWR | os.O_CREAT | os.O_EXCL, 0o600)
+
+    def close(self) -> None:
+        if self.fd is not None:
+            os.close(self.fd)
+            self.fd = None
+
+    def _at(self, i: int, r: int) -> int:
+        _, w, c = self.shapes[i]
+        return self.offsets[i] + r * w * c * self.dtype.itemsize
+
+    def _failed(self, exc: OSError) -> OutputError:
+        return OutputError(f"cannot write {self.beside}: {error_reason(exc)} (in the temporary file of its "
+                           "reduced levels beside it)")
+
+    def write(self, i: int, r: int, px: np.ndarray) -> None:
+        assert self.fd is not None, "the spill is open while rows arrive"
+        view = np.ascontiguousarray(px, dtype=self.dtype).data.cast("B")
+        at = self._at(i, r)
+        try:
+            while view:
+                n = os.pwrite(self.fd, view, at)
+                view, at = view[n:], at + n
+        except OSError as exc:
+            raise self._failed(exc) from None
+
+    def rows(self, i: int, r0: int, r1: int) -> np.ndarray:
+        assert self.fd is not None, "the spill is open until the levels are written"
+        _, w, c = self.shapes[i]
+        size = (r1 - r0) * w * c * self.dtype.itemsize
+        data = bytearray()
+        try:
+            while len(data) < size:
+                chunk = os.pread(self.fd, size - len(data), self._at(i, r0) + len(data))
+                if not chunk:
+                    raise OSError(f"the temporary file ends {size - len(data)} bytes early")
+                data += chunk
+        except OSError as exc:
+            raise self._failed(exc) from None
+        return np.frombuffer(data, dtype=self.dtype).reshape(r1 - r0, w, c)
+
+
+def _tiles(band: np.ndarray, tile: int, pad: bool) -> Iterator[np.ndarray]:
+    """The tiles of one row of tiles, left to right (one channel: 2-D, as tifffile takes a grey image);
+    ``pad``: edge tiles filled out to ``tile`` × ``tile`` by repeating their last row and column (JPEG's blocks
+    across the edge stay smooth; tifffile pads with zeros)."""
+    if band.shape[2] == 1:
+        band = band[..., 0]
+    for x in range(0, band.shape[1], tile):
+        t = band[:, x:x + tile]
+        if pad and t.shape[:2] != (tile, tile):
+            t = np.pad(t, ((0, tile - t.shape[0]), (0, tile - t.shape[1])) + ((0, 0),) * (t.ndim - 2), mode="edge")
+        yield t
+
+
+class PyramidTiffWriter(TileSetWriter):
+    """A pyramidal tiled TIFF (``name.tif``): reduced levels as further pages, NewSubfileType = 1 (see the
+    module). ``--compression`` none (default, as vips), jpeg (8-bit grey or RGB; ``--quality``, 75 by default),
+    deflate|zstd[:LEVEL], lzw, packbits; ``--tile-size`` a multiple of 16 (256 by default); no overlap."""
+
+    layout: ClassVar[str] = "tiff"
+    ome: ClassVar[bool] = False
+
+    def __init__(self, path, info, size, channels, options: TileOptions):
+        super().__init__(path, info, size, channels, options)
+        self.tile = options.tile_size or TILE
+        self.codec = str(options.compression or "none").strip().lower()
+        self._staging: Staging | None = None
+        self._spill: _Spill | None = None
+        self._tif: Any = None
+        self._thread: threading.Thread | None = None
+        self._queue: queue.Queue = queue.Queue(maxsize=_QUEUED)
+        self._stop = threading.Event()
+        self._failure: BaseException | None = None
+        self._band: np.ndarray | None = None  # level 0's row of tiles being completed (stored values)
+        self._given = [0] * len(self.sizes)   # rows received per level
+        self._done = [0] * len(self.sizes)    # rows stored per level
+        self._pool: ThreadPoolExecutor | None = None
+        self._encoding: deque[tuple[int, int, Future]] = deque()  # bands being encoded, in the order given
+        self._spec: Any = None
+
+    @classmethod
+    def level_count(cls, size: tuple[int, int], options: TileOptions) -> int:
+        """``vips tiffsave --pyramid``'s level count, level 0 included: halve (⌊n/2⌋, as vips) until a level
+        fits in one tile (``options.tile_size``, 256 by default) or a side is 1 pixel."""
+        tile = max(1, options.tile_size or TILE)
+        h, w = size
+        n = 1
+        while (h > tile or w > tile) and h >= 2 and w >= 2:
+            h, w, n = h // 2, w // 2, n + 1
+        return n
+
+    # ---- what the file stores ----
+
+    def check(self) -> None:
+        """Refuse a tile size that is not a multiple of 16, an overlap, a tile suffix, an unknown compression,
+        a quality without JPEG, JPEG of anything but 8-bit grey or RGB, and a missing tifffile."""
+        p, o = self.path, self.options
+        if os.path.isdir(p):
+            raise OutputError(f"cannot write {p}: it is a directory")
+        if self.tile < 16 or self.tile % 16:
+            raise UsageError(f"{p}: --tile-size {self.tile}: TIFF tiles are a multiple of 16 pixels")
+        if o.overlap:
+            raise UsageError(f"{p}: --overlap {o.overlap}: TIFF tiles do not overlap (Deep Zoom's do)")
+        if o.suffix is not None:
+            raise UsageError(f"{p}: --format {o.suffix}: a TIFF's tiles are inside it; give --compression "
+                             f"({', '.join(CODECS)})")
+        name, _, level = self.codec.partition(":")
+        if name not in CODECS or level and (name not in _LEVELLED or not level.isdigit()):
+            raise UsageError(f"{p}: unknown --compression {o.compression} (a TIFF takes {', '.join(CODECS)}; "
+                             f"{', '.join(c for c in _LEVELLED if c != 'zip')} take :LEVEL)")
+        if o.quality is not None:
+            if name != "jpeg":
+                raise UsageError(f"{p}: --quality {o.quality} applies to --compression jpeg only")
+            if not 1 <= o.quality <= 100:
+                raise UsageError(f"{p}: --quality {o.quality}: 1 to 100")
+        try:
+            import imagecodecs
+            import tifffile  # noqa: F401
+        except ImportError:
+            raise UsageError(f"{p}: writing TIFF pyramids needs tifffile and imagecodecs: "
+                             "pip install 'bilinear-pyramid[viewers]'") from None
+        spec = self._stored()
+        if name == "jpeg":
+            if self.dtype != np.uint8 or spec.nchannels not in (1, 3):
+                raise UsageError(f"{p}: --compression jpeg holds 8-bit grey or RGB without alpha; this image "
+                                 f"stores {spec.nchannels} channel(s) of {spec.format} (give --compression deflate)")
+        if name != "none":
+            codec = getattr(imagecodecs, _IMAGECODECS[name], None)
+            if codec is None or not getattr(codec, "available", False):
+                raise UsageError(f"{p}: --compression {name}: imagecodecs has no {name} codec here")
+
+    def _stored(self):
+        """The spec of what the file stores (type, channels, alpha, resolution, ICC), from a one-pixel encode."""
+        if self._spec is None:
+            px = np.zeros((1, 1, self.channels), np.float32)
+            spec, _ = encode_image(self.encode_as, Image(px, self.info), **self.options.write)
+            self._spec = spec
+        return self._spec
+
+    @property
+    def dtype(self) -> np.dtype:
+        """The stored sample type (the input's, as a TIFF holds it)."""
+        return np.dtype(_DTYPES.get(str(self._stored().format), np.float32))
+
+    def encode(self, pixels: np.ndarray, y0: int = 0) -> np.ndarray:
+        """Stored values of linear premultiplied rows, in :attr:`dtype` (half stays half)."""
+        data = super().encode(pixels, y0)
+        if data.ndim == 2:
+            data = data[..., None]
+        return data.astype(self.dtype, copy=False)
+
+    def _page_options(self, k: int) -> dict:
+        """tifffile's ``write`` arguments for level ``k`` (photometric, extra samples, codec, resolution, ...)."""
+        spec = self._stored()
+        n, alpha = spec.nchannels, spec.alpha_channel
+        colour = 3 if n >= 3 else 1
+        extra = []
+        for c in range(colour, n):
+            if c == alpha:
+                extra.append("unassalpha" if spec.get_int_attribute("oiio:UnassociatedAlpha", 0) else "assocalpha")
+            else:
+                extra.append("unspecified")
+        name, _, level = self.codec.partition(":")
+        kw: dict[str, Any] = {"tile": (self.tile, self.tile), "photometric": "rgb" if colour == 3 else "minisblack",
+                              "compression": CODECS[name], "maxworkers": 2,
+                              # tiles tifffile gathers before compressing them: about one row of level 0's
+                              "buffersize": max(1 << 22, self.tile * self.sizes[0][1] * n * self.dtype.itemsize)}
+        if n > 1:
+            kw["planarconfig"] = "contig"
+        if extra:
+            kw["extrasamples"] = extra
+        if name == "jpeg":
+            kw["compressionargs"] = {"level": self.options.quality or QUALITY}
+        elif level:
+            kw["compressionargs"] = {"level": int(level)}
+        if name in ("deflate", "zip", "zstd", "lzw"):
+            kw["predictor"] = True  # horizontal differencing (floating point for floats), as vips's default
+        if k:
+            kw["subfiletype"] = 1
+        res = self._resolution()
+        if res is not None:
+            (x, y), unit, _ = res
+            kw["resolution"], kw["resolutionunit"] = (x / 2 ** k, y / 2 ** k), unit
+        icc = spec.getattribute("ICCProfile")  # the input's, kept when the stored values are in its space
+        if icc is not None:
+            kw["iccprofile"] = bytes(np.asarray(icc, dtype=np.uint8))
+        return kw
+
+    def _resolution(self) -> tuple[tuple[float, float], str, float] | None:
+        """Level 0's (x, y) pixels per unit, tifffile's unit and µm per unit, when the input said them."""
+        spec = self._stored()
+        x, y = spec.get_float_attribute("XResolution", 0.0), spec.get_float_attribute("YResolution", 0.0)
+        unit = _UNITS.get(spec.get_string_attribute("ResolutionUnit", "").lower())
+        if x <= 0 or y <= 0 or unit is None:
+            return None
+        return (x, y), unit[0], unit[1]
+
+    def _metadata(self) -> dict | None:
+        """The first page's ImageDescription: none for a plain TIFF (vips writes none; tifffile's JSON would
+        make it read the pyramid as one shaped series)."""
+        return None
+
+    # ---- streaming ----
+
+    def _start(self) -> None:
+        """The staging folder, the spill of levels 1.., the file and the thread writing level 0's tiles."""
+        import tifffile
+
+        self._staging = Staging([self.path])
+        c, item = self._stored().nchannels, self.dtype.itemsize
+        shapes = [(h, w, c) for h, w in self.sizes]
+        if len(shapes) > 1:
+            self._spill = _Spill(os.path.join(self._staging.root, "levels.raw"), shapes[1:], self.dtype, self.path)
+        total = sum(h * w for h, w, _ in shapes) * c * item
+        try:
+            self._tif = tifffile.TiffWriter(self._staging.staged[0], bigtiff=total > 2**32 - 2**26, ome=self.ome)
+        except OSError as exc:
+            raise self._error(exc) from None
+        self._pool = ThreadPoolExecutor(ENCODERS, thread_name_prefix="tiff-encode")
+        self._thread = threading.Thread(target=self._write_level0, name="tiff-level0", daemon=True)
+        self._thread.start()
+
+    def _shape(self, k: int) -> tuple[int, ...]:
+        """Level ``k``'s shape as tifffile takes it: (h, w) for one channel, else (h, w, channels)."""
+        n = self._stored().nchannels
+        return self.sizes[k] if n == 1 else (*self.sizes[k], n)
+
+    def _write_level0(self) -> None:
+        kw = self._page_options(0)
+        if self.ome and len(self.sizes) > 1:
+            kw["subifds"] = len(self.sizes) - 1
+        try:
+            self._tif.write(self._queued(), shape=self._shape(0), dtype=self.dtype,
+                            metadata=self._metadata(), **kw)
+        except BaseException as exc:  # surfaced by rows()/finish() on the caller's thread
+            self._failure = exc
+
+    def _queued(self) -> Iterator[np.ndarray]:
+        """Level 0's tiles in file order, as rows() completes them."""
+        pad = self.codec.startswith("jpeg")
+        for _ in range(-(-self.sizes[0][0] // self.tile)):
+            while True:
+                if self._stop.is_set():
+                    raise _Aborted
+                try:
+                    band = self._queue.get(timeout=0.1)
+                    break
+                except queue.Empty:
+                    continue
+            if band is None:
+                raise _Aborted
+            yield from _tiles(band, self.tile, pad)
+
+    def _put(self, band: np.ndarray) -> None:
+        """Hand a row of tiles to the file's thread, waiting while it is behind; its failure is raised here."""
+        while True:
+            self._raise_failure()
+            try:
+                self._queue.put(band, timeout=0.1)
+                return
+            except queue.Full:
+                continue
+
+    def _raise_failure(self) -> None:
+        if self._failure is not None:
+            exc = self._failure
+            if isinstance(exc, OutputError | UsageError):
+                raise exc
+            if isinstance(exc, OSError):
+                raise self._error(exc)
+            raise RuntimeError(f"writing {self.path}: {exc!r}") from exc
+
+    def _error(self, exc: OSError) -> OutputError:
+        from pyramid_cli.imageio.write import diagnosis
+
+        where = self._staging.staged[0] if self._staging else self.path
+        return OutputError(f"cannot write {self.path}: {error_reason(exc)}{diagnosis(where)}")
+
+    def _rows(self, level: int, y0: int, pixels: np.ndarray) -> None:
+        if self._staging is None:
+            self._start()
+        assert self._pool is not None
+        if y0 != self._given[level]:
+            raise ValueError(f"level {level}: rows from {y0} given, {self._given[level]} expected")
+        self._given[level] = y0 + len(pixels)
+        # encoded on the pool (numpy's table lookups let go of the GIL), stored in the order given: a copy, since
+        # the caller may reuse its rows
+        self._encoding.append((level, y0, self._pool.submit(self.encode, np.array(pixels, np.float32), y0)))
+        self._take(_ENCODING)
+
+    def _take(self, keep: int) -> None:
+        """Store the encoded bands that are ready, in the order they came, waiting for the oldest while more than
+        ``keep`` are being encoded."""
+        while self._encoding and (len(self._encoding) > keep or self._encoding[0][2].done()):
+            level, y0, future = self._encoding.popleft()
+            self._store(level, y0, future.result())
+
+    def _store(self, level: int, y0: int, data: np.ndarray) -> None:
+        """Stored rows ``y0..`` of ``level``: levels 1.. to the spill, level 0 into its row of tiles, handed to
+        the file's thread when complete."""
+        self._done[level] = y0 + len(data)
+        if level:
+            assert self._spill is not None, "levels 1.. have a spill"
+            self._spill.write(level - 1, y0, data)
+            return
+        h, w = self.sizes[0]
+        t, at = self.tile, 0
+        while at < len(data):
+            y = y0 + at
+            if self._band is None:
+                self._band = np.empty((min(t, h - y), w, data.shape[2]), self.dtype)
+            r = y % t
+            n = min(len(data) - at, len(self._band) - r)
+            self._band[r:r + n] = data[at:at + n]
+            at += n
+            if r + n == len(self._band):
+                band, self._band = self._band, None
+                self._put(band)
+
+    def _finish(self) -> dict:
+        if self._staging is None:
+            raise ValueError("no rows were given")
+        self._raise_failure()
+        assert self._pool is not None
+        self._take(0)
+        self._pool.shutdown()
+        missing = [k for k, (h, _) in enumerate(self.sizes) if self._done[k] != h]
+        if missing:
+            raise ValueError(f"level(s) {missing} incomplete")
+        assert self._thread is not None
+        while self._thread.is_alive():
+            self._thread.join(0.1)
+        self._raise_failure()
+        try:
+            for k in range(1, len(self.sizes)):
+                self._tif.write(self._from_spill(k), shape=self._shape(k), dtype=self.dtype,
+                                metadata=None if not self.ome else {}, **self._page_options(k))
+            tif, self._tif = self._tif, None
+            tif.close()
+            with open(self._staging.staged[0], "rb+") as fh:
+                os.fsync(fh.fileno())
+            if self._spill is not None:
+                self._spill.close()
+            self._staging.commit()
+        except OSError as exc:
+            raise self._error(exc) from None
+        return self._report()
+
+    def _from_spill(self, k: int) -> Iterator[np.ndarray]:
+        assert self._spill is not None
+        h = self.sizes[k][0]
+        pad = self.codec.startswith("jpeg")
+        for y in range(0, h, self.tile):
+            yield from _tiles(self._spill.rows(k - 1, y, min(h, y + self.tile)), self.tile, pad)
+
+    def _report(self) -> dict:
+        t = self.tile
+        levels = [{"level": k, "reduction": k, "size": [w, h], "scale": 2 ** k, "rule": "ceil-half",
+                   "tiles": [-(-w // t), -(-h // t)]} for k, (h, w) in enumerate(self.sizes)]
+        return {"layout": self.layout, "path": self.path, "tile_size": t, "overlap": 0, "format": "tiff",
+                "compression": self.codec, "dtype": _NAMES[self.dtype.name], "levels": levels}
+
+    def _abort(self) -> None:
+        self._stop.set()
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+        self._encoding.clear()
+        with contextlib.suppress(queue.Full):
+            self._queue.put_nowait(None)
+        if self._thread is not None:
+            while self._thread.is_alive():
+                self._thread.join(0.1)
+        if self._tif is not None:
+            with contextlib.suppress(Exception):
+                self._tif.close()
+            self._tif = None
+        if self._spill is not None:
+            self._spill.close()
+        if self._staging is not None:
+            self._staging.discard()
+
+
+class OmeTiffWriter(PyramidTiffWriter):
+    """An OME-TIFF (``name.ome.tif``): OME-XML in the first IFD, the reduced levels as its SubIFDs (see the
+    module); options as :class:`PyramidTiffWriter`'s. The physical pixel size is the input's resolution; half
+    is stored as float."""
+
+    layout: ClassVar[str] = "ome-tiff"
+    ome: ClassVar[bool] = True
+
+    @property
+    def dtype(self) -> np.dtype:
+        """The stored sample type; half is stored as float (OME-XML has no 16-bit float type), the same values."""
+        dtype = super().dtype
+        return np.dtype(np.float32) if dtype == np.float16 else dtype
+
+    def _metadata(self) -> dict | None:
+        spec = self._stored()
+        name = os.path.basename(self.path)
+        for ends in (".ome.tiff", ".ome.tif", ".tiff", ".tif"):
+            if name.lower().endswith(ends):
+                name = name[:-len(ends)]
+                break
+        meta: dict[str, Any] = {"axes": "YXS" if spec.nchannels > 1 else "YX", "Name": name or "image"}
+        res = self._resolution()
+        if res is not None:
+            (x, y), _, um = res
+            meta.update(PhysicalSizeX=um / x, PhysicalSizeXUnit="µm", PhysicalSizeY=um / y,
+                        PhysicalSizeYUnit="µm")
+        return meta
+
+
+__all__ = ["CODECS", "OmeTiffWriter", "PyramidTiffWriter"]
