@@ -1,0 +1,155 @@
+"""OpenSeadragon opens our Deep Zoom and IIIF tile sets and shows what their levels hold (issue 27).
+
+OpenSeadragon (npm, pinned in tests/helpers/osd/package-lock.json) runs in headless Chromium on a page served by
+a local HTTP server; it opens our ``.dzi``, IIIF 3 ``info.json`` and IIIF 2 ``info.json``, shows the
+picture at full, half and quarter size in turn, and each time the screenshot must be the level the tile set holds
+for that size (its tiles decoded and stitched here, by the formats' rules, not the writers'): drawn from that level
+only, at its place, without a console error, a failed request or a missing tile. That a wrong level fails the
+comparison is checked in every view (the level above and below, drawn as the viewer would draw them, are far off).
+
+``vips dzsave`` writes the control tile sets (Deep Zoom and IIIF 3): they prove the harness on the files viewers
+are configured for.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from helpers.cli import invoke
+from helpers.images import write
+from helpers.osd.levels import BACKGROUND, IIIF, DeepZoom, error, on_screen, read_rgb
+from helpers.osd.viewer import drive, missing, page_url, serving
+
+#: The picture (w, h): odd width, so ⌈n/2⌉ shows at once; 12 Deep Zoom levels, tiles of 254 (+1) and 512 (IIIF).
+SIZE = (1501, 999)
+#: The viewer's box on screen (w, h).
+BOX = (600, 400)
+#: The views: (k, x0, y0) shows the picture halved k times, screen pixel (0, 0) at level-k pixel (x0, y0).
+VIEWS = [(0, 800, 400),     # full size: across tile corners of both grids
+         (1, 171, 120),     # half size: the right and bottom edges, 20 px of background beyond
+         (2, -112, -75)]    # quarter size (376 × 250): the whole picture amid the background
+#: A view matches its level when its mean error is below MATCH codes and at most 0.1 % of its pixels are off by
+#: more than OFF codes (two JPEG decoders may differ by a code; a wrong level, a misplaced or missing tile are off
+#: by tens: see WRONG).
+MATCH, OFF = 1.0, 8
+#: The level above or below, drawn as the viewer would, must be off by more than WRONG codes on average.
+WRONG = 5.0
+#: The layouts: name → the file OpenSeadragon opens, relative to the tile set's folder.
+LAYOUTS = {"dz": "dz.dzi", "iiif3": "iiif3/info.json", "iiif": "iiif/info.json"}
+#: `pyramid tiles` lands with the tiles-run and tiles-dz branches: set False once they are merged.
+PENDING = True
+UNTIL_MERGED = pytest.mark.xfail(strict=False, reason="pyramid tiles lands with tiles-run/tiles-dz")
+
+
+def picture(path: Path) -> Path:
+    """An 8-bit sRGB picture with detail at every scale (random blocks of 1, 2, 4 … 64 pixels summed), so that
+    each pyramid level differs from its neighbours in every region."""
+    w, h = SIZE
+    rng = np.random.default_rng(27)
+    px = np.zeros((h, w, 3))
+    for s in (1, 2, 4, 8, 16, 32, 64):
+        blocks = rng.random((-(-h // s), -(-w // s), 3))
+        px += np.repeat(np.repeat(blocks, s, 0), s, 1)[:h, :w]
+    px = np.clip((px / 7 - 0.5) * 3 + 0.5, 0, 1)
+    return write(path, np.round(px * 255).astype(np.uint8), "uint8")
+
+
+def dzsave(src: Path, out: Path) -> list[str]:
+    """The control: Deep Zoom and IIIF 3 written by libvips (IIIF 2 differs only in the names); the layouts."""
+    pyvips = pytest.importorskip("pyvips")
+    image = pyvips.Image.new_from_file(str(src))
+    layouts = ["dz", "iiif3"]
+    for layout in layouts:
+        image.dzsave(str(out / layout), layout=layout)
+    return layouts
+
+
+def ours(src: Path, out: Path) -> list[str]:
+    """Ours: `pyramid tiles` with the defaults, the layout from the name or --layout; the layouts."""
+    for args in ([src, out / "dz.dzi"], ["--layout", "iiif3", src, out / "iiif3"],
+                 ["--layout", "iiif", src, out / "iiif"]):
+        r = invoke("tiles", *args)
+        assert r.exit_code == 0, f"pyramid tiles {' '.join(map(str, args))}: exit {r.exit_code}: {r.output}"
+    return list(LAYOUTS)
+
+
+WRITERS = {"vips-dzsave": dzsave, "pyramid": ours}
+
+
+def check_case(layout: str, found: Path, answer: dict) -> list[str]:
+    """What is wrong with one tile set as the viewer showed it (an empty list when nothing is)."""
+    problems = [f"{layout}: {kind}: {answer[kind]}" for kind in
+                ("error", "console", "pageErrors", "failedRequests", "badResponses", "osdEvents") if answer[kind]]
+    if len(answer["views"]) != len(VIEWS):
+        return problems + [f"{layout}: {len(answer['views'])} views shown, not {len(VIEWS)}"]
+    try:
+        tiles = DeepZoom(found) if layout == "dz" else IIIF(found)
+    except (OSError, ValueError, KeyError) as e:
+        return problems + [f"{layout}: {found} unreadable: {e}"]
+    # scale factors the viewer has: Deep Zoom every level; IIIF the info.json's (OpenSeadragon's levels 0…max)
+    top = tiles.top if isinstance(tiles, DeepZoom) else int(np.log2(max(tiles.scale_factors)))
+    has = (lambda k: 0 <= k <= tiles.top) if isinstance(tiles, DeepZoom) else (lambda k: 2 ** k in tiles.scale_factors)
+    # OpenSeadragon draws tiles without overlap one pixel larger (to hide seams): one row and column of each repeat
+    reach = 0 if isinstance(tiles, DeepZoom) and tiles.overlap > 0 else 1
+    try:
+        levels = {k: tiles.level(k) for k in range(len(VIEWS) + 1) if has(k)}
+    except AssertionError as e:     # a tile missing, or of a size the grid does not give
+        return problems + [f"{layout}: {e}"]
+    w, h = BOX
+    for (k, x0, y0), seen in zip(VIEWS, answer["views"], strict=True):
+        where = f"{layout} at 1/{2 ** k}"
+        if seen["maxLevel"] != top or seen["levels"] != [top - k] or abs(seen["imageZoom"] - 0.5 ** k) > 1e-9:
+            problems.append(f"{where}: the viewer drew levels {seen['levels']} of 0…{seen['maxLevel']} at zoom "
+                            f"{seen['imageZoom']}, not level {top - k} of 0…{top} at {0.5 ** k}")
+        shot = read_rgb(Path(seen["shot"]))
+        if shot.shape[:2] != (h, w):
+            problems.append(f"{where}: a screenshot of {shot.shape[1]}×{shot.shape[0]}, not {w}×{h}")
+            continue
+        extent = (SIZE[0] / 2 ** k, SIZE[1] / 2 ** k)     # the picture on screen
+        screen = on_screen(levels[k], x0, y0, w, h, reach=reach, extent=extent)
+        e = error(shot, screen, reach)
+        mean, off = e.mean(), np.mean(e > OFF)
+        if not mean < MATCH or off > 0.001:
+            problems.append(f"{where}: the screenshot is not the level: mean error {mean:.2f} codes, "
+                            f"{off:.2%} of the pixels off by more than {OFF}")
+        picture_px = ~np.all(screen[0][reach:reach + h, reach:reach + w] == BACKGROUND, -1)
+        for other in (k - 1, k + 1):    # the harness can tell: a neighbouring level is far off
+            if other in levels:
+                wrong = error(shot, on_screen(levels[other], x0, y0, w, h, 2.0 ** (other - k), reach, extent), reach)
+                if not wrong[picture_px].mean() > WRONG:
+                    problems.append(f"{where}: level 1/{2 ** other} would pass too (error "
+                                    f"{wrong[picture_px].mean():.2f} codes): the comparison cannot tell levels")
+    return problems
+
+
+@pytest.mark.cli
+@pytest.mark.slow
+@pytest.mark.parametrize("writer", [
+    "vips-dzsave",
+    pytest.param("pyramid", marks=[UNTIL_MERGED] if PENDING else []),
+])
+def test_openseadragon_shows_every_level_as_stored(writer, tmp_path):
+    reason = missing()
+    if reason:
+        if os.environ.get("CI"):
+            pytest.fail(f"CI must run the OpenSeadragon tests: {reason}")
+        pytest.skip(reason)
+    src = picture(tmp_path / "in.png")
+    root = tmp_path / "tiles"
+    root.mkdir()
+    layouts = WRITERS[writer](src, root)
+    w, h = BOX
+    with serving(root) as server:
+        cases = [{"name": layout, "url": page_url(server, LAYOUTS[layout], w, h),
+                  "views": [{"x": x0 * 2 ** k, "y": y0 * 2 ** k, "width": w * 2 ** k, "height": h * 2 ** k,
+                             "shot": str(tmp_path / f"{layout}-{k}.png")} for k, x0, y0 in VIEWS]}
+                 for layout in layouts]
+        answers = drive(cases, w, h)
+    problems = [f"HTTP {line}" for line in server.bad()]
+    for layout, answer in zip(layouts, answers, strict=True):
+        problems += check_case(layout, root / LAYOUTS[layout], answer)
+    assert not problems, "\n".join(problems)
