@@ -45,9 +45,21 @@ PENDING = True
 UNTIL_MERGED = pytest.mark.xfail(strict=False, reason="pyramid tiles lands with tiles-run/tiles-dz")
 
 
-def picture(path: Path) -> Path:
+@pytest.fixture(scope="module")
+def viewer() -> None:
+    """Chromium, node and the npm packages, or a skip naming what is missing (under CI, a failure)."""
+    reason = missing()
+    if reason:
+        if os.environ.get("CI"):
+            pytest.fail(f"CI must run the OpenSeadragon tests: {reason}")
+        pytest.skip(reason)
+
+
+@pytest.fixture(scope="module")
+def picture(tmp_path_factory) -> Path:
     """An 8-bit sRGB picture with detail at every scale (random blocks of 1, 2, 4 … 64 pixels summed), so that
     each pyramid level differs from its neighbours in every region."""
+    path = tmp_path_factory.mktemp("osd") / "in.png"
     w, h = SIZE
     rng = np.random.default_rng(27)
     px = np.zeros((h, w, 3))
@@ -90,6 +102,8 @@ def check_case(layout: str, found: Path, answer: dict) -> list[str]:
         tiles = DeepZoom(found) if layout == "dz" else IIIF(found)
     except (OSError, ValueError, KeyError) as e:
         return problems + [f"{layout}: {found} unreadable: {e}"]
+    if isinstance(tiles, IIIF) and not isinstance(tiles.info.get("id" if tiles.version == 3 else "@id"), str):
+        problems.append(f"{layout}: info.json names no {'id' if tiles.version == 3 else '@id'} (viewers need it)")
     # scale factors the viewer has: Deep Zoom every level; IIIF the info.json's (OpenSeadragon's levels 0…max)
     top = tiles.top if isinstance(tiles, DeepZoom) else int(np.log2(max(tiles.scale_factors)))
     has = (lambda k: 0 <= k <= tiles.top) if isinstance(tiles, DeepZoom) else (lambda k: 2 ** k in tiles.scale_factors)
@@ -132,16 +146,10 @@ def check_case(layout: str, found: Path, answer: dict) -> list[str]:
     "vips-dzsave",
     pytest.param("pyramid", marks=[UNTIL_MERGED] if PENDING else []),
 ])
-def test_openseadragon_shows_every_level_as_stored(writer, tmp_path):
-    reason = missing()
-    if reason:
-        if os.environ.get("CI"):
-            pytest.fail(f"CI must run the OpenSeadragon tests: {reason}")
-        pytest.skip(reason)
-    src = picture(tmp_path / "in.png")
+def test_openseadragon_shows_every_level_as_stored(viewer, picture, writer, tmp_path):
     root = tmp_path / "tiles"
     root.mkdir()
-    layouts = WRITERS[writer](src, root)
+    layouts = WRITERS[writer](picture, root)
     w, h = BOX
     with serving(root) as server:
         cases = [{"name": layout, "url": page_url(server, LAYOUTS[layout], w, h),
