@@ -62,9 +62,9 @@ def picture(tmp_path_factory) -> Path:
     path = tmp_path_factory.mktemp("osd") / "in.png"
     w, h = SIZE
     rng = np.random.default_rng(27)
-    px = np.zeros((h, w, 3))
+    px = np.zeros((h, w, 3), np.float32)
     for s in (1, 2, 4, 8, 16, 32, 64):
-        blocks = rng.random((-(-h // s), -(-w // s), 3))
+        blocks = rng.random((-(-h // s), -(-w // s), 3), np.float32)
         px += np.repeat(np.repeat(blocks, s, 0), s, 1)[:h, :w]
     px = np.clip((px / 7 - 0.5) * 3 + 0.5, 0, 1)
     return write(path, np.round(px * 255).astype(np.uint8), "uint8")
