@@ -70,30 +70,38 @@ def picture(tmp_path_factory) -> Path:
     return write(path, np.round(px * 255).astype(np.uint8), "uint8")
 
 
-def dzsave(src: Path, out: Path) -> list[str]:
-    """The control: Deep Zoom and IIIF 3 written by libvips (IIIF 2 differs only in the names); the layouts."""
+def dzsave(src: Path, out: Path, url: str) -> tuple[list[str], bool]:
+    """The control: Deep Zoom and IIIF 3 written by libvips (IIIF 2 differs only in the names), the IIIF id the
+    address ``url`` serves ``out`` at; the layouts, and whether the id is set."""
     pyvips = pytest.importorskip("pyvips")
     image = pyvips.Image.new_from_file(str(src))
     layouts = ["dz", "iiif3"]
     for layout in layouts:
-        image.dzsave(str(out / layout), layout=layout)
-    return layouts
+        image.dzsave(str(out / layout), layout=layout, id=url)
+    return layouts, True
 
 
-def ours(src: Path, out: Path) -> list[str]:
-    """Ours: `pyramid tiles` with the defaults, the layout from the name or --layout; the layouts."""
-    for args in ([src, out / "dz.dzi"], ["--layout", "iiif3", src, out / "iiif3"],
-                 ["--layout", "iiif", src, out / "iiif"]):
+def ours(src: Path, out: Path, url: str) -> tuple[list[str], bool]:
+    """Ours: `pyramid tiles` with the defaults, the layout from the name or --layout, the IIIF id ``url`` (as vips
+    dzsave's --id: the folder's address) where the command takes an --id; the layouts, and whether the id is set."""
+    from pyramid_cli.cli import main
+
+    command = main.commands.get("tiles") if hasattr(main, "commands") else None
+    has_id = command is not None and any("--id" in p.opts for p in command.params)
+    named = ["--id", url] if has_id else []
+    for args in ([src, out / "dz.dzi"], ["--layout", "iiif3", *named, src, out / "iiif3"],
+                 ["--layout", "iiif", *named, src, out / "iiif"]):
         r = invoke("tiles", *args)
         assert r.exit_code == 0, f"pyramid tiles {' '.join(map(str, args))}: exit {r.exit_code}: {r.output}"
-    return list(LAYOUTS)
+    return list(LAYOUTS), has_id
 
 
 WRITERS = {"vips-dzsave": dzsave, "pyramid": ours}
 
 
-def check_case(layout: str, found: Path, answer: dict) -> list[str]:
-    """What is wrong with one tile set as the viewer showed it (an empty list when nothing is)."""
+def check_case(layout: str, found: Path, answer: dict, iiif_id: str | None = None) -> list[str]:
+    """What is wrong with one tile set as the viewer showed it (an empty list when nothing is); ``iiif_id``: the
+    id an info.json must name."""
     problems = [f"{layout}: {kind}: {answer[kind]}" for kind in
                 ("error", "console", "pageErrors", "failedRequests", "badResponses", "osdEvents") if answer[kind]]
     if len(answer["views"]) != len(VIEWS):
@@ -102,8 +110,11 @@ def check_case(layout: str, found: Path, answer: dict) -> list[str]:
         tiles = DeepZoom(found) if layout == "dz" else IIIF(found)
     except (OSError, ValueError, KeyError) as e:
         return problems + [f"{layout}: {found} unreadable: {e}"]
-    if isinstance(tiles, IIIF) and not isinstance(tiles.info.get("id" if tiles.version == 3 else "@id"), str):
-        problems.append(f"{layout}: info.json names no {'id' if tiles.version == 3 else '@id'} (viewers need it)")
+    if isinstance(tiles, IIIF):
+        key = "id" if tiles.version == 3 else "@id"
+        named = tiles.info.get(key)
+        if not isinstance(named, str) or (iiif_id is not None and named != iiif_id):
+            problems.append(f"{layout}: info.json's {key} is {named!r}, not {iiif_id or 'a string'!r}")
     # scale factors the viewer has: Deep Zoom every level; IIIF the info.json's (OpenSeadragon's levels 0…max)
     top = tiles.top if isinstance(tiles, DeepZoom) else int(np.log2(max(tiles.scale_factors)))
     has = (lambda k: 0 <= k <= tiles.top) if isinstance(tiles, DeepZoom) else (lambda k: 2 ** k in tiles.scale_factors)
@@ -149,15 +160,16 @@ def check_case(layout: str, found: Path, answer: dict) -> list[str]:
 def test_openseadragon_shows_every_level_as_stored(viewer, picture, writer, tmp_path):
     root = tmp_path / "tiles"
     root.mkdir()
-    layouts = WRITERS[writer](picture, root)
     w, h = BOX
     with serving(root) as server:
-        cases = [{"name": layout, "url": page_url(server, LAYOUTS[layout], w, h),
+        layouts, has_id = WRITERS[writer](picture, root, f"{server.url}/data")
+        cases = [{"name": layout, "url": page_url(server, LAYOUTS[layout], w, h, rebase=not has_id),
                   "views": [{"x": x0 * 2 ** k, "y": y0 * 2 ** k, "width": w * 2 ** k, "height": h * 2 ** k,
                              "shot": str(tmp_path / f"{layout}-{k}.png")} for k, x0, y0 in VIEWS]}
                  for layout in layouts]
         answers = drive(cases, w, h)
     problems = [f"HTTP {line}" for line in server.bad()]
     for layout, answer in zip(layouts, answers, strict=True):
-        problems += check_case(layout, root / LAYOUTS[layout], answer)
+        served = f"{server.url}/data/{layout}" if has_id else None
+        problems += check_case(layout, root / LAYOUTS[layout], answer, served)
     assert not problems, "\n".join(problems)

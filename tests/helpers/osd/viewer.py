@@ -84,9 +84,10 @@ def serving(root: Path) -> Iterator[Server]:
         thread.join()
 
 
-def page_url(server: Server, tiles: str, width: int, height: int) -> str:
-    """The viewer page showing ``tiles`` (a path under ``/data``: a .dzi or an info.json) in a width × height box."""
-    return f"{server.url}/osd/viewer.html?tiles=/data/{tiles}&width={width}&height={height}"
+def page_url(server: Server, tiles: str, width: int, height: int, rebase: bool = False) -> str:
+    """The viewer page showing ``tiles`` (a path under ``/data``: a .dzi or an info.json) in a width × height box;
+    ``rebase``: the page points an info.json's id at the folder it was served from (see viewer.html)."""
+    return f"{server.url}/osd/viewer.html?tiles=/data/{tiles}&width={width}&height={height}&rebase={int(rebase)}"
 
 
 def drive(cases: list[dict], width: int, height: int, timeout: float = 120) -> list[dict]:
