@@ -63,10 +63,6 @@ class Server:
 
         return Handler
 
-    def bad(self) -> list[str]:
-        """The requests answered with anything but 200 (or 304)."""
-        return [f"{code} {path}" for code, path in self.requests if code not in (200, 304)]
-
 
 @contextmanager
 def serving(root: Path) -> Iterator[Server]:
