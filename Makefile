@@ -27,11 +27,19 @@ check-gl:
 demo: $(STAMP)
 	$(PY) -m pyramid_cli.demo $(OUT)
 
+# OpenSeadragon and playwright-core for the viewer tests (tests/system/test_viewers_osd.py), pinned by the lock
+# file; they drive the system's chromium (no browser download). Without npm those tests skip (CI must have it).
+OSD := tests/helpers/osd
+$(OSD)/node_modules/.installed: $(OSD)/package-lock.json
+	@if command -v npm >/dev/null; then \
+	   npm ci --prefix $(OSD) --no-audit --no-fund --loglevel=error && touch $@; \
+	 else echo "npm is missing: the OpenSeadragon tests will skip (Node.js 20 or newer with npm runs them)"; fi
+
 # pytest across the cores (pytest-xdist; at most 4 workers: every one holds a GL context and numba kernels).
 # TEST_JOBS=0 runs the tests in this process, one after another. tests/system/test_docs.py builds the docs site as
 # `make docs` does (warnings are errors), so `make test` does not build it twice.
 TEST_JOBS ?= auto
-test: $(STAMP) check-gl
+test: $(STAMP) check-gl $(OSD)/node_modules/.installed
 	$(PY) -m ruff check pyramid_cli tests samples scripts bench
 	$(VENV)/bin/lint-imports
 	$(PY) -m mypy
@@ -77,4 +85,4 @@ calibrate: $(STAMP) check-gl
 	$(PY) scripts/fetch_table.py --check || echo "docs/performance.md's fetch table changed: update it with $(PY) scripts/fetch_table.py"
 
 clean:
-	rm -rf $(VENV) $(OUT) build docs/api/generated *.egg-info
+	rm -rf $(VENV) $(OUT) build docs/api/generated *.egg-info $(OSD)/node_modules
