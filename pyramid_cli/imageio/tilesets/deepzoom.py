@@ -52,6 +52,7 @@ _ENCODE_AS = {"jpeg": "x.jpg", "png": "x.png", "webp": "x.webp", "tiff": "x.tif"
 DEFAULT_QUALITY = 75  # vips dzsave's Q (JPEG and WebP)
 THREADS = 2           # encoders beside the band pipeline
 MAX_PENDING = 64      # tiles queued for the encoders before rows() waits: bounds the rows held
+MAX_BANDS = 3         # bands of rows queued for encoding before rows() waits
 MAX_TILE = 8192       # vips dzsave's largest tile size and overlap
 IIIF_ID = "https://example.com/iiif"
 
@@ -100,6 +101,7 @@ class _TileFolderWriter(TileSetWriter):
         self._staging: Staging | None = None
         self._pool: ThreadPoolExecutor | None = None
         self._pending: collections.deque[Future] = collections.deque()
+        self._bands: collections.deque[tuple[_Level, Future]] = collections.deque()
         self._template: oiio.ImageSpec | None = None
         self._local = threading.local()
         self._memfds: list[int] = []
@@ -199,8 +201,22 @@ class _TileFolderWriter(TileSetWriter):
                              f"follow row {lv.next} of a {lv.width}x{lv.height} level")
         if self._staging is None:
             self._start()
-        data = self.encode(pixels, y0)
-        lv.next += data.shape[0]
+        assert self._pool is not None
+        lv.next += pixels.shape[0]
+        # encoded on the pool (numpy's table lookups let go of the GIL), taken in order: a copy, since the caller
+        # may reuse ``pixels``
+        self._bands.append((lv, self._pool.submit(self.encode, np.array(pixels), y0)))
+        self._drain(MAX_BANDS)
+
+    def _drain(self, keep: int) -> None:
+        """Take the encoded bands that are ready, in the order they came, and wait for the oldest while more than
+        ``keep`` are queued."""
+        while self._bands and (self._bands[0][1].done() or len(self._bands) > keep):
+            lv, band = self._bands.popleft()
+            self._take(lv, band.result())
+
+    def _take(self, lv: _Level, data: np.ndarray) -> None:
+        """Stored rows of ``lv`` (the next ones) into its tile row; emit what they complete."""
         at = 0
         while at < data.shape[0]:
             start, end = lv.span(lv.row)
@@ -307,6 +323,7 @@ class _TileFolderWriter(TileSetWriter):
         if self._staging is None:
             self._start()
         assert self._staging is not None and self._pool is not None
+        self._drain(0)
         while self._pending:
             self._pending.popleft().result()
         self._pool.shutdown(wait=True)
@@ -322,11 +339,12 @@ class _TileFolderWriter(TileSetWriter):
 
     def _abort(self) -> None:
         if self._pool is not None:
-            for f in self._pending:
+            for f in [*self._pending, *(b for _, b in self._bands)]:
                 f.cancel()
             self._pool.shutdown(wait=True, cancel_futures=True)
             self._pool = None
         self._pending.clear()
+        self._bands.clear()
         self._close_encoders()
         if self._staging is not None:
             self._staging.discard()
