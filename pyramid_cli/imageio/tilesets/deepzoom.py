@@ -19,11 +19,13 @@ What is ``vips dzsave``'s (libvips ``foreign/dzsave.c``):
 What is not: ``vips-properties.xml`` (libvips's own metadata dump, which no viewer reads) is not written, and no
 metadata goes into the tiles (dzsave's default ``--keep none``).
 
-The pixels come in as rows, a level at a time but levels interleaved (:class:`TileSetWriter`); each level keeps
-only the rows of the tile row being completed plus its overlap (``T + 2·o`` rows) in its stored type; a row of
-tiles goes to a pool of two threads as soon as its last row is in, each tile encoded by OpenImageIO into memory and
-written with ``os.write`` (a full disk is an error, never a process exit), all under a hidden staging folder that
-:meth:`finish` moves into place, the descriptor last.
+The rows come in a level at a time, levels interleaved
+(:class:`~pyramid_cli.imageio.tilesets.base.TileSetWriter`). They are encoded to their stored values on a pool of
+two threads, then each level keeps only the rows of the tile row being completed plus its overlap (``T + 2·o``
+rows, stored values); a row of tiles goes to the pool as soon as its last row is in, each tile encoded by
+OpenImageIO into memory and written with ``os.write`` (a full disk is an error, never a process exit), all under
+a hidden staging folder that :meth:`~pyramid_cli.imageio.tilesets.base.TileSetWriter.finish` moves into place,
+the descriptor last. At most a few bands and :data:`MAX_PENDING` tiles wait for the pool.
 """
 
 from __future__ import annotations
@@ -106,7 +108,6 @@ class _TileFolderWriter(TileSetWriter):
         self._local = threading.local()
         self._memfds: list[int] = []
         self._lock = threading.Lock()
-        self._tiles_written = 0
 
     # ---------------------------------------------------------------- geometry
     @classmethod
@@ -127,8 +128,7 @@ class _TileFolderWriter(TileSetWriter):
         p, o = self.path, self.options
         if not self.fmt:
             raise UsageError(f"{p}: --format {o.suffix}: tiles are jpeg, png, webp or tif")
-        if not oiio.get_string_attribute("format_list") or self.fmt not in \
-                oiio.get_string_attribute("format_list").split(","):
+        if self.fmt not in oiio.get_string_attribute("format_list").split(","):
             raise UsageError(f"{p}: --format {o.suffix}: this OpenImageIO cannot write {self.fmt} files")
         if not 1 <= self.tile <= MAX_TILE:
             raise UsageError(f"{p}: --tile-size {self.tile}: must be 1 to {MAX_TILE}")
@@ -165,7 +165,8 @@ class _TileFolderWriter(TileSetWriter):
 
     # ---------------------------------------------------------------- rows in
     def encode(self, pixels: np.ndarray, y0: int = 0) -> np.ndarray:
-        """Stored values of the rows (see :meth:`TileSetWriter.encode`): the tiles' type and colour space."""
+        """Stored values of the rows in the tiles' type and colour space (see
+        :meth:`~pyramid_cli.imageio.tilesets.base.TileSetWriter.encode`)."""
         del y0
         spec, data = encode(_ENCODE_AS[self.fmt], Image(pixels, self.info), **self.options.write)
         if self._template is None:
@@ -199,6 +200,8 @@ class _TileFolderWriter(TileSetWriter):
         if y0 != lv.next or y0 + pixels.shape[0] > lv.height or pixels.shape[1] != lv.width:
             raise ValueError(f"level {level}: rows {y0}..{y0 + pixels.shape[0]} of width {pixels.shape[1]} do not "
                              f"follow row {lv.next} of a {lv.width}x{lv.height} level")
+        if pixels.shape[0] == 0:
+            return
         if self._staging is None:
             self._start()
         assert self._pool is not None
@@ -260,16 +263,24 @@ class _TileFolderWriter(TileSetWriter):
         self._pool = ThreadPoolExecutor(THREADS, thread_name_prefix="tiles")
 
     # ---------------------------------------------------------------- a tile out
-    def _encoder(self) -> tuple[oiio.ImageOutput, int]:
+    def _encoder(self) -> tuple[oiio.ImageOutput, int, str]:
+        """This thread's OpenImageIO writer, and the memory file it encodes into (its fd and a name for it)."""
         loc = self._local
         if not hasattr(loc, "out"):
-            loc.out = oiio.ImageOutput.create(self.fmt)
-            if loc.out is None:
-                raise OutputError(f"cannot write {self.path}: no {self.fmt} writer ({oiio.geterror().strip()})")
-            loc.mem = os.memfd_create("pyramid-tile", getattr(os, "MFD_CLOEXEC", 0))
+            out = oiio.ImageOutput.create(self.fmt)
+            if out is None:
+                raise WriteFailed(f"no {self.fmt} writer ({oiio.geterror().strip()})")
+            if hasattr(os, "memfd_create") and os.path.isdir("/proc/self/fd"):
+                fd = os.memfd_create("pyramid-tile", getattr(os, "MFD_CLOEXEC", 0))
+                name = f"/proc/self/fd/{fd}"
+            else:  # no memory files: a hidden file in the staging folder
+                assert self._staging is not None
+                name = os.path.join(self._staging.root, f".encode-{threading.get_ident()}.{self.suffix}")
+                fd = os.open(name, os.O_RDWR | os.O_CREAT, 0o600)
             with self._lock:
-                self._memfds.append(loc.mem)
-        return loc.out, loc.mem
+                self._memfds.append(fd)
+            loc.out, loc.mem, loc.name = out, fd, name
+        return loc.out, loc.mem, loc.name
 
     def _write_tile(self, rel: str, tile: np.ndarray) -> None:
         """Encode one tile into memory (libjpeg ends the process on a failed write: never on the disk) and write
@@ -277,14 +288,14 @@ class _TileFolderWriter(TileSetWriter):
         assert self._staging is not None and self._template is not None
         target = os.path.join(self._staging.staged[0], rel)
         try:
-            out, mem = self._encoder()
+            out, mem, name = self._encoder()
             spec = oiio.ImageSpec(self._template)
             spec.width, spec.height = tile.shape[1], tile.shape[0]
             spec.full_width, spec.full_height = spec.width, spec.height
             os.ftruncate(mem, 0)
             failure = None
             try:
-                checked(out, out.open(f"/proc/self/fd/{mem}", spec), "open")
+                checked(out, out.open(name, spec), "open")
                 checked(out, out.write_image(np.ascontiguousarray(tile)), "write")
             except WriteFailed as exc:
                 failure = exc
@@ -312,8 +323,6 @@ class _TileFolderWriter(TileSetWriter):
             raise
         except OSError as exc:
             raise OutputError(f"cannot write {self.path}: {error_reason(exc)}{diagnosis(target)}") from None
-        with self._lock:
-            self._tiles_written += 1
 
     # ---------------------------------------------------------------- the end
     def _finish(self) -> dict:

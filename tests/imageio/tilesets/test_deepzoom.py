@@ -59,12 +59,12 @@ def feed(writer, levels, band=7):
                 pos[k] += n
 
 
-def write(cls, out, img, levels, **options):
+def write(cls, out, img, levels, band=7, **options):
     w = cls(str(out), img.spec, img.pixels.shape[:2], img.pixels.shape[2], TileOptions(**options))
     w.check()
     assert [lv.shape[:2] for lv in levels[:len(w.sizes)]] == w.sizes
     try:
-        feed(w, levels[:len(w.sizes)])
+        feed(w, levels[:len(w.sizes)], band)
         return w, w.finish()
     except BaseException:
         w.abort()
@@ -148,12 +148,16 @@ def test_deep_zoom_options_as_dzsave(sources, tmp_path):
 
 
 # ---------------------------------------------------------------- the pixels are the levels'
-@pytest.mark.parametrize("cls, options", [(DeepZoomWriter, {"tile_size": 16, "overlap": 2}),
-                                          (IIIF3Writer, {"tile_size": 32})])
-def test_png_tiles_hold_the_encoded_levels_exactly(sources, tmp_path, cls, options):
+@pytest.mark.parametrize("cls, options, band", [(DeepZoomWriter, {"tile_size": 16, "overlap": 2}, 7),
+                                                (DeepZoomWriter, {"tile_size": 5, "overlap": 3}, 1),
+                                                pytest.param(DeepZoomWriter, {"tile_size": 1, "overlap": 1}, 1000,
+                                                             marks=pytest.mark.slow),  # 2,700 tiles of 1 to 3 px
+                                                (IIIF3Writer, {"tile_size": 32}, 8)])
+def test_png_tiles_hold_the_encoded_levels_exactly(sources, tmp_path, cls, options, band):
+    """Whatever the bands (a row at a time, whole levels), the tiles hold the stored values of their pixels."""
     _, img, levels = sources[(37, 53)]
-    w, report = write(cls, tmp_path / ("pic.dzi" if cls is DeepZoomWriter else "pic"), img, levels, suffix="png",
-                      **options)
+    w, report = write(cls, tmp_path / ("pic.dzi" if cls is DeepZoomWriter else "pic"), img, levels, band,
+                      suffix="png", **options)
     root = tmp_path / ("pic_files" if cls is DeepZoomWriter else "pic")
     checked = 0
     for lv in w._levels:
@@ -214,6 +218,16 @@ def test_what_the_tiles_cannot_hold_is_refused(sources, tmp_path, cls, options, 
     _, img, _ = sources[(37, 53)]
     with pytest.raises(UsageError, match=says):
         cls(str(tmp_path / "o.dzi"), img.spec, (37, 53), 3, TileOptions(**options)).check()
+
+
+def test_rows_out_of_order_are_a_bug_said_at_once(sources, tmp_path):
+    _, img, levels = sources[(37, 53)]
+    w = DeepZoomWriter(str(tmp_path / "o.dzi"), img.spec, (37, 53), 3, TileOptions())
+    w.rows(1, 0, levels[1][:4])
+    with pytest.raises(ValueError, match="level 1: rows 5..7"):
+        w.rows(1, 5, levels[1][5:7])
+    w.abort()
+    assert os.listdir(tmp_path) == []
 
 
 def test_the_registry_names_these_writers():
