@@ -122,6 +122,24 @@ class _TileFolderWriter(TileSetWriter):
         """Where tile (c, r) of ``level`` goes, relative to the tile folder."""
         raise NotImplementedError
 
+    def grid(self, k: int) -> tuple[int, int]:
+        """(columns, rows) of tiles of level ``k`` (reduction k: 0 is the input)."""
+        return self._levels[k].cols, self._levels[k].nrows
+
+    def tile_box(self, k: int, c: int, r: int) -> tuple[int, int, int, int]:
+        """(x0, y0, x1, y1): the pixels of level ``k`` that tile (c, r) holds, overlap included."""
+        (x0, x1), (y0, y1) = self._levels[k].col_span(c), self._levels[k].span(r)
+        return x0, y0, x1, y1
+
+    def tile_name(self, k: int, c: int, r: int) -> str:
+        """The file of tile (c, r) of level ``k``, relative to :attr:`tile_folder`."""
+        return self._tile_path(self._levels[k], c, r)
+
+    @property
+    def tile_folder(self) -> str:
+        """The folder the tiles go in (Deep Zoom: ``NAME_files``; IIIF: the output)."""
+        return self._outputs()[0]
+
     # ---------------------------------------------------------------- checks
     def check(self) -> None:
         """Refuse a suffix, option, type or channel count these tiles cannot hold (UsageError, one line)."""
