@@ -273,6 +273,23 @@ def test_finish_replaces_the_previous_output(sources, tmp_path):
     assert (tmp_path / "pic_files" / "0" / "0_0.jpeg").read_bytes() != b"old tile"
 
 
+def test_a_tile_the_encoder_fails_on_is_one_line_naming_the_output(sources, tmp_path, monkeypatch):
+    from pyramid_cli.imageio.tilesets import deepzoom
+    from pyramid_cli.imageio.write import WriteFailed
+
+    def fail(out, ok, what):
+        raise WriteFailed(f"{what} failed: no room in the codec")
+
+    monkeypatch.setattr(deepzoom, "checked", fail)
+    _, img, levels = sources[(37, 53)]
+    out = tmp_path / "pic.dzi"
+    old = previous(out)
+    with pytest.raises(OutputError, match=r"^cannot write .*pic\.dzi: \d+/\d+_\d+\.jpeg: open failed: no room in the "
+                                          r"codec$"):
+        write(DeepZoomWriter, out, img, levels)
+    assert contents(tmp_path) == old and not leftovers(tmp_path)
+
+
 @contextlib.contextmanager
 def mounted(path, size):
     if os.geteuid() != 0 or not sys.platform.startswith("linux"):
