@@ -98,7 +98,7 @@ class _TileFolderWriter(TileSetWriter):
             suffix = "png" if self.alpha else self.default_suffix
         self.suffix = self._suffix_name(str(suffix).lower().lstrip("."))
         self.fmt = FORMATS.get(self.suffix, "")
-        self.quality = DEFAULT_QUALITY if options.quality is None else options.quality
+        self.quality = DEFAULT_QUALITY if options.quality is None else int(options.quality)
         self._levels = [_Level(k, s, max(1, self.tile), self.overlap) for k, s in enumerate(self.sizes)]
         self._staging: Staging | None = None
         self._pool: ThreadPoolExecutor | None = None

@@ -147,6 +147,18 @@ def test_deep_zoom_options_as_dzsave(sources, tmp_path):
     assert tree(tmp_path / "ours") == tree(tmp_path / "vips")
 
 
+@pytest.mark.parametrize("suffix, within", [("webp", 12), ("tif", 0)])
+def test_webp_and_tif_tiles(sources, tmp_path, suffix, within):
+    """The other tile formats: dzsave's names and sizes; TIFF exactly the stored values, WebP (Q 75) close."""
+    px, img, levels = sources[(37, 53)]
+    w, report = write(DeepZoomWriter, tmp_path / "ours" / "pic.dzi", img, levels, tile_size=16, suffix=suffix)
+    vips_image(px).dzsave(str(tmp_path / "vips" / "pic"), tile_size=16, suffix=f".{suffix}")
+    assert tree(tmp_path / "ours") == tree(tmp_path / "vips") and report["format"] == suffix
+    x0, y0, x1, y1 = w.tile_box(0, 1, 1)
+    got = oiio.ImageBuf(os.path.join(w.tile_folder, w.tile_name(0, 1, 1))).get_pixels(oiio.UINT8)
+    assert np.abs(got.astype(int) - w.encode(levels[0])[y0:y1, x0:x1]).mean() <= within
+
+
 # ---------------------------------------------------------------- the pixels are the levels'
 @pytest.mark.parametrize("cls, options, band", [(DeepZoomWriter, {"tile_size": 16, "overlap": 2}, 7),
                                                 (DeepZoomWriter, {"tile_size": 5, "overlap": 3}, 1),
