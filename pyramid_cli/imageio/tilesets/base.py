@@ -42,6 +42,9 @@ class TileOptions:
     write : dict
         The write options of the other commands (``pixel_type``, ``colorspace`` (the output's),
         ``alpha``, ``dither``), passed to :func:`~pyramid_cli.imageio.encode.encoded_rows`.
+    iiif_id : str or None
+        IIIF layouts: the base URL of the image's ``id`` in ``info.json`` (``vips dzsave --id``; default
+        ``https://example.com/iiif``), the folder's name appended. Viewers fetch the tiles from that URL.
     """
 
     tile_size: int | None = None
@@ -50,6 +53,7 @@ class TileOptions:
     quality: int | None = None
     compression: str | None = None
     write: dict = field(default_factory=dict)
+    iiif_id: str | None = None
 
 
 def ceil_levels(size: tuple[int, int], count: int) -> list[tuple[int, int]]:

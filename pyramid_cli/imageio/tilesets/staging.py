@@ -11,6 +11,7 @@ leaves the previous output as it was.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
 import tempfile
@@ -37,16 +38,32 @@ class Staging:
     def commit(self) -> None:
         """Move every staged path onto its output, in order; the previous outputs are removed last."""
         old = os.path.join(self.root, ".previous")
-        os.mkdir(old)
+        done: list[tuple[str, str, str]] = []  # (target, staged, previous or "") moved so far
         try:
+            os.mkdir(old)
             for k, (path, staged) in enumerate(zip(self.paths, self.staged, strict=True)):
                 target = path.rstrip(os.sep) or path
+                aside = ""
                 if os.path.lexists(target):
-                    os.replace(target, os.path.join(old, str(k)))
+                    aside = os.path.join(old, str(k))
+                    os.replace(target, aside)
+                done.append((target, staged, aside))
                 os.replace(staged, target)
         except OSError as exc:
+            self._restore(done)
             raise OutputError(f"cannot write {self.paths[0]}: {error_reason(exc)}") from None
         self.discard()
+
+    @staticmethod
+    def _restore(done: list[tuple[str, str, str]]) -> None:
+        """Undo a commit that failed part way: every previous output back on its path (the new ones back into
+        the staging folder, which :meth:`discard` then removes)."""
+        for target, staged, aside in reversed(done):
+            with contextlib.suppress(OSError):
+                if not os.path.lexists(staged) and os.path.lexists(target):
+                    os.replace(target, staged)
+                if aside:
+                    os.replace(aside, target)
 
     def discard(self) -> None:
         """Remove the hidden folder and everything in it (what a failed run wrote, or the previous outputs)."""
