@@ -34,6 +34,9 @@ FORMAT_NAMES = ("jpeg", "jpg", "png", "webp", "tif", "tiff")
                    "jpeg with alpha is refused).")
 @click.option("--quality", type=click.IntRange(1, 100), metavar="Q", help="JPEG/WebP quality (default: the "
               "layout's, 75 as vips dzsave).")
+@click.option("--id", "iiif_id", metavar="URL",
+              help="The IIIF layouts' base address (vips dzsave's --id): info.json's id is URL/NAME, where the "
+                   "folder NAME is served; viewers build tile URLs from it (default https://example.com/iiif).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object per tile set (a list for -o batches): "
               "its layout, path, tile size, overlap, format, every level's size, reduction, scale and rule, and the "
               "input, backend, analysis, border, band and seconds.")
@@ -41,7 +44,7 @@ FORMAT_NAMES = ("jpeg", "jpg", "png", "webp", "tif", "tiff")
 @io_options
 @batch_options_of(jobs=False, cluster=False)
 @memory_option
-def tiles(paths, layout, analysis, tile_size, overlap, tile_format, quality, as_json, border, **opts) -> None:
+def tiles(paths, layout, analysis, tile_size, overlap, tile_format, quality, iiif_id, as_json, border, **opts) -> None:
     """Write a tiled pyramid for viewers: Deep Zoom, IIIF, OME-Zarr or pyramidal TIFF.
 
     Level 0 is the input; every level below is ⌈n/2⌉ of the one above, reduced with the
@@ -56,7 +59,7 @@ def tiles(paths, layout, analysis, tile_size, overlap, tile_format, quality, as_
     \b
     Example:
       pyramid tiles scan.tif scan.dzi                      # Deep Zoom as vips dzsave lays it out
-      pyramid tiles --layout iiif3 scan.tif iiif/scan      # a static IIIF 3 level-0 tree
+      pyramid tiles --layout iiif3 --id https://img.example.org/iiif scan.tif iiif/scan   # static IIIF 3
       pyramid tiles --tile-size 512 slide.tif slide.ome.zarr
       pyramid tiles --analysis quadratic --format png map.png map.dzi
       pyramid tiles --memory 1G -v --json huge_32k.tif huge.dzi
@@ -74,7 +77,7 @@ def tiles(paths, layout, analysis, tile_size, overlap, tile_format, quality, as_
     if wo.tocolorspace is not None:
         write["colorspace"] = wo.tocolorspace
     settings = TileSettings(layout, analysis, border, TileOptions(tile_size, overlap, tile_format, quality,
-                                                                  wo.compression, write))
+                                                                  wo.compression, write, iiif_id))
     memory = parse_size(opts["memory"]) if opts.get("memory") is not None else None
     with open_session(opts, reporter) as session:
         report, described = tile_files(list(paths), opts["template"], settings, session, read=ro, reporter=reporter,

@@ -123,7 +123,7 @@ def tile_format(layout: str, options: TileOptions, info, reporter: Reporter, whe
             reporter.detail(f"{where}: PNG tiles, not JPEG: the input has alpha (JPEG holds none)")
     elif asked not in ALPHA_FORMATS and alpha:
         raise UsageError(f"{where}: --format {options.suffix}: JPEG tiles hold no alpha and the input has it; "
-                         "give --format png or webp, or --alpha ignore to drop it")
+                         "give --format png or webp")
     return dataclasses.replace(options, suffix=asked)
 
 
@@ -341,7 +341,8 @@ def tile_files(paths: list[str], template: str | None, settings: TileSettings, s
 def tiles(path_or_array, out: str | os.PathLike[str] | Any, *, layout: str | None = None,
           analysis: str = catalogue.MIP_ANALYSIS_DEFAULT, border: str = "clamp", tile_size: int | None = None,
           overlap: int | None = None, format: str | None = None, quality: int | None = None,  # noqa: A002
-          compression: str | None = None, memory: int | str | None = None, backend: str = "auto", session=None,
+          compression: str | None = None, iiif_id: str | None = None, memory: int | str | None = None,
+          backend: str = "auto", session=None,
           colorspace: str = "auto", alpha: str = "auto", nan: str = "keep", colorconfig: str | None = None,
           pixel_type: str | None = None, tocolorspace: str | None = None, dither: bool = False) -> dict:
     """Write a viewer's tile set of an image file or an array: Deep Zoom, IIIF, OME-Zarr or pyramidal TIFF.
@@ -370,6 +371,9 @@ def tiles(path_or_array, out: str | os.PathLike[str] | Any, *, layout: str | Non
         How the analysis reads past the edges; odd sizes are padded by it.
     tile_size, overlap, quality, compression : optional
         The layout's defaults when None (Deep Zoom: ``vips dzsave``'s 254, 1 and Q 75).
+    iiif_id : str, optional
+        The IIIF layouts' base address (``vips dzsave --id``): ``info.json``'s id is ``iiif_id/NAME``, where the
+        folder ``NAME`` is served.
     format : {"jpeg", "png", "webp", "tif"}, optional
         Tile files of the folder layouts: JPEG, or PNG when the input has alpha (JPEG with alpha is refused).
     memory : int or str, optional
@@ -400,7 +404,8 @@ def tiles(path_or_array, out: str | os.PathLike[str] | Any, *, layout: str | Non
     write: dict = {"pixel_type": pixel_type, "dither": dither}
     if tocolorspace is not None:
         write["colorspace"] = tocolorspace
-    settings = TileSettings(layout, analysis, border, _options(tile_size, overlap, format, quality, compression, write))
+    settings = TileSettings(layout, analysis, border, _options(tile_size, overlap, format, quality, compression, write,
+                                                                 iiif_id))
     budget = parse_size(memory) if isinstance(memory, str) else memory
     own = session is None
     session = Session(backend) if own else session

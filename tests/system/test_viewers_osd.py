@@ -45,7 +45,7 @@ WRONG = 5.0
 #: The layouts: name → the file OpenSeadragon opens, relative to the tile set's folder.
 LAYOUTS = {"dz": "dz.dzi", "iiif3": "iiif3/info.json", "iiif": "iiif/info.json"}
 #: `pyramid tiles` lands with the tiles-run and tiles-dz branches: set False once they are merged.
-PENDING = True
+PENDING = False
 UNTIL_MERGED = pytest.mark.xfail(strict=False, reason="pyramid tiles lands with tiles-run/tiles-dz")
 
 
