@@ -132,7 +132,8 @@ def float32_executor(request) -> Subject:
 
 #: The longest tests (half a minute and more each on 2 cores), started first: spread over pytest-xdist's
 #: workers (`make test`), one of them starting last would be the run's tail.
-LONGEST_FIRST = ("tests/system/test_memory_cgroup.py", "tests/system/test_docs.py", "tests/system/test_bench_peers.py")
+LONGEST_FIRST = ("tests/system/test_memory_cgroup.py", "tests/system/test_docs.py", "tests/system/test_bench_peers.py",
+                 "tests/system/test_viewers_osd.py", "tests/system/test_bench_tiles.py")
 
 
 def pytest_collection_modifyitems(config, items):  # noqa: ARG001 - pytest's hook signature
