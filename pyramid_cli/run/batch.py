@@ -52,6 +52,28 @@ def plan_jobs(paths: list[str], output: str | None, frames: str | None = None) -
     return jobs
 
 
+def select_jobs(paths: list[str], template: str | None, *, frames: str | None = None, shard=None,
+                keep_going: bool = False, reporter=None) -> tuple[list[Job], bool]:
+    """The jobs of ``IN OUT`` or ``IN... -o TEMPLATE`` this process runs, and whether the command has several
+    (before its shard is cut: a batch reports per job): planned (:func:`plan_jobs`), cut to
+    ``shard`` (``K/N``, ``auto`` or a :class:`~pyramid_cli.run.shard.Shard`; the temporaries a killed run of
+    it left are removed), missing frames of a sequence dropped or refused
+    (:func:`~pyramid_cli.run.sequence.drop_missing`)."""
+    job_list = plan_jobs(list(paths), template, frames=frames)
+    many = len(job_list) > 1
+    if shard is not None:
+        from pyramid_cli.run import shard as shards
+
+        shard = shards.parse(shard) if isinstance(shard, str) else shard
+        job_list = shards.select(job_list, shard)
+        if reporter is not None:
+            reporter.detail(f"shard {shard} ({shard.source}): {len(job_list)} job(s)")
+        shards.remove_stale_temps([j.output for j in job_list])
+    if frames is not None or any(getattr(j, "frame", None) is not None for j in job_list):
+        job_list = sequence.drop_missing(job_list, keep_going, reporter.warn if reporter is not None else print)
+    return job_list, many
+
+
 def _prepare_quietly(prepare: Callable[[Job], None], job: Job) -> None:
     try:
         prepare(job)

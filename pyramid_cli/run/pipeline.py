@@ -67,19 +67,8 @@ def process(paths: list[str], template: str | None, work: Work, session: Session
         reporter.warn(message)
     if cluster is None and (chunk is not None or cluster_timeout is not None):
         raise UsageError("--chunk and --cluster-timeout are for --cluster runs")
-    job_list = batch.plan_jobs(list(paths), template, frames=frames)
-    many = len(job_list) > 1
-    if shard is not None:
-        from pyramid_cli.run import shard as shards
-
-        shard = shards.parse(shard) if isinstance(shard, str) else shard
-        job_list = shards.select(job_list, shard)
-        reporter.detail(f"shard {shard} ({shard.source}): {len(job_list)} job(s)")
-        shards.remove_stale_temps([j.output for j in job_list])
-    if frames is not None or any(getattr(j, "frame", None) is not None for j in job_list):
-        from pyramid_cli.run.sequence import drop_missing
-
-        job_list = drop_missing(job_list, keep_going, reporter.warn)
+    job_list, many = batch.select_jobs(paths, template, frames=frames, shard=shard, keep_going=keep_going,
+                                       reporter=reporter)
     if isinstance(session, Session) and cluster is None and job_list:  # auto decides for all; numba loads meanwhile
         first = _header(job_list[0].input, keep_half=not mip_tile)
         if first is not None:

@@ -24,6 +24,7 @@ import contextlib
 import glob
 import os
 import re
+import shutil
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TypeVar
@@ -364,15 +365,20 @@ def select(jobs: Sequence[T], shard: Shard | str | None) -> list[T]:
 
 
 def remove_stale_temps(outputs: Sequence[str]) -> int:
-    """Remove temporary files a killed writer left beside ``outputs`` (``.NAME.tmp-*``); returns how many.
+    """Remove the temporaries a killed writer left beside ``outputs`` (``.NAME.tmp-*``: a file's, or a tile set's
+    staging folder, :class:`~pyramid_cli.imageio.tilesets.staging.Staging`); returns how many.
 
     Only for outputs this process owns (its shard's, or a cluster task's chunk): no
     other writer can be writing them.
     """
     removed = 0
     for out in outputs:
-        folder, base = os.path.split(os.path.abspath(out))
+        folder, base = os.path.split(os.path.abspath(out.rstrip(os.sep) or out))
         for tmp in glob.glob(os.path.join(glob.escape(folder), f".{glob.escape(base)}.tmp-*")):
+            if os.path.isdir(tmp) and not os.path.islink(tmp):
+                shutil.rmtree(tmp, ignore_errors=True)
+                removed += 1
+                continue
             with contextlib.suppress(OSError):
                 os.unlink(tmp)
                 removed += 1

@@ -18,7 +18,6 @@ output as it was.
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import os
 import time
@@ -271,25 +270,6 @@ def tile_file(in_path: str, out: str, settings: TileSettings, session, *, memory
         return tile_source(st, in_path, out, settings, session, memory=memory, reporter=reporter, force=force)
 
 
-def remove_stale_staging(outputs: list[str]) -> int:
-    """Remove the staging folders (``.NAME.tmp-*``, :class:`~pyramid_cli.imageio.tilesets.staging.Staging`) a killed
-    run left beside ``outputs``, this shard's own (no other process writes them); returns how many."""
-    import glob
-    import shutil
-
-    removed = 0
-    for out in outputs:
-        folder, base = os.path.split(os.path.abspath(out.rstrip(os.sep) or out))
-        for tmp in glob.glob(os.path.join(glob.escape(folder), f".{glob.escape(base)}.tmp-*")):
-            if os.path.isdir(tmp) and not os.path.islink(tmp):
-                shutil.rmtree(tmp, ignore_errors=True)
-            else:
-                with contextlib.suppress(OSError):
-                    os.unlink(tmp)
-            removed += 1
-    return removed
-
-
 def tile_files(paths: list[str], template: str | None, settings: TileSettings, session, *, read=None,
                reporter: Reporter | None = None, memory: int | None = None, force: bool = False,
                keep_going: bool = False, skip_existing: bool = False, frames: str | None = None,
@@ -302,19 +282,8 @@ def tile_files(paths: list[str], template: str | None, settings: TileSettings, s
     from pyramid_cli.run import batch
 
     reporter = reporter or Reporter()
-    job_list = batch.plan_jobs(list(paths), template, frames=frames)
-    many = len(job_list) > 1
-    if shard is not None:
-        from pyramid_cli.run import shard as shards
-
-        shard = shards.parse(shard) if isinstance(shard, str) else shard
-        job_list = shards.select(job_list, shard)
-        reporter.detail(f"shard {shard} ({shard.source}): {len(job_list)} job(s)")
-        remove_stale_staging([j.output for j in job_list])
-    if frames is not None or any(getattr(j, "frame", None) is not None for j in job_list):
-        from pyramid_cli.run.sequence import drop_missing
-
-        job_list = drop_missing(job_list, keep_going, reporter.warn)
+    job_list, many = batch.select_jobs(paths, template, frames=frames, shard=shard, keep_going=keep_going,
+                                       reporter=reporter)
     report, described = Report(), []
     for job in job_list:
         if report.failed and not keep_going:
@@ -428,4 +397,4 @@ def tiles(path_or_array, out: str | os.PathLike[str] | Any, *, layout: str | Non
 
 
 __all__ = ["TileSettings", "ArraySource", "tile_format", "writer_memory", "tile_source", "tile_file", "tile_files",
-           "tiles", "remove_stale_staging", "FOLDER_LAYOUTS", "TILE_FORMATS"]
+           "tiles", "FOLDER_LAYOUTS", "TILE_FORMATS"]

@@ -74,7 +74,8 @@ def test_the_pictures_are_what_they_say():
 def test_tiles_quick_writes_json(tmp_path):
     out = tmp_path / "tiles.json"
     p = subprocess.run([sys.executable, str(TILES), "--quick", "--data", str(tmp_path / "data"), "--json", str(out),
-                        "--plot", str(tmp_path / "tiles.png"), "--sizes", "8k"], capture_output=True, text=True, timeout=600, cwd=ROOT)
+                        "--plot", str(tmp_path / "tiles.png"), "--sizes", "8k"],
+                       capture_output=True, text=True, timeout=600, cwd=ROOT)
     assert p.returncode == 0, p.stderr[-2000:]
     report = json.loads(out.read_text())
     for key in ("schema", "created", "machine", "quick", "repeat", "load_avg", "pyramids", "targets", "jobs",

@@ -10,7 +10,6 @@ Signals are real signals sent to real processes.
 
 from __future__ import annotations
 
-import contextlib
 import os
 import resource
 import signal
@@ -23,6 +22,7 @@ import OpenImageIO as oiio
 import pytest
 
 from helpers.cli import CLI
+from helpers.disks import mounted
 from helpers.images import write
 from pyramid_cli import imageio as pio
 from pyramid_cli.core.errors import InputError, OutputError
@@ -131,20 +131,6 @@ def test_diff_out_on_a_full_disk_is_a_file_error(src, tmp_path):
 
 
 # ---------------------------------------------------------------- a real full disk, a read-only folder
-@contextlib.contextmanager
-def mounted(path, options):
-    if os.geteuid() != 0 or not sys.platform.startswith("linux"):
-        pytest.skip("mounting a tmpfs needs root on Linux")
-    path.mkdir()
-    r = subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(path)], capture_output=True)
-    if r.returncode:
-        pytest.skip(f"cannot mount a tmpfs here: {r.stderr.decode().strip()}")
-    try:
-        yield path
-    finally:
-        subprocess.run(["umount", str(path)], check=False)
-
-
 @pytest.mark.parametrize("ext", ["jpg", "png"])
 def test_a_real_full_disk(tmp_path, ext):
     big = tmp_path / "big.png"

@@ -4,18 +4,16 @@ libvips's JPEG; nothing is left behind by an abort or a full disk, and the previ
 
 from __future__ import annotations
 
-import contextlib
 import os
 import resource
 import signal
-import subprocess
-import sys
 
 import numpy as np
 import OpenImageIO as oiio
 import pytest
 
 import pyramid_cli as pyr
+from helpers.disks import mounted
 from pyramid_cli.core.errors import OutputError, UsageError
 from pyramid_cli.imageio.read import read_image
 from pyramid_cli.imageio.tilesets import TileOptions, writer_class
@@ -302,24 +300,10 @@ def test_a_tile_the_encoder_fails_on_is_one_line_naming_the_output(sources, tmp_
     assert contents(tmp_path) == old and not leftovers(tmp_path)
 
 
-@contextlib.contextmanager
-def mounted(path, size):
-    if os.geteuid() != 0 or not sys.platform.startswith("linux"):
-        pytest.skip("mounting a tmpfs needs root on Linux")
-    path.mkdir()
-    r = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(path)], capture_output=True)
-    if r.returncode:
-        pytest.skip(f"cannot mount a tmpfs here: {r.stderr.decode().strip()}")
-    try:
-        yield path
-    finally:
-        subprocess.run(["umount", str(path)], check=False)
-
-
 @pytest.mark.parametrize("cls", [DeepZoomWriter, IIIF3Writer])
 def test_a_full_disk_is_one_line_and_keeps_the_previous_output(sources, tmp_path, cls):
     _, img, levels = sources[(510, 509)]
-    with mounted(tmp_path / "small", "96k") as disk:
+    with mounted(tmp_path / "small", "size=96k") as disk:
         out = disk / "pic.dzi"
         old = previous(out)
         with pytest.raises(OutputError) as e:
