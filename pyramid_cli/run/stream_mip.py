@@ -2,90 +2,21 @@
 
 :func:`run_mip` runs the plan on the row-band scheduler as :mod:`pyramid_cli.run.stream` does, with the
 decoding and the writing of level 0 overlapped (:mod:`pyramid_cli.run.overlap`), and keeps the coarser
-levels (:class:`_Kept`: in memory or in a temporary file beside the output) until level 0 is written.
+levels (:class:`~pyramid_cli.imageio.spill.KeptRows`: in memory or in a temporary file beside the output)
+until level 0 is written.
 """
 
 from __future__ import annotations
 
 import contextlib
-import os
 
 import numpy as np
 
-from pyramid_cli.core.errors import DataError, OutputError, UsageError
+from pyramid_cli.core.errors import DataError, UsageError
+from pyramid_cli.imageio.spill import KeptRows
 from pyramid_cli.run.budget import resolve
 from pyramid_cli.run.overlap import overlapped
 from pyramid_cli.run.stream import MIN_BAND, choose_mip, costs, executor_of, open_input, read_step, warn_nonfinite
-
-
-class _Kept:
-    """MIP levels' rows until their turn (a MIP file holds level 0 first, its header before its rows): arrays
-    of ``dtype`` in memory, or, given ``spill``, a raw file read and written with explicit I/O (no mapping: the
-    rows on disk do not count in the process's memory). A spill that fails (a full disk) is an OutputError
-    naming ``beside``, the output the file sits beside (exit 4)."""
-
-    def __init__(self, shapes: list[tuple[int, int, int]], spill: str | None = None, dtype=np.float32,
-                 beside: str = ""):
-        self.shapes, self.dtype, self.beside = shapes, np.dtype(dtype), beside
-        self.arrays: list[np.ndarray] | None = None if spill else [np.empty(s, dtype=self.dtype) for s in shapes]
-        self.fd: int | None = None
-        self.offsets = [0]
-        for h, w, c in shapes:
-            self.offsets.append(self.offsets[-1] + h * w * c * self.dtype.itemsize)
-        if spill:
-            self.fd = os.open(spill, os.O_RDWR)
-
-    def close(self) -> None:
-        if self.fd is not None:
-            os.close(self.fd)
-            self.fd = None
-
-    def _at(self, i: int, r: int) -> int:
-        _, w, c = self.shapes[i]
-        return self.offsets[i] + r * w * c * self.dtype.itemsize
-
-    def write(self, i: int, r: int, px: np.ndarray) -> None:
-        if self.arrays is not None:
-            self.arrays[i][r:r + len(px)] = px
-            return
-        fd = self._spill()
-        view = np.ascontiguousarray(px, dtype=self.dtype).data.cast("B")
-        at = self._at(i, r)
-        try:
-            while view:
-                n = os.pwrite(fd, view, at)
-                view, at = view[n:], at + n
-        except OSError as exc:
-            raise self._failed(exc) from None
-
-    def _spill(self) -> int:
-        """The spill file's descriptor (rows kept on disk: no arrays)."""
-        if self.fd is None:
-            raise ValueError("the MIP levels' spill file is closed")
-        return self.fd
-
-    def _failed(self, exc: OSError) -> OutputError:
-        from pyramid_cli.imageio.atomic import error_reason
-
-        return OutputError(f"cannot write {self.beside}: {error_reason(exc)} (in the temporary file of its coarser "
-                           "MIP levels beside it)")
-
-    def rows(self, i: int, r0: int, r1: int) -> np.ndarray:
-        if self.arrays is not None:
-            return self.arrays[i][r0:r1]
-        _, w, c = self.shapes[i]
-        size = (r1 - r0) * w * c * self.dtype.itemsize
-        fd = self._spill()
-        data = bytearray()
-        try:
-            while len(data) < size:
-                chunk = os.pread(fd, size - len(data), self._at(i, r0) + len(data))
-                if not chunk:
-                    raise OSError(f"the spill file ends {size - len(data)} bytes early")
-                data += chunk
-        except OSError as exc:
-            raise self._failed(exc) from None
-        return np.frombuffer(data, dtype=self.dtype).reshape(r1 - r0, w, c)
 
 
 @contextlib.contextmanager
@@ -211,7 +142,7 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
         stats = PixelStats(h)
         once = bool(choice.level0)
         if once:  # level 0 kept as read while the scheduler runs; its header's statistics gathered on the way
-            level0 = _Kept([shapes[0]], None, st.dtype)
+            level0 = KeptRows([shapes[0]], None, st.dtype)
             st.on_stored = stats.hash_rows
         else:  # the first read, for the header; the scheduler reads again, writing level 0 as it reads it
             _level0_stats(st, stats, step, out_path, options)
@@ -219,8 +150,8 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
                 return _write_constant(work, session, stats, shapes[0], tile, in_path, out_path, info, options,
                                        reporter)
             st = stack.enter_context(open_input(in_path, ro))
-        kept = _Kept(shapes[1:], stack.enter_context(_scratch(out_path)) if choice.spill else None,
-                     beside=out_path)
+        kept = KeptRows(shapes[1:], stack.enter_context(_scratch(out_path)) if choice.spill else None,
+                        beside=out_path, what="coarser MIP levels")
         stack.callback(kept.close)
 
         def open_writer():

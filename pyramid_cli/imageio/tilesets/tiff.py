@@ -43,6 +43,7 @@ from pyramid_cli.core.errors import OutputError, UsageError
 from pyramid_cli.imageio.atomic import error_reason
 from pyramid_cli.imageio.encode import encode as encode_image
 from pyramid_cli.imageio.image import Image
+from pyramid_cli.imageio.spill import KeptRows
 from pyramid_cli.imageio.tilesets.base import TileOptions, TileSetWriter
 from pyramid_cli.imageio.tilesets.staging import Staging
 
@@ -64,57 +65,6 @@ _ENCODING = 2  # bands being encoded before rows() waits for the oldest (copies 
 
 class _Aborted(Exception):
     """Raised in the tile generator to stop tifffile's write when the run is aborted."""
-
-
-class _Spill:
-    """Stored rows of levels 1.. in one raw file (each level's rows one after the other), read and written with
-    explicit I/O; a failure (a full disk) is an OutputError naming ``beside``, the user's output."""
-
-    def __init__(self, path: str, shapes: list[tuple[int, int, int]], dtype: np.dtype, beside: str):
-        self.shapes, self.dtype, self.beside = shapes, np.dtype(dtype), beside
-        self.offsets = [0]
-        for h, w, c in shapes:
-            self.offsets.append(self.offsets[-1] + h * w * c * self.dtype.itemsize)
-        self.fd: int | None = os.open(path, os.O_RDWR | os.O_CREAT | os.O_EXCL, 0o600)
-
-    def close(self) -> None:
-        if self.fd is not None:
-            os.close(self.fd)
-            self.fd = None
-
-    def _at(self, i: int, r: int) -> int:
-        _, w, c = self.shapes[i]
-        return self.offsets[i] + r * w * c * self.dtype.itemsize
-
-    def _failed(self, exc: OSError) -> OutputError:
-        return OutputError(f"cannot write {self.beside}: {error_reason(exc)} (in the temporary file of its "
-                           "reduced levels beside it)")
-
-    def write(self, i: int, r: int, px: np.ndarray) -> None:
-        assert self.fd is not None, "the spill is open while rows arrive"
-        view = np.ascontiguousarray(px, dtype=self.dtype).data.cast("B")
-        at = self._at(i, r)
-        try:
-            while view:
-                n = os.pwrite(self.fd, view, at)
-                view, at = view[n:], at + n
-        except OSError as exc:
-            raise self._failed(exc) from None
-
-    def rows(self, i: int, r0: int, r1: int) -> np.ndarray:
-        assert self.fd is not None, "the spill is open until the levels are written"
-        _, w, c = self.shapes[i]
-        size = (r1 - r0) * w * c * self.dtype.itemsize
-        data = bytearray()
-        try:
-            while len(data) < size:
-                chunk = os.pread(self.fd, size - len(data), self._at(i, r0) + len(data))
-                if not chunk:
-                    raise OSError(f"the temporary file ends {size - len(data)} bytes early")
-                data += chunk
-        except OSError as exc:
-            raise self._failed(exc) from None
-        return np.frombuffer(data, dtype=self.dtype).reshape(r1 - r0, w, c)
 
 
 def _tiles(band: np.ndarray, tile: int, pad: bool) -> Iterator[np.ndarray]:
@@ -143,7 +93,7 @@ class PyramidTiffWriter(TileSetWriter):
         self.tile = options.tile_size or TILE
         self.codec = str(options.compression or "none").strip().lower()
         self._staging: Staging | None = None
-        self._spill: _Spill | None = None
+        self._spill: KeptRows | None = None
         self._tif: Any = None
         self._thread: threading.Thread | None = None
         self._queue: queue.Queue = queue.Queue(maxsize=_QUEUED)
@@ -288,7 +238,8 @@ class PyramidTiffWriter(TileSetWriter):
         c, item = self._stored().nchannels, self.dtype.itemsize
         shapes = [(h, w, c) for h, w in self.sizes]
         if len(shapes) > 1:
-            self._spill = _Spill(os.path.join(self._staging.root, "levels.raw"), shapes[1:], self.dtype, self.path)
+            self._spill = KeptRows(shapes[1:], os.path.join(self._staging.root, "levels.raw"), self.dtype,
+                                   beside=self.path, what="reduced levels")
         total = sum(h * w for h, w, _ in shapes) * c * item
         try:
             self._tif = tifffile.TiffWriter(self._staging.staged[0], bigtiff=total > 2**32 - 2**26, ome=self.ome)
