@@ -230,8 +230,11 @@ def _is_number(text: str) -> bool:
 
 
 def encode(path, image: Image, *, pixel_type=None, colorspace=None, alpha=None, dither=False, compression=None,
-            force=False, inputs=()) -> tuple[oiio.ImageSpec, np.ndarray]:
-    """The spec and encoded pixels :func:`~pyramid_cli.imageio.write.write_image` would write (checks included)."""
+            force=False, inputs=(), check_path: bool = True) -> tuple[oiio.ImageSpec, np.ndarray]:
+    """The spec and encoded pixels :func:`~pyramid_cli.imageio.write.write_image` would write (checks included).
+
+    ``check_path`` False: ``path`` only names the format (a tile set's tiles, a streamed texture's statistics):
+    what is on disk there is not looked at."""
     out_path = os.fspath(path)
     info = image.spec
     if pixel_type is not None:
@@ -239,7 +242,9 @@ def encode(path, image: Image, *, pixel_type=None, colorspace=None, alpha=None, 
     if alpha is not None:
         check_choice("alpha mode", alpha, ALPHA_MODES)
 
-    fmt = check_output_path(out_path, force, inputs)
+    fmt = check_output_path(out_path, force, inputs) if check_path else format_from_path(out_path)
+    if not fmt:
+        raise OutputError(f"cannot write {out_path}: unknown image file extension")
     check_write_options(out_path, pixel_type, compression, colorspace, info.colorconfig)
 
     pixels = np.asarray(image.pixels)
@@ -427,5 +432,5 @@ def stores_half_unchanged(path: str | os.PathLike[str], info: ImageInfo, *, pixe
 def encoded_rows(path: str | os.PathLike[str], image: Image, **options) -> np.ndarray:
     """The values :func:`~pyramid_cli.imageio.write.write_image` would store for ``image`` at ``path`` (a band
     of rows: dithering lines up when the band starts at a multiple of 8 rows), e.g. for a streamed texture's
-    ``oiio:AverageColor``."""
-    return encode(os.fspath(path), image, **options)[1]
+    ``oiio:AverageColor``. ``path`` only names the format: nothing on disk there is looked at."""
+    return encode(os.fspath(path), image, check_path=False, **options)[1]

@@ -186,7 +186,8 @@ class _TileFolderWriter(TileSetWriter):
         """Stored values of the rows in the tiles' type and colour space (see
         :meth:`~pyramid_cli.imageio.tilesets.base.TileSetWriter.encode`)."""
         del y0
-        spec, data = encode(_ENCODE_AS[self.fmt], Image(pixels, self.info), **self.options.write)
+        spec, data = encode(_ENCODE_AS[self.fmt], Image(pixels, self.info), check_path=False,
+                            **self.options.write)
         if self._template is None:
             self._template = self._tile_spec(spec)
         return data

@@ -161,7 +161,8 @@ class PyramidTiffWriter(TileSetWriter):
         """The spec of what the file stores (type, channels, alpha, resolution, ICC), from a one-pixel encode."""
         if self._spec is None:
             px = np.zeros((1, 1, self.channels), np.float32)
-            spec, _ = encode_image(self.encode_as, Image(px, self.info), **self.options.write)
+            spec, _ = encode_image(self.encode_as, Image(px, self.info), check_path=False,
+                                   **self.options.write)
             self._spec = spec
         return self._spec
 

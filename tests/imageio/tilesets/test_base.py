@@ -83,3 +83,24 @@ def test_encode_gives_the_values_a_file_of_encode_as_stores(channels):
     if channels == 3:  # 8-bit sRGB: the sRGB curve of the linear values
         want = np.where(px <= 0.0031308, 12.92 * px, 1.055 * np.power(px, 1 / 2.4) - 0.055)
         assert np.abs(got.astype(float) - want * 255).max() <= 0.5 + 1e-3
+
+
+def test_encode_looks_at_nothing_on_disk_where_encode_as_is(tmp_path, monkeypatch):
+    """``encode_as`` only names a format: a folder of that name in the working folder changes nothing."""
+    from pyramid_cli.imageio.tilesets import writer_class
+
+    monkeypatch.chdir(tmp_path)
+    for name in ("x.tif", "x.jpg", "x.png", "x.jpeg"):
+        (tmp_path / name).mkdir()
+    px = np.full((4, 4, 3), 0.5, np.float32)
+    w = Recorder("out.test", srgb8(), (4, 4), 3, TileOptions())
+    assert (w.encode(px) == 188).all()
+    dz = writer_class("dz")(str(tmp_path / "o.dzi"), srgb8(), (4, 4), 3, TileOptions(suffix="jpeg"))
+    try:
+        dz.check()
+        for k, (h, w_) in enumerate(dz.sizes):  # 4×4, 2×2, 1×1
+            dz.rows(k, 0, px[:h, :w_])
+        assert [level["size"] for level in dz.finish()["levels"]] == [[4, 4], [2, 2], [1, 1]]
+    except BaseException:
+        dz.abort()
+        raise
