@@ -10,6 +10,7 @@ import click
 from pyramid_cli.cli.params import batch_options_of, border_option, choice, io_options, memory_option
 from pyramid_cli.cli.running import drop, make_reporter, open_session, read_write
 from pyramid_cli.core import catalogue
+from pyramid_cli.core.errors import UsageError
 
 # the layouts of pyramid_cli.imageio.tilesets.LAYOUTS (not imported here: it loads OpenImageIO)
 LAYOUT_NAMES = ("dz", "iiif3", "iiif", "ome-zarr", "tiff", "ome-tiff")
@@ -43,8 +44,19 @@ FORMAT_NAMES = ("jpeg", "jpg", "png", "webp", "tif", "tiff")
 @border_option
 @io_options
 @batch_options_of(jobs=False, cluster=False)
+@click.option("--cluster", metavar="ADDRESS", help="Write the tiles (or Zarr chunks) of each picture in parallel on a "
+              "Dask cluster, rows of tiles per task, byte for byte what one process writes: a scheduler address "
+              "(tcp://HOST:8786, HOST:PORT, tls://, ...), a scheduler file, or local:N for N worker processes here. "
+              "The workers read the input and write the tiles on storage they share with this machine. Not for TIFF "
+              "(one file written in order) (needs pip install 'bilinear-pyramid[cluster]').")
+@click.option("--chunk", type=click.IntRange(1), metavar="N", help="Rows of level-0 tiles per cluster task, rounded up "
+              "to a power of two (default: about four tasks per worker).")
+@click.option("--cluster-timeout", type=click.FloatRange(0, min_open=True), metavar="SECONDS",
+              help="How long --cluster waits to connect (or for its scheduler file), and with no worker connected "
+                   "(default 30).")
 @memory_option
-def tiles(paths, layout, analysis, tile_size, overlap, tile_format, quality, iiif_id, as_json, border, **opts) -> None:
+def tiles(paths, layout, analysis, tile_size, overlap, tile_format, quality, iiif_id, as_json, border, cluster, chunk,
+          cluster_timeout, **opts) -> None:
     """Write a tiled pyramid for viewers: Deep Zoom, IIIF, OME-Zarr or pyramidal TIFF.
 
     Level 0 is the input; every level below is ⌈n/2⌉ of the one above, reduced with the
@@ -64,10 +76,11 @@ def tiles(paths, layout, analysis, tile_size, overlap, tile_format, quality, iii
       pyramid tiles --analysis quadratic --format png map.png map.dzi
       pyramid tiles --memory 1G -v --json huge_32k.tif huge.dzi
       pyramid tiles 'scans/*.tif' -o 'dz/{stem}.dzi' --shard auto
+      pyramid tiles --cluster tcp://scheduler:8786 huge_100k.tif huge.dzi   # tiles written on Dask workers
     """
     from pyramid_cli.imageio.tilesets import TileOptions
     from pyramid_cli.run.stream import parse_size
-    from pyramid_cli.run.tiles import TileSettings, tile_files
+    from pyramid_cli.run.tiles import TileSettings
 
     reporter = make_reporter(opts)
     if as_json:  # the JSON is the result; warnings and -v still go to stderr
@@ -79,16 +92,40 @@ def tiles(paths, layout, analysis, tile_size, overlap, tile_format, quality, iii
     settings = TileSettings(layout, analysis, border, TileOptions(tile_size, overlap, tile_format, quality,
                                                                   wo.compression, write, iiif_id))
     memory = parse_size(opts["memory"]) if opts.get("memory") is not None else None
-    with open_session(opts, reporter) as session:
-        report, described = tile_files(list(paths), opts["template"], settings, session, read=ro, reporter=reporter,
-                                       memory=memory, force=wo.force, keep_going=opts["keep_going"],
-                                       skip_existing=opts["skip_existing"], frames=opts["frames"],
-                                       shard=opts["shard"])
+    if cluster is None and (chunk is not None or cluster_timeout is not None):
+        raise UsageError("--chunk and --cluster-timeout are for --cluster runs")
+    if cluster is not None:
+        from pyramid_cli.run.cluster import SessionSpec
+        from pyramid_cli.run.tiles_cluster import tile_files_cluster
+
+        if memory is not None:
+            raise UsageError("--memory is not for --cluster runs: each worker streams its rows of tiles in bands "
+                             "of its own")
+        report, described = tile_files_cluster(
+            list(paths), opts["template"], settings, cluster, spec=SessionSpec(opts["backend"], opts["precision"],
+                                                                                opts["threads"]),
+            read=ro, reporter=reporter, force=wo.force, keep_going=opts["keep_going"],
+            skip_existing=opts["skip_existing"], frames=opts["frames"], shard=opts["shard"], timeout=cluster_timeout,
+            chunk=chunk)
+    else:
+        report, described = _local(paths, settings, opts, reporter, ro, memory, wo.force)
     if as_json:
         batch = opts["template"] is not None
         click.echo(json.dumps(described if batch else described[0], ensure_ascii=False) if described else "[]")
     if report.failed:
         sys.exit(report.exit_code)
+
+
+def _local(paths, settings, opts: dict, reporter, ro, memory, force: bool):
+    """The tile sets written in this process."""
+    from pyramid_cli.run.tiles import tile_files
+
+    with open_session(opts, reporter) as session:
+        report, described = tile_files(list(paths), opts["template"], settings, session, read=ro, reporter=reporter,
+                                       memory=memory, force=force, keep_going=opts["keep_going"],
+                                       skip_existing=opts["skip_existing"], frames=opts["frames"],
+                                       shard=opts["shard"])
+    return report, described
 
 
 __all__ = ["tiles", "LAYOUT_NAMES"]

@@ -130,11 +130,16 @@ class Scheduler:
         Rows and columns of a tile, in pixels of the largest output (smaller outputs get their share).
     dtype
         What the executor stores intermediates as (float32; the emulator keeps float64).
+    windows : dict, optional
+        ``{output image: (first row, end row)}``: make only these rows of each output (an output not named:
+        none), with the pixels of the whole run (a part of a picture run on a cluster worker). Every image is
+        then read and made from the first row its window needs (:meth:`run`).
     """
 
     def __init__(self, executor: Executor, plan: Plan, source: Source, sink: Sink, *, band: int,
-                 width: int | None = None, dtype=np.float32):
+                 width: int | None = None, dtype=np.float32, windows: dict[int, tuple[int, int]] | None = None):
         self.executor, self.plan, self.source, self.sink = executor, plan, source, sink
+        self.windows = None if windows is None else {k: windows.get(k, (0, 0)) for k in plan.outputs}
         self.band = max(1, int(band))
         rows = max(plan.images[k].size[0] for k in plan.outputs)
         cols = max(plan.images[k].size[1] for k in plan.outputs)
@@ -156,6 +161,9 @@ class Scheduler:
         for c0 in range(0, n_cols, self.width):
             c1 = min(n_cols, c0 + self.width)
             self._strip(c0, c1)
+            if self.windows is not None:
+                self._run_windows(lead)
+                continue
             for y0 in range(0, n_rows, self.band):
                 y1 = min(n_rows, y0 + self.band)
                 for k in self.plan.outputs:
@@ -163,6 +171,45 @@ class Scheduler:
                         self._emit(k, self._share(k, 0, y1))
                     elif k in self.out_cols:
                         self._emit(k, self._ready(k))
+
+    def _run_windows(self, lead: int) -> None:
+        """:meth:`run` of the strip for :attr:`windows`: every image starts at the first row its consumers' windows
+        read (:meth:`_prime`); the lead output follows the band through its window, the others as far as their
+        sources allow, and all end at their window's end. A window start is one more band boundary: the pixels are
+        the whole run's (the passes' phases are the whole image's, :meth:`Pass.tile`)."""
+        assert self.windows is not None
+        self._prime()
+        a, b = self.windows[lead]
+        for y1 in [*range(a + self.band, b, self.band), b]:
+            for k in self.plan.outputs:
+                end = self.windows[k][1]
+                if k == lead or y1 == b:
+                    self._emit(k, y1 if k == lead else end)
+                elif k in self.out_cols:
+                    self._emit(k, min(self._ready(k), end))
+
+    def _prime(self) -> None:
+        """Start every image of the strip at the first row that the windows need of it, found backwards: an
+        output's window start, and the first row each pass reads for the first row its target needs."""
+        assert self.windows is not None
+        need: dict[int, int] = {}
+        for k, (a, b) in self.windows.items():
+            self.state[k].emitted = a
+            if a < b and k in self.out_cols:
+                need[k] = a
+        for ps in reversed(self.active):
+            t = need.get(ps.target)
+            if t is None:
+                continue
+            step = ps.tile((t, t + 1), self.state[ps.target].computed())
+            for s, (rr, _) in ps.reads(step.rows, step.cols).items():
+                src = self.state[s]
+                lo = _restrict(rr, src.rows, src.border)[0]
+                need[s] = min(need.get(s, lo), lo)
+        for k, first in need.items():
+            st = self.state[k]
+            if st.border != "wrap":  # wrap images are kept whole: their last rows read their first
+                st.start = st.done = first
 
     def _ready(self, k: int) -> int:
         """The most rows of output ``k`` its pass can make from rows its sources already hold."""

@@ -313,7 +313,8 @@ def tiles(path_or_array, out: str | os.PathLike[str] | Any, *, layout: str | Non
           compression: str | None = None, iiif_id: str | None = None, memory: int | str | None = None,
           backend: str = "auto", session=None,
           colorspace: str = "auto", alpha: str = "auto", nan: str = "keep", colorconfig: str | None = None,
-          pixel_type: str | None = None, tocolorspace: str | None = None, dither: bool = False) -> dict:
+          pixel_type: str | None = None, tocolorspace: str | None = None, dither: bool = False,
+          cluster: Any = None, chunk: int | None = None, cluster_timeout: float | None = None) -> dict:
     """Write a viewer's tile set of an image file or an array: Deep Zoom, IIIF, OME-Zarr or pyramidal TIFF.
 
     The levels are the analysis pyramid of Kraus & Strengert (§4): each ⌈n/2⌉ of the one before, reduced with
@@ -351,6 +352,10 @@ def tiles(path_or_array, out: str | os.PathLike[str] | Any, *, layout: str | Non
         As in :func:`pyramid_cli.api.apply`.
     pixel_type, tocolorspace, dither
         How the tiles store the levels (``--type``, ``--tocolorspace``, ``--dither``).
+    cluster, chunk, cluster_timeout : optional
+        Write the tiles of an image file on a Dask cluster (an address, a scheduler file, ``"local:N"`` or a
+        ``distributed.Client``), ``chunk`` rows of level-0 tiles per task, byte for byte the tile set of one
+        process (:mod:`pyramid_cli.run.tiles_cluster`; ``--cluster``, ``--chunk``, ``--cluster-timeout``).
 
     Returns
     -------
@@ -376,6 +381,12 @@ def tiles(path_or_array, out: str | os.PathLike[str] | Any, *, layout: str | Non
     settings = TileSettings(layout, analysis, border, _options(tile_size, overlap, format, quality, compression, write,
                                                                  iiif_id))
     budget = parse_size(memory) if isinstance(memory, str) else memory
+    if cluster is not None:
+        from pyramid_cli.run.tiles_cluster import tiles_on_cluster
+
+        return tiles_on_cluster(path_or_array, out, settings, cluster, backend=backend, session=session,
+                                read=ReadOptions(colorspace, alpha, nan, colorconfig), memory=budget, chunk=chunk,
+                                timeout=cluster_timeout)
     own = session is None
     session = Session(backend) if own else session
     reporter = PythonReporter(quiet=True)

@@ -84,6 +84,9 @@ class TileSetWriter(abc.ABC):
 
     layout: ClassVar[str]            # the --layout name: "dz", "iiif3", "iiif", "ome-zarr", "tiff", "ome-tiff"
     encode_as: ClassVar[str] = "x.tif"  # a file name whose format decides how rows are stored (folders: the suffix)
+    #: Whether rows of tiles can be written by several processes at once into one staging folder (:meth:`begin`,
+    #: :meth:`part`, :meth:`end_part`, :meth:`merge`: ``pyramid tiles --cluster``); a TIFF is one file written in order.
+    parallel: ClassVar[bool] = False
 
     def __init__(self, path: str, info: ImageInfo, size: tuple[int, int], channels: int, options: TileOptions):
         self.path, self.info, self.channels, self.options = os.fspath(path), info, channels, options
@@ -125,8 +128,40 @@ class TileSetWriter(abc.ABC):
     def _finish(self) -> dict: ...
 
     def abort(self) -> None:
-        """Remove everything written so far; whatever was at the output before stays as it was."""
+        """Remove everything written so far; whatever was at the output before stays as it was. A :meth:`part`
+        only stops (the staging folder is its client's)."""
         self._abort()
+
+    # ------------------------------------------------------------ parallel writing (layouts with ``parallel``)
+    def tile_rows(self, level: int) -> int:
+        """Rows of level ``level`` in one row of its tiles (chunks), overlap apart."""
+        raise NotImplementedError(f"{self.layout}: tile rows are not written in parallel")
+
+    def span(self, level: int, first: int, end: int) -> tuple[int, int]:
+        """The rows of level ``level`` that its tile rows ``first .. end − 1`` hold (overlap included), as
+        :meth:`rows` of a :meth:`part` writing them takes them."""
+        t, h = self.tile_rows(level), self.sizes[level][0]
+        return min(h, first * t), min(h, end * t)
+
+    def begin(self) -> str:
+        """Make the staging folder (and what the parts write into: a Zarr group's arrays) and return its root, which
+        :meth:`part` writers on other machines (shared storage) are given; this writer then takes no rows, and
+        :meth:`finish` (after :meth:`merge`) writes the descriptor and moves the tile set into place."""
+        raise NotImplementedError(f"{self.layout}: tile rows are not written in parallel")
+
+    def part(self, root: str, rows: dict[int, tuple[int, int]]) -> None:
+        """Make this writer write only the tile rows ``rows[level] = (first, end)`` (levels not named: none) into
+        the staging folder ``root`` that another writer's :meth:`begin` made; :meth:`rows` then takes exactly the
+        rows :meth:`span` gives. Writing a part again writes the same files again (a retried task)."""
+        raise NotImplementedError(f"{self.layout}: tile rows are not written in parallel")
+
+    def end_part(self) -> dict:
+        """Wait until every tile of the part is written (OutputError otherwise); what :meth:`merge` takes."""
+        raise NotImplementedError(f"{self.layout}: tile rows are not written in parallel")
+
+    def merge(self, states: list[dict]) -> None:
+        """Take what the parts' :meth:`end_part` returned, before :meth:`finish` (nothing by default)."""
+        del states
 
     @abc.abstractmethod
     def _abort(self) -> None: ...

@@ -70,6 +70,18 @@ class _Level:
         self.next = 0                        # the next row of the level expected
         self.buf: np.ndarray | None = None   # rows span(row) of the level, stored values
         self.filled = 0                      # rows of the level in buf end here
+        self.last, self.stop = self.nrows, self.height  # tile rows written end here; rows taken end here
+
+    def limit(self, first: int, end: int) -> None:
+        """Write only tile rows ``first .. end − 1``: the rows taken are those they hold (a part, or none)."""
+        first, end = max(0, first), min(self.nrows, end)
+        if first >= end:
+            self.row = self.last = self.nrows
+            self.next = self.stop = 0
+        else:
+            self.row, self.last = first, end
+            self.next, self.stop = self.span(first)[0], self.span(end - 1)[1]
+        self.buf, self.filled = None, self.next
 
     def span(self, r: int) -> tuple[int, int]:
         """Rows (or columns, with the width) of tile row ``r``: its T rows and the overlap on its inner sides."""
@@ -108,6 +120,7 @@ class _TileFolderWriter(TileSetWriter):
         self._local = threading.local()
         self._memfds: list[int] = []
         self._lock = threading.Lock()
+        self._part = False  # writes tile rows into another writer's staging folder (part)
 
     # ---------------------------------------------------------------- geometry
     @classmethod
@@ -216,7 +229,7 @@ class _TileFolderWriter(TileSetWriter):
 
     def _rows(self, level: int, y0: int, pixels: np.ndarray) -> None:
         lv = self._levels[level]
-        if y0 != lv.next or y0 + pixels.shape[0] > lv.height or pixels.shape[1] != lv.width:
+        if y0 != lv.next or y0 + pixels.shape[0] > lv.stop or pixels.shape[1] != lv.width:
             raise ValueError(f"level {level}: rows {y0}..{y0 + pixels.shape[0]} of width {pixels.shape[1]} do not "
                              f"follow row {lv.next} of a {lv.width}x{lv.height} level")
         if pixels.shape[0] == 0:
@@ -258,7 +271,7 @@ class _TileFolderWriter(TileSetWriter):
             self._emit(lv, buf)
             lv.row += 1
             lv.buf = None
-            if lv.row < lv.nrows:
+            if lv.row < lv.last:
                 nstart, nend = lv.span(lv.row)
                 lv.buf = np.empty((nend - nstart,) + buf.shape[1:], dtype=buf.dtype)
                 lv.buf[:end - nstart] = buf[nstart - start:]
@@ -294,7 +307,8 @@ class _TileFolderWriter(TileSetWriter):
                 name = f"/proc/self/fd/{fd}"
             else:  # no memory files: a hidden file in the staging folder
                 assert self._staging is not None
-                name = os.path.join(self._staging.root, f".encode-{threading.get_ident()}.{self.suffix}")
+                name = os.path.join(self._staging.root,
+                                    f".encode-{os.getpid()}-{threading.get_ident()}.{self.suffix}")
                 fd = os.open(name, os.O_RDWR | os.O_CREAT, 0o600)
             with self._lock:
                 self._memfds.append(fd)
@@ -345,7 +359,7 @@ class _TileFolderWriter(TileSetWriter):
 
     # ---------------------------------------------------------------- the end
     def _finish(self) -> dict:
-        missing = [lv.k for lv in self._levels if lv.next != lv.height]
+        missing = [lv.k for lv in self._levels if lv.next != lv.stop]
         if missing:
             raise ValueError(f"levels {missing} are not complete")
         if self._staging is None:
@@ -374,9 +388,51 @@ class _TileFolderWriter(TileSetWriter):
         self._pending.clear()
         self._bands.clear()
         self._close_encoders()
-        if self._staging is not None:
+        if self._staging is not None and not self._part:
             self._staging.discard()
-            self._staging = None
+        self._staging = None
+
+    # ---------------------------------------------------------------- parallel parts (--cluster)
+    def tile_rows(self, level: int) -> int:
+        """Rows of a tile, overlap apart: the tile size at every level."""
+        return self._levels[level].tile
+
+    def span(self, level: int, first: int, end: int) -> tuple[int, int]:
+        """Rows of tile rows ``first .. end − 1`` with their overlap (see the base class)."""
+        lv = self._levels[level]
+        first, end = max(0, first), min(lv.nrows, end)
+        return (lv.span(first)[0], lv.span(end - 1)[1]) if first < end else (0, 0)
+
+    def begin(self) -> str:
+        """The staging folder with its level folders, for the parts (see the base class)."""
+        self._start()
+        for lv in self._levels:
+            lv.limit(0, 0)
+        assert self._staging is not None
+        return self._staging.root
+
+    def part(self, root: str, rows: dict[int, tuple[int, int]]) -> None:
+        """Write only ``rows`` of tile rows per level into ``root`` (see the base class)."""
+        self._part = True
+        self._staging = Staging.existing(self._outputs(), root)
+        for lv in self._levels:
+            lv.limit(*rows.get(lv.k, (0, 0)))
+        self._pool = ThreadPoolExecutor(THREADS, thread_name_prefix="tiles")
+
+    def end_part(self) -> dict:
+        """Every tile of the part written (see the base class)."""
+        missing = [lv.k for lv in self._levels if lv.next != lv.stop]
+        if missing:
+            raise ValueError(f"levels {missing} of the part are not complete")
+        assert self._pool is not None, "part() first"
+        self._drain(0)
+        while self._pending:
+            self._pending.popleft().result()
+        self._pool.shutdown(wait=True)
+        self._pool = None
+        self._close_encoders()
+        self._staging = None
+        return {}
 
     def _close_encoders(self) -> None:
         with self._lock:
@@ -427,6 +483,7 @@ class DeepZoomWriter(_TileFolderWriter):
     """Deep Zoom: ``NAME.dzi`` and ``NAME_files/LEVEL/COL_ROW.SUFFIX`` (see the module)."""
 
     layout = "dz"
+    parallel = True
     default_tile_size = 254
     default_overlap = 1
     default_suffix = "jpeg"
@@ -484,6 +541,7 @@ class IIIF3Writer(_TileFolderWriter):
     (see the module)."""
 
     layout = "iiif3"
+    parallel = True
     version: ClassVar[int] = 3
     default_tile_size = 512
     default_overlap = 0

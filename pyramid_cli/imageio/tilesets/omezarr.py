@@ -150,6 +150,7 @@ class OmeZarrWriter(TileSetWriter):
     """
 
     layout = "ome-zarr"
+    parallel = True
     encode_as = "x.tif"
     default_tile_size = DEFAULT_CHUNK  # the chunk edge without --tile-size (for the run layer's memory estimate)
 
@@ -175,6 +176,7 @@ class OmeZarrWriter(TileSetWriter):
         self.buffers: list[np.ndarray | None] = [None] * len(self.sizes)
         self.base = [0] * len(self.sizes)      # first row of each level's buffered chunk row
         self.filled = [0] * len(self.sizes)    # rows in it
+        self.stop = [h for h, _ in self.sizes]  # rows taken end here (a part: its chunk rows')
         self.ranges: list[tuple[float, float]] | None = None
         self.root: Any = None
 
@@ -222,14 +224,14 @@ class OmeZarrWriter(TileSetWriter):
         if not self.arrays:
             self._start(values.shape[2])
         h, w = self.sizes[level]
-        if y0 != self.base[level] + self.filled[level] or y0 + len(values) > h or values.shape[1] != w:
+        if y0 != self.base[level] + self.filled[level] or y0 + len(values) > self.stop[level] or values.shape[1] != w:
             raise ValueError(f"{self.path}: level {level} expects row {self.base[level] + self.filled[level]} "
                              f"of {h}×{w}, got rows {y0}..{y0 + len(values)} of width {values.shape[1]}")
         i = 0
         while i < len(values):
             buf = self.buffers[level]
             if buf is None:
-                rows = min(self.chunk_rows(level), h - self.base[level])
+                rows = min(self.chunk_rows(level), self.stop[level] - self.base[level])
                 buf = self.buffers[level] = np.empty((values.shape[2], rows, w), self.dtype)
             n = min(len(values) - i, buf.shape[1] - self.filled[level])
             buf[:, self.filled[level]:self.filled[level] + n] = np.moveaxis(values[i:i + n], 2, 0)
@@ -298,7 +300,7 @@ class OmeZarrWriter(TileSetWriter):
 
     # ------------------------------------------------------------------ the end
     def _finish(self) -> dict:
-        missing = [k for k, (h, _) in enumerate(self.sizes) if self.base[k] != h]
+        missing = [k for k in range(len(self.sizes)) if self.base[k] != self.stop[k]]
         if not self.arrays or missing:
             raise ValueError(f"{self.path}: finish() before every row of level(s) {missing or [0]}")
         self._wait()
@@ -329,6 +331,56 @@ class OmeZarrWriter(TileSetWriter):
                             "chunks": [-(-w // min(self.tile, w)), -(-h // min(self.tile, h))],
                             "translation": level_transforms(k)[-1].get("translation", [0.0, 0.0, 0.0])[1:]}
                            for k, (h, w) in enumerate(self.sizes)]}
+
+    # ------------------------------------------------------------------ parallel parts (--cluster)
+    def tile_rows(self, level: int) -> int:
+        """Rows of a chunk of ``level`` (:meth:`chunk_rows`)."""
+        return self.chunk_rows(level)
+
+    def begin(self) -> str:
+        """The staged group and its arrays, for the parts (see the base class); a Zarr group given is refused."""
+        if self.group is not None:
+            raise UsageError(f"{self.path}: parts are written into a staging folder, not into a zarr group")
+        self._start(self.channels)
+        assert self.staging is not None
+        self.base = list(self.stop)  # this writer takes no rows: the parts write them
+        return self.staging.root
+
+    def part(self, root: str, rows: dict[int, tuple[int, int]]) -> None:
+        """Write only ``rows`` of chunk rows per level into the arrays staged under ``root`` (see the base class)."""
+        zarr = modules(self.path)
+        staged = Staging.existing([self.path], root).staged[0]
+        try:
+            self.root = zarr.open_group(staged, mode="r+", zarr_format=3)
+            self.arrays = [self.root[str(k)] for k in range(len(self.sizes))]
+        except (OSError, KeyError) as exc:
+            raise OutputError(f"cannot write {self.path}: its staging folder {root} cannot be opened "
+                              f"({exc})") from None
+        for k in range(len(self.sizes)):
+            first, end = rows.get(k, (0, 0))
+            y0, y1 = self.span(k, first, end) if first < end else (0, 0)
+            self.base[k], self.stop[k] = y0, y1
+        self.pool = ThreadPoolExecutor(1, thread_name_prefix="omezarr")
+        if self.dtype.kind == "f":
+            self.ranges = [(np.inf, -np.inf)] * self.channels
+
+    def end_part(self) -> dict:
+        """Every chunk row of the part written; the float values' ranges (see the base class)."""
+        missing = [k for k in range(len(self.sizes)) if self.base[k] != self.stop[k]]
+        if missing:
+            raise ValueError(f"{self.path}: level(s) {missing} of the part are not complete")
+        self._wait()
+        self._close()
+        return {"ranges": self.ranges}
+
+    def merge(self, states: list[dict]) -> None:
+        """The omero windows of floats from every part's values' range."""
+        for state in states:
+            ranges = state.get("ranges")
+            if not ranges:
+                continue
+            mine = self.ranges or [(np.inf, -np.inf)] * len(ranges)
+            self.ranges = [(min(a, c), max(b, d)) for (a, b), (c, d) in zip(mine, ranges, strict=True)]
 
     def _codec_name(self) -> str:
         c = self.options.compression

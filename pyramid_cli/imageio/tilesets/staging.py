@@ -35,6 +35,16 @@ class Staging:
             raise OutputError(f"cannot write {self.paths[0]}: {error_reason(exc)}") from None
         self.staged = [os.path.join(self.root, os.path.basename(p.rstrip(os.sep))) for p in self.paths]
 
+    @classmethod
+    def existing(cls, paths: Sequence[str], root: str) -> Staging:
+        """The staging that another process made at ``root`` for ``paths`` (a part of a tile set written on a
+        cluster worker into its client's staging folder); only its client commits or discards it."""
+        self = cls.__new__(cls)
+        self.paths = [os.fspath(p) for p in paths]
+        self.root = os.fspath(root)
+        self.staged = [os.path.join(self.root, os.path.basename(p.rstrip(os.sep))) for p in self.paths]
+        return self
+
     def commit(self) -> None:
         """Move every staged path onto its output, in order; the previous outputs are removed last."""
         old = os.path.join(self.root, ".previous")
