@@ -96,17 +96,16 @@ def tiles(paths, layout, analysis, tile_size, overlap, tile_format, quality, iii
         raise UsageError("--chunk and --cluster-timeout are for --cluster runs")
     if cluster is not None:
         from pyramid_cli.run.cluster import SessionSpec
-        from pyramid_cli.run.tiles_cluster import tile_files_cluster
+        from pyramid_cli.run.tiles import tile_files
 
         if memory is not None:
             raise UsageError("--memory is not for --cluster runs: each worker streams its rows of tiles in bands "
                              "of its own")
-        report, described = tile_files_cluster(
-            list(paths), opts["template"], settings, cluster, spec=SessionSpec(opts["backend"], opts["precision"],
-                                                                                opts["threads"]),
+        report, described = tile_files(
+            list(paths), opts["template"], settings, SessionSpec(opts["backend"], opts["precision"], opts["threads"]),
             read=ro, reporter=reporter, force=wo.force, keep_going=opts["keep_going"],
-            skip_existing=opts["skip_existing"], frames=opts["frames"], shard=opts["shard"], timeout=cluster_timeout,
-            chunk=chunk)
+            skip_existing=opts["skip_existing"], frames=opts["frames"], shard=opts["shard"], cluster=cluster,
+            chunk=chunk, cluster_timeout=cluster_timeout)
     else:
         report, described = _local(paths, settings, opts, reporter, ro, memory, wo.force)
     if as_json:

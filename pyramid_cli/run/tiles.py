@@ -273,34 +273,46 @@ def tile_file(in_path: str, out: str, settings: TileSettings, session, *, memory
 def tile_files(paths: list[str], template: str | None, settings: TileSettings, session, *, read=None,
                reporter: Reporter | None = None, memory: int | None = None, force: bool = False,
                keep_going: bool = False, skip_existing: bool = False, frames: str | None = None,
-               shard=None) -> tuple[Report, list[dict]]:
+               shard=None, cluster=None, chunk: int | None = None, cluster_timeout: float | None = None
+               ) -> tuple[Report, list[dict]]:
     """``pyramid tiles`` of ``IN OUT`` or ``IN... -o TEMPLATE`` (frame sequences, ``shard`` ``K/N`` or ``auto``,
     as :func:`pyramid_cli.run.pipeline.process` takes them), one input at a time, each streamed.
+
+    ``cluster`` (a Dask address, ``local:N`` or a Client): each picture's tiles written on its workers in tasks of
+    ``chunk`` rows of level-0 tiles (:mod:`pyramid_cli.run.tiles_cluster`); ``session`` is then the workers'
+    :class:`~pyramid_cli.run.cluster.SessionSpec` (or a session whose backend and precision they use).
 
     Returns the report (done, skipped, failed) and each written tile set's description, in job order. A
     single job's failure is raised; a batch's are reported and collected (``keep_going`` goes on past them)."""
     from pyramid_cli.run import batch
+    from pyramid_cli.run.tiles_cluster import connection, tile_cluster
 
     reporter = reporter or Reporter()
     job_list, many = batch.select_jobs(paths, template, frames=frames, shard=shard, keep_going=keep_going,
                                        reporter=reporter)
     report, described = Report(), []
-    for job in job_list:
-        if report.failed and not keep_going:
-            break
-        if skip_existing and batch.is_fresh(job):
-            report.skipped.append(job)
-            continue
-        try:
-            described.append(tile_file(job.input, job.output, settings, session, memory=memory, read=read,
-                                       reporter=reporter, force=force))
-        except PyramidError as exc:
-            if not many:
-                raise
-            report.failed.append((job, exc))
-            reporter.error(str(exc))
-        else:
-            report.done.append(job)
+    with connection(cluster, cluster_timeout, reporter, many and bool(job_list)) as (where, label):
+        for job in job_list:
+            if report.failed and not keep_going:
+                break
+            if skip_existing and batch.is_fresh(job):
+                report.skipped.append(job)
+                continue
+            try:
+                if where is None:
+                    described.append(tile_file(job.input, job.output, settings, session, memory=memory, read=read,
+                                               reporter=reporter, force=force))
+                else:
+                    described.append(tile_cluster(job.input, job.output, settings, where, settle=tile_format,
+                                                  spec=session, read=read, reporter=reporter, force=force,
+                                                  timeout=cluster_timeout, chunk=chunk, label=label))
+            except PyramidError as exc:
+                if not many:
+                    raise
+                report.failed.append((job, exc))
+                reporter.error(str(exc))
+            else:
+                report.done.append(job)
     if many and not reporter.quiet:
         reporter.err(f"pyramid: {len(report.done)} written, {len(report.skipped)} up to date, "
                      f"{len(report.failed)} failed")
@@ -384,7 +396,8 @@ def tiles(path_or_array, out: str | os.PathLike[str] | Any, *, layout: str | Non
     if cluster is not None:
         from pyramid_cli.run.tiles_cluster import tiles_on_cluster
 
-        return tiles_on_cluster(path_or_array, out, settings, cluster, backend=backend, session=session,
+        return tiles_on_cluster(path_or_array, out, settings, cluster, settle=tile_format, backend=backend,
+                                session=session,
                                 read=ReadOptions(colorspace, alpha, nan, colorconfig), memory=budget, chunk=chunk,
                                 timeout=cluster_timeout)
     own = session is None

@@ -27,6 +27,7 @@ import math
 import os
 import time
 import uuid
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
@@ -37,8 +38,9 @@ from pyramid_cli.run.cluster.logs import summarise
 from pyramid_cli.run.report import Reporter
 from pyramid_cli.run.stream import BAND_PIXELS, MIN_BAND, run_bands
 
-#: Test hook: ``always`` makes the task of block 1 kill its worker every time it runs; a path makes the first
-#: task that can create that file kill its worker after writing its tiles (its retry writes them again).
+#: Test hook: a file that, while it exists, holds ``always`` (the task of block 1 kills its worker each time it
+#: starts) or ``once`` (the first task to create FILE.done kills its worker after writing its tiles: its retry
+#: writes them again).
 CRASH_VARIABLE = "PYRAMID_TEST_TILES_CRASH"
 LEVELS_FOLDER = ".pyramid-levels"  # level m's rows of every block, in the staging folder (removed with it)
 TASKS_PER_WORKER = 4
@@ -114,16 +116,17 @@ def _open(job: PartJob):
 
 
 def _crash(after: bool, block: int) -> None:
+    """The test hook :data:`CRASH_VARIABLE`."""
     flag = os.environ.get(CRASH_VARIABLE)
-    if not flag:
+    try:
+        mode = open(flag, encoding="utf-8").read().strip() if flag else ""
+    except OSError:
         return
-    if flag == "always":
-        if block == 1 and not after:
-            os._exit(17)
-        return
-    if after:
+    if mode == "always" and block == 1 and not after:
+        os._exit(17)
+    if mode == "once" and after:
         try:
-            os.close(os.open(flag, os.O_CREAT | os.O_EXCL | os.O_WRONLY))
+            os.close(os.open(f"{flag}.done", os.O_CREAT | os.O_EXCL | os.O_WRONLY))
         except FileExistsError:
             return
         os._exit(17)
@@ -208,8 +211,10 @@ def _decide(session, job: PartJob, writer, shape) -> None:
 
 
 def _save(path: str, array: np.ndarray) -> None:
-    """``array`` to ``path`` whole or not at all (a retried task writes it again)."""
-    os.makedirs(os.path.dirname(path), exist_ok=True)
+    """``array`` to ``path`` whole or not at all (a retried task writes it again); never the staging folder itself
+    again (a client that gave up removed it: this task then fails, unheard)."""
+    with contextlib.suppress(FileExistsError):
+        os.mkdir(os.path.dirname(path))
     tmp = f"{path}.{os.getpid()}.tmp"
     with open(tmp, "wb") as f:
         np.save(f, array)
@@ -286,21 +291,21 @@ def refuse(layout: str, writer, settings, spec, where: str) -> None:
                          "backend holds whole pictures")
 
 
-def tile_cluster(in_path: str, out: str, settings, cluster, *, spec=None, read=None, reporter: Reporter | None = None,
-                 force: bool = False, timeout: float | None = None, chunk: int | None = None,
-                 retries: int = 2, label: str | None = None) -> dict:
+def tile_cluster(in_path: str, out: str, settings, cluster, *, settle: Callable, spec=None, read=None,
+                 reporter: Reporter | None = None, force: bool = False, timeout: float | None = None,
+                 chunk: int | None = None, retries: int = 2, label: str | None = None) -> dict:
     """:func:`~pyramid_cli.run.tiles.tile_file` on a Dask cluster (see the module): the same tile set, byte for
     byte, and the same description, with ``cluster`` (address, workers, tasks, split level) added.
 
     ``cluster``: an address, a scheduler file, ``local:N`` or a ``distributed.Client``; ``spec``: the workers'
     :class:`~pyramid_cli.run.cluster.SessionSpec`; ``chunk``: rows of level-0 tiles per task (a power of two);
-    ``label``: what to call a Client given as ``cluster`` in messages.
+    ``label``: what to call a Client given as ``cluster`` in messages; ``settle(layout, options, info, reporter,
+    where)``: the tile options with the tile format settled for the input (:func:`pyramid_cli.run.tiles.tile_format`).
     """
     from pyramid_cli.imageio import tilesets
     from pyramid_cli.jobs.work import Levels
     from pyramid_cli.run import cluster as dask_run
     from pyramid_cli.run.settings import ReadOptions
-    from pyramid_cli.run.tiles import tile_format
 
     reporter = reporter or Reporter()
     started = time.perf_counter()
@@ -309,8 +314,8 @@ def tile_cluster(in_path: str, out: str, settings, cluster, *, spec=None, read=N
     timeout = dask_run.TIMEOUT if timeout is None else float(timeout)
     if timeout <= 0:
         raise UsageError(f"--cluster-timeout {timeout:g}: a number of seconds > 0")
-    in_path, shown = os.path.abspath(in_path), out
-    out = os.path.abspath(out)
+    where, shown = in_path, out  # as the user gave them, for messages; absolute for the workers
+    in_path, out = os.path.abspath(in_path), os.path.abspath(out)
     layout = tilesets.layout_of(out, settings.layout)
     if not force and os.path.exists(out) and os.path.samefile(in_path, out):
         raise OutputError(f"refusing to overwrite input {shown} (use --force)")
@@ -318,14 +323,14 @@ def tile_cluster(in_path: str, out: str, settings, cluster, *, spec=None, read=N
     probe = PartJob(in_path, out, layout, settings.options, read, settings.analysis, settings.border, "", 0)
     with _open(probe) as stream:
         info, shape = stream.info, stream.shape
-    options = tile_format(layout, settings.options, info, reporter, in_path)
+    options = settle(layout, settings.options, info, reporter, where)
     writer = tilesets.writer_class(layout)(shown, info, shape[:2], shape[2], options)
     writer.check()
-    refuse(layout, writer, settings, spec, in_path)
+    refuse(layout, writer, settings, spec, where)
     sizes = writer.sizes
     if len(sizes) > 1:
         Levels(levels=len(sizes) - 1, analysis=settings.analysis, border=settings.border).check(
-            (shape[:2],), where=in_path)
+            (shape[:2],), where=where)
     dask_run.require()
     if isinstance(cluster, (str, os.PathLike)):
         cluster = dask_run.resolve(cluster, timeout)  # before Dask's import: a refused address fails at once
@@ -360,7 +365,7 @@ def tile_cluster(in_path: str, out: str, settings, cluster, *, spec=None, read=N
         finally:
             summarise(captured, warned, reporter)
     ran = tasks.executor or spec.backend
-    report = {**report, "path": shown, "input": in_path, "backend": ran, "analysis": settings.analysis,
+    report = {**report, "path": shown, "input": where, "backend": ran, "analysis": settings.analysis,
               "border": settings.border, "band": None, "seconds": round(time.perf_counter() - started, 3),
               "cluster": {"address": label, "workers": workers, "tasks": blocks + (m < len(sizes) - 1),
                           "split_level": m}}
@@ -370,73 +375,32 @@ def tile_cluster(in_path: str, out: str, settings, cluster, *, spec=None, read=N
     return report
 
 
-def tile_files_cluster(paths: list[str], template: str | None, settings, cluster, *, spec=None, read=None,
-                       reporter: Reporter | None = None, force: bool = False, keep_going: bool = False,
-                       skip_existing: bool = False, frames: str | None = None, shard=None,
-                       timeout: float | None = None, chunk: int | None = None) -> tuple[Any, list[dict]]:
-    """:func:`~pyramid_cli.run.tiles.tile_files` with every picture's tiles written on the Dask cluster ``cluster``
-    (:func:`tile_cluster`; one connection for a batch): the report and each tile set's description, in job order."""
-    from pyramid_cli.run import batch
+@contextlib.contextmanager
+def connection(cluster, timeout: float | None, reporter: Reporter, many: bool) -> Iterator[tuple[Any, str | None]]:
+    """Where the pictures of a run go, as :func:`tile_cluster` takes it, with the name to call it in messages: None
+    (no cluster), ``cluster`` itself for one picture (refusals come before a cluster is reached), else one
+    connection for the batch (a ``local:N`` cluster started once)."""
+    if cluster is None or not many:
+        yield cluster, None
+        return
     from pyramid_cli.run import cluster as dask_run
-    from pyramid_cli.run.joblist import Report
-    from pyramid_cli.run.tiles import remove_stale_staging
 
-    reporter = reporter or Reporter()
-    job_list = batch.plan_jobs(list(paths), template, frames=frames)
-    many = len(job_list) > 1
-    if shard is not None:
-        from pyramid_cli.run import shard as shards
+    dask_run.require()
+    timeout = dask_run.TIMEOUT if timeout is None else timeout
+    where = dask_run.resolve(cluster, timeout) if isinstance(cluster, (str, os.PathLike)) else cluster
+    import distributed  # noqa: F401 - its loggers set up before captured_output() replaces them
 
-        shard = shards.parse(shard) if isinstance(shard, str) else shard
-        job_list = shards.select(job_list, shard)
-        reporter.detail(f"shard {shard} ({shard.source}): {len(job_list)} job(s)")
-        remove_stale_staging([j.output for j in job_list])
-    if frames is not None or any(getattr(j, "frame", None) is not None for j in job_list):
-        from pyramid_cli.run.sequence import drop_missing
-
-        job_list = drop_missing(job_list, keep_going, reporter.warn)
-    report, described = Report(), []
-    options = {"spec": spec, "read": read, "reporter": reporter, "force": force, "timeout": timeout, "chunk": chunk}
-
-    def run(where, label: str | None) -> None:
-        for job in job_list:
-            if report.failed and not keep_going:
-                break
-            if skip_existing and batch.is_fresh(job):
-                report.skipped.append(job)
-                continue
-            try:
-                described.append(tile_cluster(job.input, job.output, settings, where, label=label, **options))
-            except PyramidError as exc:
-                if not many:
-                    raise
-                report.failed.append((job, exc))
-                reporter.error(str(exc))
-            else:
-                report.done.append(job)
-
-    if not many or not job_list:
-        run(cluster, None)
-    else:  # one connection for the batch (a local:N cluster started once)
-        dask_run.require()
-        where = dask_run.resolve(cluster, timeout or dask_run.TIMEOUT) if isinstance(cluster, (str, os.PathLike)) \
-            else cluster
-        import distributed  # noqa: F401 - its loggers set up before captured_output() replaces them
-
-        with dask_run.captured_output() as (captured, warned):
-            try:
-                with dask_run.connect(where, timeout or dask_run.TIMEOUT) as (client, label):
-                    run(client, label)
-            finally:
-                summarise(captured, warned, reporter)
-    if many and not reporter.quiet:
-        reporter.err(f"pyramid: {len(report.done)} written, {len(report.skipped)} up to date, "
-                     f"{len(report.failed)} failed")
-    return report, described
+    with dask_run.captured_output() as (captured, warned):
+        try:
+            with dask_run.connect(where, timeout) as (client, label):
+                yield client, label
+        finally:
+            summarise(captured, warned, reporter)
 
 
-def tiles_on_cluster(path, out, settings, cluster, *, backend: str = "auto", session=None, read=None,
-                     memory: int | None = None, chunk: int | None = None, timeout: float | None = None) -> dict:
+def tiles_on_cluster(path, out, settings, cluster, *, settle: Callable, backend: str = "auto", session=None,
+                     read=None, memory: int | None = None, chunk: int | None = None,
+                     timeout: float | None = None) -> dict:
     """``pyr.tiles(path, out, cluster=...)`` (:func:`pyramid_cli.run.tiles.tiles`): an image file's tile set written
     on a Dask cluster by :func:`tile_cluster`; an array, a Zarr group and ``memory`` are refused (UsageError)."""
     from pyramid_cli.run.cluster import SessionSpec
@@ -450,7 +414,7 @@ def tiles_on_cluster(path, out, settings, cluster, *, backend: str = "auto", ses
     if memory is not None:
         raise UsageError("memory= is not for cluster= runs: each worker streams its rows of tiles in bands of its own")
     spec = SessionSpec(backend) if session is None else SessionSpec(session.backend, session.precision)
-    return tile_cluster(os.fspath(path), os.fspath(out), settings, cluster, spec=spec, read=read,
+    return tile_cluster(os.fspath(path), os.fspath(out), settings, cluster, settle=settle, spec=spec, read=read,
                         reporter=PythonReporter(quiet=True), timeout=timeout, chunk=chunk)
 
 
@@ -524,4 +488,4 @@ class _Tasks:
 
 
 __all__ = ["CRASH_VARIABLE", "PartJob", "split", "block_rows", "kept_rows", "write_block", "write_coarse", "run_task",
-           "refuse", "tile_cluster", "tile_files_cluster", "tiles_on_cluster"]
+           "refuse", "tile_cluster", "connection", "tiles_on_cluster"]

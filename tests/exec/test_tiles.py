@@ -347,3 +347,46 @@ def test_gl_mip_strip_beyond_the_texture_limit_is_refused(gl):
         pytest.skip("this GL holds the whole strip")
     with pytest.raises(DataError, match="exceeds the limit"):
         gl.run_outputs(p, np.abs(image(size, 3, seed=4)))
+
+
+# ------------------------------------------------------------ row windows (a part of a picture: tiles --cluster)
+def windowed(executor, p, x, windows, band, width=None, dtype=np.float32):
+    """What a Scheduler restricted to ``windows`` emits: {output: [(row, col, pixels)]}."""
+    got: dict = {k: [] for k in p.outputs}
+
+    def source(k, rows, cols):
+        return np.ascontiguousarray(x[rows[0]:rows[1], cols[0]:cols[1]], dtype=dtype)
+
+    def sink(k, r, c, px):
+        got[k].append((r, c, px.copy()))
+
+    tiles.Scheduler(executor, p, source, sink, band=band, width=width, dtype=dtype, windows=windows).run()
+    return got
+
+
+@pytest.mark.parametrize("border", ["clamp", "mirror", "zero"])
+@pytest.mark.parametrize("analysis", ["quadratic", "cubic", "box"])
+def test_a_row_window_makes_exactly_its_rows_with_the_whole_runs_pixels(border, analysis):
+    """Any window of rows of each level, at odd sizes, bands and strips: the whole run's pixels, every pixel of the
+    window once, nothing outside it (pyramid tiles --cluster cuts a picture into such windows)."""
+    executor, rng = Emulator(), np.random.default_rng(7)
+    size = (37, 23)
+    p = Levels(levels=3, analysis=analysis, border=border).plan((size,))
+    x = image(size, 2, dtype=np.float64)
+    whole = executor.run_outputs(p, [x])
+    for trial in range(6):
+        windows = {}
+        for k in p.outputs:
+            h = p.images[k].size[0]
+            a = int(rng.integers(0, h))
+            windows[k] = (a, int(rng.integers(a, h + 1)))
+        got = windowed(executor, p, x, windows, band=8 + 8 * (trial % 2), width=(None, 7)[trial % 2],
+                       dtype=np.float64)
+        for j, k in enumerate(p.outputs):
+            seen = np.zeros(p.images[k].size, int)
+            for r, c, px in got[k]:
+                np.testing.assert_array_equal(px, whole[j][r:r + px.shape[0], c:c + px.shape[1]])
+                seen[r:r + px.shape[0], c:c + px.shape[1]] += 1
+            want = np.zeros_like(seen)
+            want[slice(*windows[k])] = 1
+            np.testing.assert_array_equal(seen, want, err_msg=f"output {k}, window {windows[k]}")

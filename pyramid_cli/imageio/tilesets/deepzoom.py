@@ -342,7 +342,7 @@ class _TileFolderWriter(TileSetWriter):
                 raise WriteFailed("nothing was encoded")
             folder = os.path.dirname(target)
             if not os.path.isdir(folder):
-                os.makedirs(folder, exist_ok=True)
+                _make_folders(self._staging.staged[0], folder)
             fd = os.open(target, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o666)
             try:
                 view = memoryview(data)
@@ -472,6 +472,18 @@ def _size_limit() -> int | None:
         return None
     soft = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
     return None if soft == resource.RLIM_INFINITY else int(soft)
+
+
+def _make_folders(base: str, folder: str) -> None:
+    """``folder`` and the folders between it and ``base``, never ``base`` itself: a staging folder removed under a
+    part being written (its client gave up) is not made again (FileNotFoundError)."""
+    if os.path.isdir(folder) or os.path.normpath(folder) == os.path.normpath(base):
+        return
+    _make_folders(base, os.path.dirname(folder))
+    try:
+        os.mkdir(folder)
+    except FileExistsError:
+        pass
 
 
 def _write_text(path: str, text: str) -> None:

@@ -272,6 +272,10 @@ class OmeZarrWriter(TileSetWriter):
         if self.ranges is not None:
             self._track(buf)
         self._wait()
+        # a part whose client gave up and removed the staging folder: zarr would make it again
+        if self.staging is None and self.group is None and self.root is not None and not os.path.isdir(
+                getattr(self.root.store, "root", ".")):
+            raise OutputError(f"cannot write {self.path}: its staging folder was removed")
         self.pending = self.pool.submit(self.arrays[level].__setitem__, (slice(None), slice(y, y + buf.shape[1])), buf)
         self.base[level] += buf.shape[1]
         self.filled[level], self.buffers[level] = 0, None
