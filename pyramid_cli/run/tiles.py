@@ -280,7 +280,7 @@ def tile_files(paths: list[str], template: str | None, settings: TileSettings, s
 
     ``cluster`` (a Dask address, ``local:N`` or a Client): each picture's tiles written on its workers in tasks of
     ``chunk`` rows of level-0 tiles (:mod:`pyramid_cli.run.tiles_cluster`); ``session`` is then the workers'
-    :class:`~pyramid_cli.run.cluster.SessionSpec` (or a session whose backend and precision they use).
+    :class:`~pyramid_cli.run.cluster.worker.SessionSpec` (or a session whose backend and precision they use).
 
     Returns the report (done, skipped, failed) and each written tile set's description, in job order. A
     single job's failure is raised; a batch's are reported and collected (``keep_going`` goes on past them)."""

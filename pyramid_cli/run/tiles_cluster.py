@@ -7,8 +7,9 @@ of the whole run, since a window start is one more band boundary to it), and wri
 of its block, overlap included, into the staging folder its client made (shared storage, as every cluster run
 of this tool reads and writes on it); it keeps level m's rows of its block (one row of its tiles) in a file
 there. One last task makes levels m+1.. from level m with a second levels plan and writes them. The client
-then writes the descriptor and moves the tile set into place (:meth:`~pyramid_cli.imageio.tilesets.TileSetWriter
-.finish`), or on any failure removes the staging folder and leaves the previous output as it was.
+then writes the descriptor and moves the tile set into place
+(:meth:`~pyramid_cli.imageio.tilesets.base.TileSetWriter.finish`), or on any failure removes the staging folder and
+leaves the previous output as it was.
 
 Byte-identical to a local run: each ⊗↓ step of a levels plan is one pass (or the same passes) from one level
 to the next whatever the plan's other levels, so levels m+1.. made from level m are the floats of the one-plan
@@ -16,7 +17,8 @@ run (checked on the CPU and GL executors at odd sizes, tests/run/test_tiles_clus
 encoded alone. A task run again (its worker lost) writes the same files again. What cannot be split is refused
 in one line (exit 2): a TIFF (one file written in order), ``--border wrap`` (its levels are read whole),
 ``--dither`` (its pattern follows the bands), the reference backend, an array or a Zarr group of the Python API.
-A lost cluster, or a task whose workers keep dying, is a :class:`~pyramid_cli.run.cluster.ClusterError` (exit 6).
+A lost cluster, or a task whose workers keep dying, is a :class:`~pyramid_cli.run.cluster.gather.ClusterError`
+(exit 6).
 """
 
 from __future__ import annotations
@@ -42,7 +44,9 @@ from pyramid_cli.run.stream import BAND_PIXELS, MIN_BAND, run_bands
 #: starts) or ``once`` (the first task to create FILE.done kills its worker after writing its tiles: its retry
 #: writes them again).
 CRASH_VARIABLE = "PYRAMID_TEST_TILES_CRASH"
-LEVELS_FOLDER = ".pyramid-levels"  # level m's rows of every block, in the staging folder (removed with it)
+#: Level m's rows of every block, in the staging folder (removed with it).
+LEVELS_FOLDER = ".pyramid-levels"
+#: Blocks per worker the default split makes at least (load balance, and what a lost worker costs).
 TASKS_PER_WORKER = 4
 _POLL = 0.05
 _RECONCILE = 5.0
@@ -134,7 +138,7 @@ def _crash(after: bool, block: int) -> None:
 
 def write_block(job: PartJob, session) -> dict:
     """A block's task (see the module): levels 0..m of its tile rows written, level m's rows kept on disk; returns
-    the writer's :meth:`~pyramid_cli.imageio.tilesets.TileSetWriter.end_part` state."""
+    the writer's :meth:`~pyramid_cli.imageio.tilesets.base.TileSetWriter.end_part` state."""
     from pyramid_cli.exec import tiles
     from pyramid_cli.jobs.work import Levels
 
@@ -298,7 +302,7 @@ def tile_cluster(in_path: str, out: str, settings, cluster, *, settle: Callable,
     byte, and the same description, with ``cluster`` (address, workers, tasks, split level) added.
 
     ``cluster``: an address, a scheduler file, ``local:N`` or a ``distributed.Client``; ``spec``: the workers'
-    :class:`~pyramid_cli.run.cluster.SessionSpec`; ``chunk``: rows of level-0 tiles per task (a power of two);
+    :class:`~pyramid_cli.run.cluster.worker.SessionSpec`; ``chunk``: rows of level-0 tiles per task (a power of two);
     ``label``: what to call a Client given as ``cluster`` in messages; ``settle(layout, options, info, reporter,
     where)``: the tile options with the tile format settled for the input (:func:`pyramid_cli.run.tiles.tile_format`).
     """
