@@ -76,7 +76,7 @@ def tiles(paths, layout, analysis, tile_size, overlap, tile_format, quality, iii
       pyramid tiles --analysis quadratic --format png map.png map.dzi
       pyramid tiles --memory 1G -v --json huge_32k.tif huge.dzi
       pyramid tiles 'scans/*.tif' -o 'dz/{stem}.dzi' --shard auto
-      pyramid tiles --cluster tcp://scheduler:8786 huge_100k.tif huge.dzi   # tiles written on Dask workers
+      pyramid tiles --cluster tcp://scheduler:8786 slide.tif slide.dzi     # the tiles written on Dask workers
     """
     from pyramid_cli.imageio.tilesets import TileOptions
     from pyramid_cli.run.stream import parse_size

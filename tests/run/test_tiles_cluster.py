@@ -157,7 +157,8 @@ def test_cli_local_cluster_writes_the_local_runs_deep_zoom(picture, local, tmp_p
                                   "--json", str(picture), str(tmp_path / "scan.dzi")])
     assert r.exit_code == 0, r.output
     doc = json.loads(r.output)
-    assert doc["cluster"]["address"] == "local:2" and doc["path"] == str(tmp_path / "scan.dzi")
+    assert doc["cluster"]["address"] == "local:2" and doc["cluster"]["workers"] == 2
+    assert doc["path"] == str(tmp_path / "scan.dzi") and doc["cluster"]["tasks"] > 2
     assert outputs(tmp_path / "scan.dzi") == local("scan.dzi", tile_size=TILE)
 
 
