@@ -50,7 +50,7 @@ FORMAT_NAMES = ("jpeg", "jpg", "png", "webp", "tif", "tiff")
               "The workers read the input and write the tiles on storage they share with this machine. Not for TIFF "
               "(one file written in order) (needs pip install 'bilinear-pyramid[cluster]').")
 @click.option("--chunk", type=click.IntRange(1), metavar="N", help="Rows of level-0 tiles per cluster task, rounded up "
-              "to a power of two (default: about four tasks per worker).")
+              "to a power of two (default: about two tasks per worker).")
 @click.option("--cluster-timeout", type=click.FloatRange(0, min_open=True), metavar="SECONDS",
               help="How long --cluster waits to connect (or for its scheduler file), and with no worker connected "
                    "(default 30).")

@@ -47,7 +47,7 @@ CRASH_VARIABLE = "PYRAMID_TEST_TILES_CRASH"
 #: Level m's rows of every block, in the staging folder (removed with it).
 LEVELS_FOLDER = ".pyramid-levels"
 #: Blocks per worker the default split makes at least (load balance, and what a lost worker costs).
-TASKS_PER_WORKER = 4
+TASKS_PER_WORKER = 2
 _POLL = 0.05
 _RECONCILE = 5.0
 
@@ -72,11 +72,13 @@ class PartJob:
 def split(n_tile_rows: int, levels: int, workers: int, chunk: int | None = None) -> int:
     """m: blocks of ``2^m`` rows of level-0 tiles (out of ``n_tile_rows``), at most ``levels − 1`` (the coarsest
     level), the largest with at least :data:`TASKS_PER_WORKER` blocks per worker (or as many as there are tile
-    rows); ``chunk`` tile rows per task, rounded up to a power of two, when given."""
+    rows), and at least 1 (level 1, most of the filtering, is then made in parallel; the last task, which makes
+    levels m+1.. alone, has a quarter of it to make at most); ``chunk`` tile rows per task, rounded up to a power
+    of two, when given."""
     if chunk is not None:
         return min(levels - 1, max(0, math.ceil(math.log2(max(1, chunk)))))
     want = min(n_tile_rows, TASKS_PER_WORKER * max(1, workers))
-    m = 0
+    m = min(1, levels - 1)
     while m < levels - 1 and -(-n_tile_rows // 2 ** (m + 1)) >= want:
         m += 1
     return m

@@ -57,10 +57,11 @@ def test_levels_from_level_m_are_the_one_plans_floats(size, analysis, border):
             assert a.shape == b.shape and np.array_equal(a.view(np.uint32), b.view(np.uint32)), (m, k + 1)
 
 
-def test_blocks_are_as_large_as_four_tasks_per_worker_allow():
-    assert split(12, 8, 2) == 0 and split(64, 10, 2) == 3 and split(64, 3, 2) == 2  # at most the coarsest level
-    assert split(12, 8, 1) == 1 and split(1, 5, 4) == 4  # one row of tiles: one task makes every level
-    assert split(12, 8, 2, chunk=3) == 2 and split(12, 2, 2, chunk=64) == 1  # --chunk: rounded up to 2^m
+def test_blocks_are_as_large_as_two_tasks_per_worker_allow():
+    assert split(12, 8, 2) == 1 and split(64, 10, 2) == 4 and split(64, 3, 2) == 2  # at most the coarsest level
+    assert split(12, 8, 8) == 1 and split(12, 1, 8) == 0  # level 1 made by the blocks, when there is one
+    assert split(12, 8, 1) == 3 and split(1, 5, 4) == 4  # one row of tiles: one task makes every level
+    assert split(12, 8, 2, chunk=3) == 2 and split(12, 2, 2, chunk=64) == 1 and split(9, 5, 2, chunk=1) == 0
 
 
 # ------------------------------------------------------------------ refused before a cluster is reached
