@@ -76,8 +76,15 @@ class Staging:
                     os.replace(aside, target)
 
     def discard(self) -> None:
-        """Remove the hidden folder and everything in it (what a failed run wrote, or the previous outputs)."""
-        shutil.rmtree(self.root, ignore_errors=True)
+        """Remove the hidden folder and everything in it (what a failed run wrote, or the previous outputs). It is
+        renamed first: a part still being written by a cluster worker (:meth:`existing`) then finds no folder to
+        write into, instead of filling the folder while it is removed."""
+        gone = f"{self.root}.discarded"
+        try:
+            os.rename(self.root, gone)
+        except OSError:
+            gone = self.root
+        shutil.rmtree(gone, ignore_errors=True)
 
 
 __all__ = ["Staging"]
