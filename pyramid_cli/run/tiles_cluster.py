@@ -271,8 +271,10 @@ def run_task(job: PartJob, plugin: str):
     ``("error", exception)`` for an error of this tool (a bad input, a full disk), which a retry would not mend."""
     from distributed import get_worker
 
+    from pyramid_cli.run.cluster.worker import SessionPlugin
+
     holder = get_worker().plugins[plugin]
-    assert holder.lock is not None, "registered by the client, set up by Dask"
+    assert isinstance(holder, SessionPlugin) and holder.lock is not None, "registered by the client, set up by Dask"
     with holder.lock:
         session = holder.acquire()
         try:
