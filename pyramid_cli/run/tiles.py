@@ -34,14 +34,12 @@ from pyramid_cli.run.budget import format_size, resolve
 from pyramid_cli.run.joblist import Report
 from pyramid_cli.run.report import Reporter
 from pyramid_cli.run.stream import (
-    BAND_PIXELS,
     MIN_BAND,
     choose,
     costs,
     estimate,
     executor_of,
     run_bands,
-    speed_band,
     warn_nonfinite,
 )
 
@@ -54,6 +52,12 @@ ALPHA_FORMATS = ("png", "webp", "tif")     # tile formats that hold alpha
 FORMAT_ALIASES = {"jpg": "jpeg", "tiff": "tif"}
 DEFAULT_TILE = 256                         # a layout's default tile edge, for the memory estimate (dz: 254)
 PASS_ROWS = 64                             # rows at a time of a one-level tile set (no plan: level 0 only)
+# Pixels of the widest level made per band (level 1: the input's bands are twice the rows of it): half the band
+# engine's BAND_PIXELS. Measured on an 8K 8-bit JPEG to Deep Zoom (2 loaded cores, medians): peak RSS 300 MiB in
+# bands of 16 rows of level 1, 340 of 32 (this), 400 of 64, 500 of 128, the CPU seconds within the noise from
+# 32 rows up (16: a fifth more): every float band of the input is held a few times over (decoded ahead, the
+# scheduler's, the writer's queue), and the process itself is 190 MiB (numba's LLVM is 120 of them).
+TILE_BAND_PIXELS = 1 << 17
 
 
 @dataclass(frozen=True)
@@ -310,14 +314,11 @@ def stored_rows(source, writer, options: TileOptions) -> StoredRows | None:
 
 
 def _prefer(plan, executor) -> int:
-    """Rows of the bands a tile set streams in whatever the budget (flat memory, and the speed of
-    :func:`pyramid_cli.run.stream.speed_band`): about :data:`~pyramid_cli.run.stream.BAND_PIXELS` pixels of the
-    widest level made."""
-    band = speed_band(plan, executor)
-    if band is not None:
-        return band
+    """Rows of the bands a tile set streams in whatever the budget (flat memory): about
+    :data:`TILE_BAND_PIXELS` pixels of the widest level made."""
+    del executor  # the same on every executor: the bands bound the memory, the scheduler's cost is per row
     cols = max(plan.images[k].size[1] for k in plan.outputs)
-    return max(MIN_BAND, BAND_PIXELS // cols // MIN_BAND * MIN_BAND)
+    return max(MIN_BAND, TILE_BAND_PIXELS // cols // MIN_BAND * MIN_BAND)
 
 
 def tile_file(in_path: str, out: str, settings: TileSettings, session, *, memory: int | None = None, read=None,
