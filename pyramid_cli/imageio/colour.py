@@ -220,25 +220,53 @@ def _compute_srgb8_tables() -> tuple[np.ndarray, np.ndarray]:
 
 
 SRGB8_BAND = 1 << 16  # values encoded per step: the temporaries stay in cache instead of faulting in fresh pages
+_SPECIAL = 0x7F800   # the bucket (top 20 bits) of +inf and of the NaNs below 0x7F801000: a code by value
+
+
+@cache
+def _srgb8_lookup() -> tuple[np.ndarray, np.ndarray]:
+    """The buckets of :func:`srgb8_tables` in the order a signed index (the float32's bits shifted right as int32)
+    reaches them (negative indices from the end: the sign half), each with the code of its first value and the
+    threshold to the next code inside it (NaN where none: a comparison with NaN is false); NaN buckets code 0."""
+    thresholds, codes = srgb8_tables()
+    codes = codes.copy()
+    nan = np.arange(_SPECIAL + 1, 1 << 19)  # exponent all ones, mantissa's top 11 bits not all zero: NaN only
+    codes[nan] = 0
+    above = np.concatenate([thresholds, np.full(1, np.nan, np.float32)])  # code 255 has no next
+    bucket_threshold = above[codes]
+    bucket_threshold[1 << 19:] = np.nan                                    # negatives stay code 0
+    bucket_threshold[nan] = np.nan
+    return codes, bucket_threshold
 
 
 def srgb8(x: np.ndarray) -> np.ndarray:
     """:func:`encode_integer` of ``linear_to_srgb(x)`` for 8 bits without dither, from float32 ``x``.
 
-    Done in bands of :data:`SRGB8_BAND` values: whole-image temporaries (a uint32 index, a float32 gather,
-    masks: several bytes per value) cost more in page faults than the table lookups themselves.
-    """
-    thresholds, codes = srgb8_tables()
+    Done in bands of :data:`SRGB8_BAND` values into buffers reused from band to band (whole-image temporaries
+    cost more in page faults than the table lookups): the bucket's index straight as ``intp`` (no index
+    conversions in the gathers), its code and its threshold gathered, the comparison added to the code. Only a
+    band holding +inf or a NaN of the one mixed bucket takes the slow path (``isnan``)."""
+    codes, bucket_threshold = _srgb8_lookup()
     x = np.ascontiguousarray(x, dtype=np.float32)
     out = np.empty(x.shape, dtype=np.uint8)
     flat, res = x.reshape(-1), out.reshape(-1)
+    bits = flat.view(np.int32)
+    n = min(SRGB8_BAND, flat.size)
+    index, limit, up = np.empty(n, np.intp), np.empty(n, np.float32), np.empty(n, bool)
     for i in range(0, flat.size, SRGB8_BAND):
-        v = flat[i:i + SRGB8_BAND]
-        k = codes[v.view(np.uint32) >> 12]
+        j = min(flat.size, i + SRGB8_BAND)
+        m = j - i
+        idx, t, u, k = index[:m], limit[:m], up[:m], res[i:j]
+        np.right_shift(bits[i:j], 12, out=idx, casting="unsafe")
+        np.take(codes, idx, out=k)
+        np.take(bucket_threshold, idx, out=t)
         with np.errstate(invalid="ignore"):
-            k += (v >= thresholds[np.minimum(k, 254)]) & (k < 255)
-        k[np.isnan(v)] = 0
-        res[i:i + SRGB8_BAND] = k
+            np.greater_equal(flat[i:j], t, out=u)
+        np.add(k, u, out=k, casting="unsafe")
+        if idx.max() >= _SPECIAL:  # +inf (255) or a NaN whose bucket it shares
+            v = flat[i:j]
+            k[np.isnan(v)] = 0
+            k[v == np.inf] = 255
     return out
 
 
