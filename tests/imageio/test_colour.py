@@ -62,3 +62,16 @@ def test_srgb8_is_the_formula_on_every_kind_of_float32():
     band[[0, 7, colour.SRGB8_BAND - 1, colour.SRGB8_BAND + 4]] = special[[0, 1, 2, 4]]
     for x in (edges, -edges, sweep, special, band, band.reshape(-1, 1, 1)[:-2], np.zeros(0, np.float32)):
         np.testing.assert_array_equal(colour.srgb8(x), _srgb8_by_formula(x))
+
+
+def test_8bit_decoding_two_codes_at_a_time_is_one_at_a_time():
+    """decode_integer's pair gathers (contiguous 8-bit codes, no alpha) give the one-code table's float32 values,
+    an odd count's last code and a band's edge included."""
+    every = np.stack(np.meshgrid(np.arange(256), np.arange(256)), -1).reshape(-1).astype(np.uint8)  # all pairs
+    for srgb in (True, False):
+        table = colour._integer_levels("uint8", srgb).astype(np.float32)
+        for data in (every.reshape(-1, 2, 1), every[:-1].reshape(-1, 1, 1),
+                     every[:2 * colour.PAIR_BAND + 3].reshape(1, -1, 1), np.zeros((0, 4, 3), np.uint8)):
+            got = colour.decode_integer(data, srgb, np.ones(data.shape[2], bool), -1, False)
+            assert got.dtype == np.float32
+            np.testing.assert_array_equal(got, table[data])
