@@ -53,6 +53,8 @@ class ImageStream:
         colour or alpha conversion.
     nonfinite : int
         NaN/Inf values seen so far (kept under ``nan="keep"``).
+    stored_dtype : numpy dtype
+        Of the rows as stored (uint8, uint16, float16 or float32), before decoding: what ``on_stored`` is given.
     """
 
     def __init__(self, path: str, *, colorspace: str = "auto", alpha: str = "auto", nan: str = "keep",
@@ -77,6 +79,7 @@ class ImageStream:
         self.shape = (spec.height, spec.width, spec.nchannels)
         probe = {"uint8": np.uint8, "uint16": np.uint16, "half": np.float16}.get(self._read_type, np.float32)
         self.dtype = decode_stored(np.zeros((1, 1, spec.nchannels), dtype=probe), self.info).dtype
+        self.stored_dtype = np.dtype(probe)  # of the rows on_stored is given
         self._block: tuple[int, np.ndarray] | None = None  # a row of tiles, for tiled files
         self.on_stored = None  # called with each band's rows as stored, before decoding (mipmap's SHA-1)
 

@@ -119,6 +119,32 @@ def _integer_levels(dtype: str, srgb: bool) -> np.ndarray:
     return srgb_to_linear(levels) if srgb else levels
 
 
+@cache
+def _pair_table(srgb: bool) -> np.ndarray:
+    """float32 values of every two consecutive 8-bit codes, by the uint16 they read as in memory: (65536, 2)."""
+    codes = np.arange(65536, dtype=np.uint16).view(np.uint8).reshape(-1, 2)  # the machine's byte order
+    return _integer_levels("uint8", srgb).astype(np.float32)[codes]
+
+
+PAIR_BAND = 1 << 15  # code pairs gathered per step: their index conversion stays in cache
+
+
+def _decode_pairs(data: np.ndarray, srgb: bool) -> np.ndarray:
+    """:func:`decode_integer` of contiguous 8-bit codes without alpha to premultiply: two codes per gather from
+    :func:`_pair_table` (half the gathers and index conversions of one code at a time, 1.5× faster), the same
+    float32 values."""
+    pairs, out = _pair_table(srgb), np.empty(data.shape, dtype=np.float32)
+    flat, res = data.reshape(-1), out.reshape(-1)
+    even = flat.size // 2 * 2
+    index = flat[:even].view(np.uint16)
+    for i in range(0, index.size, PAIR_BAND):
+        j = min(index.size, i + PAIR_BAND)
+        np.take(pairs, index[i:j], axis=0, out=res[2 * i:2 * j].reshape(-1, 2))
+    if even < flat.size:
+        res[even:] = _integer_levels("uint8", srgb).astype(np.float32)[flat[even:]]
+    return out
+
+
 def decode_integer(data: np.ndarray, srgb: bool, colour: np.ndarray, alpha: int, straight: bool) -> np.ndarray:
     """Linear premultiplied float32 pixels of 8/16-bit codes, a channel at a time through per-code tables.
 
@@ -137,6 +163,8 @@ def decode_integer(data: np.ndarray, srgb: bool, colour: np.ndarray, alpha: int,
         return px.astype(np.float32)
     a = linear[data[..., alpha]] if alpha >= 0 and straight else None
     if a is None and all(colour):  # gathers through a float32 table (the same single rounding), no strides,
+        if data.dtype == np.uint8 and data.flags.c_contiguous:
+            return _decode_pairs(data, srgb)
         table = decoded.astype(np.float32)  # in bands of rows so the index conversion stays in cache
         out = np.empty(data.shape, dtype=np.float32)
         for y in range(0, data.shape[0], 64):
@@ -220,25 +248,53 @@ def _compute_srgb8_tables() -> tuple[np.ndarray, np.ndarray]:
 
 
 SRGB8_BAND = 1 << 16  # values encoded per step: the temporaries stay in cache instead of faulting in fresh pages
+_SPECIAL = 0x7F800   # the bucket (top 20 bits) of +inf and of the NaNs below 0x7F801000: a code by value
+
+
+@cache
+def _srgb8_lookup() -> tuple[np.ndarray, np.ndarray]:
+    """The buckets of :func:`srgb8_tables` in the order a signed index (the float32's bits shifted right as int32)
+    reaches them (negative indices from the end: the sign half), each with the code of its first value and the
+    threshold to the next code inside it (NaN where none: a comparison with NaN is false); NaN buckets code 0."""
+    thresholds, codes = srgb8_tables()
+    codes = codes.copy()
+    nan = np.arange(_SPECIAL + 1, 1 << 19)  # exponent all ones, mantissa's top 11 bits not all zero: NaN only
+    codes[nan] = 0
+    above = np.concatenate([thresholds, np.full(1, np.nan, np.float32)])  # code 255 has no next
+    bucket_threshold = above[codes]
+    bucket_threshold[1 << 19:] = np.nan                                    # negatives stay code 0
+    bucket_threshold[nan] = np.nan
+    return codes, bucket_threshold
 
 
 def srgb8(x: np.ndarray) -> np.ndarray:
     """:func:`encode_integer` of ``linear_to_srgb(x)`` for 8 bits without dither, from float32 ``x``.
 
-    Done in bands of :data:`SRGB8_BAND` values: whole-image temporaries (a uint32 index, a float32 gather,
-    masks: several bytes per value) cost more in page faults than the table lookups themselves.
-    """
-    thresholds, codes = srgb8_tables()
+    Done in bands of :data:`SRGB8_BAND` values into buffers reused from band to band (whole-image temporaries
+    cost more in page faults than the table lookups): the bucket's index straight as ``intp`` (no index
+    conversions in the gathers), its code and its threshold gathered, the comparison added to the code. Only a
+    band holding +inf or a NaN of the one mixed bucket takes the slow path (``isnan``)."""
+    codes, bucket_threshold = _srgb8_lookup()
     x = np.ascontiguousarray(x, dtype=np.float32)
     out = np.empty(x.shape, dtype=np.uint8)
     flat, res = x.reshape(-1), out.reshape(-1)
+    bits = flat.view(np.int32)
+    n = min(SRGB8_BAND, flat.size)
+    index, limit, up = np.empty(n, np.intp), np.empty(n, np.float32), np.empty(n, bool)
     for i in range(0, flat.size, SRGB8_BAND):
-        v = flat[i:i + SRGB8_BAND]
-        k = codes[v.view(np.uint32) >> 12]
+        j = min(flat.size, i + SRGB8_BAND)
+        m = j - i
+        idx, t, u, k = index[:m], limit[:m], up[:m], res[i:j]
+        np.right_shift(bits[i:j], 12, out=idx, casting="unsafe")
+        np.take(codes, idx, out=k)
+        np.take(bucket_threshold, idx, out=t)
         with np.errstate(invalid="ignore"):
-            k += (v >= thresholds[np.minimum(k, 254)]) & (k < 255)
-        k[np.isnan(v)] = 0
-        res[i:i + SRGB8_BAND] = k
+            np.greater_equal(flat[i:j], t, out=u)
+        np.add(k, u, out=k, casting="unsafe")
+        if idx.max() >= _SPECIAL:  # +inf (255) or a NaN whose bucket it shares
+            v = flat[i:j]
+            k[np.isnan(v)] = 0
+            k[v == np.inf] = 255
     return out
 
 

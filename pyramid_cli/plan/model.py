@@ -50,6 +50,7 @@ rows are negative or ≥ the size):
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 from fractions import Fraction
 
@@ -142,12 +143,16 @@ def needed(stage_pass: Pass, rows: tuple[int, int], cols: tuple[int, int], src: 
         for t in taps:
             if t.source != src:
                 continue
+            # ⌊R − t⌋ = R − ⌈t⌉ and ⌈R − t⌉ = R − ⌊t⌋ for an integer R: no Fraction per index (the band engine asks
+            # this a few thousand times a picture)
+            (lo_t, hi_t), (lo_u, hi_u) = (_ceil(t.offset[0]), _floor(t.offset[0])), (_ceil(t.offset[1]),
+                                                                                       _floor(t.offset[1]))
             for r in rs:
-                base = base_index(r, pr, sr) - t.offset[0]
-                lo_r, hi_r = min(lo_r, _floor(base)), max(hi_r, _ceil(base))
+                base = base_index(r, pr, sr)
+                lo_r, hi_r = min(lo_r, base - lo_t), max(hi_r, base - hi_t)
             for c in cs:
-                base = base_index(c, pc, sc) - t.offset[1]
-                lo_c, hi_c = min(lo_c, _floor(base)), max(hi_c, _ceil(base))
+                base = base_index(c, pc, sc)
+                lo_c, hi_c = min(lo_c, base - lo_u), max(hi_c, base - hi_u)
     return (lo_r, hi_r), (lo_c, hi_c)
 
 
@@ -157,11 +162,11 @@ def _ends(span: tuple[int, int], p: int) -> list[int]:
 
 
 def _floor(x) -> int:
-    return int(Fraction(x).__floor__())
+    return math.floor(x)  # exact for ints and Fractions (and floats)
 
 
 def _ceil(x) -> int:
-    return int(Fraction(x).__ceil__())
+    return math.ceil(x)
 
 
 # The per-pixel operations of a :class:`PointwisePass` (the nonlinear steps of the pyramid methods:

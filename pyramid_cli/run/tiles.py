@@ -18,6 +18,7 @@ output as it was.
 
 from __future__ import annotations
 
+import collections
 import dataclasses
 import os
 import time
@@ -32,14 +33,12 @@ from pyramid_cli.run.budget import format_size, resolve
 from pyramid_cli.run.joblist import Report
 from pyramid_cli.run.report import Reporter
 from pyramid_cli.run.stream import (
-    BAND_PIXELS,
     MIN_BAND,
     choose,
     costs,
     estimate,
     executor_of,
     run_bands,
-    speed_band,
     warn_nonfinite,
 )
 
@@ -52,6 +51,12 @@ ALPHA_FORMATS = ("png", "webp", "tif")     # tile formats that hold alpha
 FORMAT_ALIASES = {"jpg": "jpeg", "tiff": "tif"}
 DEFAULT_TILE = 256                         # a layout's default tile edge, for the memory estimate (dz: 254)
 PASS_ROWS = 64                             # rows at a time of a one-level tile set (no plan: level 0 only)
+# Pixels of the widest level made per band (level 1: the input's bands are twice the rows of it): half the band
+# engine's BAND_PIXELS. Measured on an 8K 8-bit JPEG to Deep Zoom (2 loaded cores, medians): peak RSS 300 MiB in
+# bands of 16 rows of level 1, 340 of 32 (this), 400 of 64, 500 of 128, the CPU seconds within the noise from
+# 32 rows up (16: a fifth more): every float band of the input is held a few times over (decoded ahead, the
+# scheduler's, the writer's queue), and the process itself is 190 MiB (numba's LLVM is 120 of them).
+TILE_BAND_PIXELS = 1 << 17
 
 
 @dataclass(frozen=True)
@@ -235,27 +240,84 @@ def _make_levels(source, where: str, writer, sizes, options: TileOptions, settin
     reporter.detail(f"{where}: {choice.describe()}")
     band = choice.band or MIN_BAND
 
+    stored = stored_rows(source, writer, options)
+    if stored is not None:
+        reporter.detail(f"{where}: level 0's tiles hold the input's own stored values (encoding its decoded "
+                        "values gives every one of them back)")
+
     def level0(y0: int, px: np.ndarray) -> None:  # on the writer's thread: each input row once, in order
-        writer.rows(0, y0, px.astype(np.float32, copy=False))
+        writer.rows(0, y0, px.astype(np.float32, copy=False), None if stored is None else stored.take(len(px)))
 
     def level(j: int, y0: int, px: np.ndarray) -> None:  # on the writer's thread
         writer.rows(j + 1, y0, px.astype(np.float32, copy=False))
 
-    times = run_bands(source.read, plan, executor, band, level, level0)
+    try:
+        times = run_bands(source.read, plan, executor, band, level, level0)
+    finally:
+        if stored is not None:
+            source.on_stored = None
     reporter.detail(f"{where}: {times.describe()}")
     session.ran = session.name
     return band
 
 
+class StoredRows:
+    """The input's rows as stored, kept as the reader's thread decodes them (``on_stored`` of an
+    :class:`~pyramid_cli.imageio.ImageStream`) until the writer's thread hands the same rows, decoded, to the tile
+    writer as level 0: both go through the rows once, in order, so the next ``n`` kept rows are theirs."""
+
+    def __init__(self) -> None:
+        self._parts: collections.deque[np.ndarray] = collections.deque()
+
+    def keep(self, data: np.ndarray) -> None:
+        """Rows as stored, the next ones (on the reader's thread)."""
+        self._parts.append(data)
+
+    def take(self, n: int) -> np.ndarray:
+        """The next ``n`` stored rows (on the writer's thread; the reader kept them before it gave them decoded)."""
+        parts, got = [], 0
+        while got < n:
+            part = self._parts[0]
+            if got + len(part) <= n:
+                parts.append(self._parts.popleft())
+                got += len(part)
+            else:
+                parts.append(part[:n - got])
+                self._parts[0] = part[n - got:]
+                got = n
+        return parts[0] if len(parts) == 1 else np.concatenate(parts)
+
+
+def stored_rows(source, writer, options: TileOptions) -> StoredRows | None:
+    """Level 0 as the input stores it, when that is what the writer would store (8/16-bit codes of sRGB or linear
+    light, without alpha, dither or another colour space asked: every code of every channel encodes back to
+    itself, :meth:`~pyramid_cli.imageio.tilesets.TileSetWriter.passes_stored`): the input's rows are then kept as
+    stored (``source.on_stored``) and handed to the writer beside the decoded ones, which it need not encode again
+    (three quarters of all pixels, and the same bytes). None otherwise."""
+    from pyramid_cli.imageio.read import decode_stored
+
+    dtype, info = getattr(source, "stored_dtype", None), source.info
+    valuewise = info.colorspace == info.linear_space or (info.colorspace, info.linear_space) == ("srgb", "linear")
+    if (not writer.takes_stored or not hasattr(source, "on_stored") or source.on_stored is not None
+            or dtype not in (np.uint8, np.uint16) or info.alpha_channel >= 0
+            or options.write.get("dither") or options.write.get("colorspace") is not None
+            or not valuewise):
+        return None
+    n = np.iinfo(dtype).max + 1
+    codes = np.repeat(np.arange(n, dtype=dtype).reshape(-1, 256, 1), source.shape[2], axis=2)
+    if not writer.passes_stored(codes, lambda c: decode_stored(c, info)):
+        return None
+    kept = StoredRows()
+    source.on_stored = kept.keep
+    return kept
+
+
 def _prefer(plan, executor) -> int:
-    """Rows of the bands a tile set streams in whatever the budget (flat memory, and the speed of
-    :func:`pyramid_cli.run.stream.speed_band`): about :data:`~pyramid_cli.run.stream.BAND_PIXELS` pixels of the
-    widest level made."""
-    band = speed_band(plan, executor)
-    if band is not None:
-        return band
+    """Rows of the bands a tile set streams in whatever the budget (flat memory): about
+    :data:`TILE_BAND_PIXELS` pixels of the widest level made."""
+    del executor  # the same on every executor: the bands bound the memory, the scheduler's cost is per row
     cols = max(plan.images[k].size[1] for k in plan.outputs)
-    return max(MIN_BAND, BAND_PIXELS // cols // MIN_BAND * MIN_BAND)
+    return max(MIN_BAND, TILE_BAND_PIXELS // cols // MIN_BAND * MIN_BAND)
 
 
 def tile_file(in_path: str, out: str, settings: TileSettings, session, *, memory: int | None = None, read=None,
@@ -420,5 +482,5 @@ def tiles(path_or_array, out: str | os.PathLike[str] | Any, *, layout: str | Non
             session.close()
 
 
-__all__ = ["TileSettings", "ArraySource", "tile_format", "writer_memory", "tile_source", "tile_file", "tile_files",
-           "tiles", "FOLDER_LAYOUTS", "TILE_FORMATS"]
+__all__ = ["TileSettings", "ArraySource", "StoredRows", "stored_rows", "tile_format", "writer_memory", "tile_source",
+           "tile_file", "tile_files", "tiles", "FOLDER_LAYOUTS", "TILE_FORMATS"]

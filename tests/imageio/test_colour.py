@@ -39,3 +39,39 @@ def test_srgb8_tables_kept_in_the_cache_folder_are_the_computed_ones(monkeypatch
         got = colour._read_tables(entry.name)
         assert got is not None and all(np.array_equal(a, b) for a, b in zip(got, want, strict=True))
     colour.srgb8_tables.cache_clear()
+
+
+def _srgb8_by_formula(x: np.ndarray) -> np.ndarray:
+    """The float64 route srgb8 replaces (linear_to_srgb, ×255, round half up, clamp; NaN → 0)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        v = np.nan_to_num(colour.linear_to_srgb(x.astype(np.float64)), nan=0.0, posinf=1.0, neginf=0.0) * 255.0
+    return np.clip(np.floor(v + 0.5), 0, 255).astype(np.uint8)
+
+
+def test_srgb8_is_the_formula_on_every_kind_of_float32():
+    """srgb8's bucket lookup against the float64 formula: around every code boundary (±2 ulps, both signs), a
+    sweep of all 2^32 bit patterns (every 4099th: every exponent, both signs, the NaNs), and the values that take
+    its slow path (+inf, and NaNs that share +inf's bucket) beside ordinary ones in one band, at a band's edges."""
+    thresholds, _ = colour.srgb8_tables()
+    t = thresholds.view(np.uint32).astype(np.int64)
+    edges = np.concatenate([t + d for d in (-2, -1, 0, 1, 2)]).astype(np.uint32).view(np.float32)
+    sweep = np.arange(0, 1 << 32, 4099, dtype=np.uint64).astype(np.uint32).view(np.float32)
+    special = np.array([0x7F800000, 0x7F800001, 0x7F800FFF, 0x7F801000, 0x7FC00000, 0xFF800000, 0xFFC00000,
+                        0x80000000, 0x00000001, 0x7F7FFFFF], np.uint32).view(np.float32)
+    band = np.full(colour.SRGB8_BAND + 5, 0.25, np.float32)
+    band[[0, 7, colour.SRGB8_BAND - 1, colour.SRGB8_BAND + 4]] = special[[0, 1, 2, 4]]
+    for x in (edges, -edges, sweep, special, band, band.reshape(-1, 1, 1)[:-2], np.zeros(0, np.float32)):
+        np.testing.assert_array_equal(colour.srgb8(x), _srgb8_by_formula(x))
+
+
+def test_8bit_decoding_two_codes_at_a_time_is_one_at_a_time():
+    """decode_integer's pair gathers (contiguous 8-bit codes, no alpha) give the one-code table's float32 values,
+    an odd count's last code and a band's edge included."""
+    every = np.stack(np.meshgrid(np.arange(256), np.arange(256)), -1).reshape(-1).astype(np.uint8)  # all pairs
+    for srgb in (True, False):
+        table = colour._integer_levels("uint8", srgb).astype(np.float32)
+        for data in (every.reshape(-1, 2, 1), every[:-1].reshape(-1, 1, 1),
+                     every[:2 * colour.PAIR_BAND + 3].reshape(1, -1, 1), np.zeros((0, 4, 3), np.uint8)):
+            got = colour.decode_integer(data, srgb, np.ones(data.shape[2], bool), -1, False)
+            assert got.dtype == np.float32
+            np.testing.assert_array_equal(got, table[data])

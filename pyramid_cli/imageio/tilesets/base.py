@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import abc
 import os
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import ClassVar
 
@@ -87,6 +88,7 @@ class TileSetWriter(abc.ABC):
     #: Whether rows of tiles can be written by several processes at once into one staging folder (:meth:`begin`,
     #: :meth:`part`, :meth:`end_part`, :meth:`merge`: ``pyramid tiles --cluster``); a TIFF is one file written in order.
     parallel: ClassVar[bool] = False
+    takes_stored: ClassVar[bool] = False  # rows(stored=...) stores them instead of encoding the pixels
 
     def __init__(self, path: str, info: ImageInfo, size: tuple[int, int], channels: int, options: TileOptions):
         self.path, self.info, self.channels, self.options = os.fspath(path), info, channels, options
@@ -110,13 +112,40 @@ class TileSetWriter(abc.ABC):
         del y0  # the 8-row dither pattern starts at each band: bands are multiples of 8 rows
         return encoded_rows(self.encode_as, Image(pixels, self.info), **self.options.write)
 
-    def rows(self, level: int, y0: int, pixels: np.ndarray) -> None:
+    def passes_stored(self, codes: np.ndarray, decode: Callable[[np.ndarray], np.ndarray]) -> bool:
+        """Does :meth:`encode` give back the stored values ``codes`` that ``decode`` turns into linear pixels?
+
+        ``codes``: every value the input's type holds, in every channel (H×W×C, the input's stored type);
+        ``decode``: how the input's rows are decoded. True when this writer takes stored rows
+        (:attr:`takes_stored`) and ``encode(decode(codes))`` equals ``codes`` in type, shape and every value: then
+        the input's own stored rows are level 0's tiles, byte for byte, and :meth:`rows` may take them
+        (``stored=``) instead of encoding level 0 again (three quarters of all pixels). Sound for a value-wise
+        coding (no alpha, no dither, no conversion that mixes channels): the caller checks that."""
+        if not self.takes_stored or codes.ndim != 3 or codes.shape[2] != self.channels:
+            return False
+        back = np.asarray(self.encode(decode(codes)))
+        if back.ndim == 2:
+            back = back[..., None]
+        return back.dtype == codes.dtype and back.shape == codes.shape and bool(np.array_equal(back, codes))
+
+    def rows(self, level: int, y0: int, pixels: np.ndarray, stored: np.ndarray | None = None) -> None:
         """Linear, premultiplied float32 rows ``y0 ..`` of level ``level`` (0 = the input), (h, W, C), each row of
-        each level exactly once and in order; ``pixels`` may be reused by the caller after the call."""
-        self._rows(level, y0, pixels)
+        each level exactly once and in order; ``pixels`` may be reused by the caller after the call.
+
+        ``stored``: the same rows as :meth:`encode` stores them (the caller has checked that with
+        :meth:`passes_stored`), the writer's to keep; a writer that :attr:`takes_stored` stores them as they are
+        instead of encoding ``pixels``, the others ignore them."""
+        if stored is not None and self.takes_stored:
+            self._rows_stored(level, y0, stored)
+        else:
+            self._rows(level, y0, pixels)
 
     @abc.abstractmethod
     def _rows(self, level: int, y0: int, pixels: np.ndarray) -> None: ...
+
+    def _rows_stored(self, level: int, y0: int, stored: np.ndarray) -> None:
+        """Rows already in their stored values (writers that :attr:`takes_stored`)."""
+        raise NotImplementedError
 
     def finish(self) -> dict:
         """Write what is left (the descriptor last), move the tile set into place, and describe it for

@@ -227,21 +227,42 @@ class _TileFolderWriter(TileSetWriter):
                 t.attribute("compression", c)
         return t
 
+    takes_stored = True
+
     def _rows(self, level: int, y0: int, pixels: np.ndarray) -> None:
-        lv = self._levels[level]
-        if y0 != lv.next or y0 + pixels.shape[0] > lv.stop or pixels.shape[1] != lv.width:
-            raise ValueError(f"level {level}: rows {y0}..{y0 + pixels.shape[0]} of width {pixels.shape[1]} do not "
-                             f"follow row {lv.next} of a {lv.width}x{lv.height} level")
-        if pixels.shape[0] == 0:
+        lv = self._follows(level, y0, pixels)
+        if lv is None:
             return
-        if self._staging is None:
-            self._start()
         assert self._pool is not None
-        lv.next += pixels.shape[0]
         # encoded on the pool (numpy's table lookups let go of the GIL), taken in order: a copy, since the caller
         # may reuse ``pixels``
         self._bands.append((lv, self._pool.submit(self.encode, np.array(pixels), y0)))
         self._drain(MAX_BANDS)
+
+    def _rows_stored(self, level: int, y0: int, stored: np.ndarray) -> None:
+        lv = self._follows(level, y0, stored)
+        if lv is None:
+            return
+        if self._template is None:  # the spec the tiles are written with comes from an encode
+            self.encode(np.zeros((1, 1, self.channels), np.float32))
+        done: Future = Future()
+        done.set_result(stored)  # in the queue behind the bands still being encoded: taken in order
+        self._bands.append((lv, done))
+        self._drain(MAX_BANDS)
+
+    def _follows(self, level: int, y0: int, rows: np.ndarray) -> _Level | None:
+        """``level``'s state after checking that ``rows`` are its next ones and counting them; None when there
+        are none. Starts the tile set with the first rows."""
+        lv = self._levels[level]
+        if y0 != lv.next or y0 + rows.shape[0] > lv.stop or rows.shape[1] != lv.width:
+            raise ValueError(f"level {level}: rows {y0}..{y0 + rows.shape[0]} of width {rows.shape[1]} do not "
+                             f"follow row {lv.next} of a {lv.width}x{lv.height} level")
+        if rows.shape[0] == 0:
+            return None
+        if self._staging is None:
+            self._start()
+        lv.next += rows.shape[0]
+        return lv
 
     def _drain(self, keep: int) -> None:
         """Take the encoded bands that are ready, in the order they came, and wait for the oldest while more than

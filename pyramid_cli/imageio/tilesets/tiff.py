@@ -306,17 +306,30 @@ class PyramidTiffWriter(TileSetWriter):
         where = self._staging.staged[0] if self._staging else self.path
         return OutputError(f"cannot write {self.path}: {error_reason(exc)}{diagnosis(where)}")
 
+    takes_stored = True
+
     def _rows(self, level: int, y0: int, pixels: np.ndarray) -> None:
-        if self._staging is None:
-            self._start()
+        self._follows(level, y0, pixels)
         assert self._pool is not None
-        if y0 != self._given[level]:
-            raise ValueError(f"level {level}: rows from {y0} given, {self._given[level]} expected")
-        self._given[level] = y0 + len(pixels)
         # encoded on the pool (numpy's table lookups let go of the GIL), stored in the order given: a copy, since
         # the caller may reuse its rows
         self._encoding.append((level, y0, self._pool.submit(self.encode, np.array(pixels, np.float32), y0)))
         self._take(_ENCODING)
+
+    def _rows_stored(self, level: int, y0: int, stored: np.ndarray) -> None:
+        self._follows(level, y0, stored)
+        done: Future = Future()
+        done.set_result(stored.astype(self.dtype, copy=False))  # behind the bands being encoded: stored in order
+        self._encoding.append((level, y0, done))
+        self._take(_ENCODING)
+
+    def _follows(self, level: int, y0: int, rows: np.ndarray) -> None:
+        """Check that ``rows`` are ``level``'s next ones and count them; starts the file with the first rows."""
+        if self._staging is None:
+            self._start()
+        if y0 != self._given[level]:
+            raise ValueError(f"level {level}: rows from {y0} given, {self._given[level]} expected")
+        self._given[level] = y0 + len(rows)
 
     def _take(self, keep: int) -> None:
         """Store the encoded bands that are ready, in the order they came, waiting for the oldest while more than
