@@ -380,18 +380,11 @@ class _TileFolderWriter(TileSetWriter):
 
     # ---------------------------------------------------------------- the end
     def _finish(self) -> dict:
-        missing = [lv.k for lv in self._levels if lv.next != lv.stop]
-        if missing:
-            raise ValueError(f"levels {missing} are not complete")
+        self._check_complete("")
         if self._staging is None:
             self._start()
         assert self._staging is not None and self._pool is not None
-        self._drain(0)
-        while self._pending:
-            self._pending.popleft().result()
-        self._pool.shutdown(wait=True)
-        self._pool = None
-        self._close_encoders()
+        self._settle()
         try:
             self._descriptor(self._staging)
         except OSError as exc:
@@ -442,18 +435,27 @@ class _TileFolderWriter(TileSetWriter):
 
     def end_part(self) -> dict:
         """Every tile of the part written (see the base class)."""
+        self._check_complete(" of the part")
+        assert self._pool is not None, "part() first"
+        self._settle()
+        self._staging = None
+        return {}
+
+    def _check_complete(self, what: str) -> None:
+        """Refuse to end while a level (of the part) still lacks rows: a caller's bug, never the user's."""
         missing = [lv.k for lv in self._levels if lv.next != lv.stop]
         if missing:
-            raise ValueError(f"levels {missing} of the part are not complete")
-        assert self._pool is not None, "part() first"
+            raise ValueError(f"levels {missing}{what} are not complete")
+
+    def _settle(self) -> None:
+        """Every queued tile written (its errors raised here), the pool and the encoders closed."""
+        assert self._pool is not None, "the pool runs until the end"
         self._drain(0)
         while self._pending:
             self._pending.popleft().result()
         self._pool.shutdown(wait=True)
         self._pool = None
         self._close_encoders()
-        self._staging = None
-        return {}
 
     def _close_encoders(self) -> None:
         with self._lock:
