@@ -36,7 +36,6 @@ from typing import Any
 import numpy as np
 
 from pyramid_cli.core.errors import OutputError, PyramidError, UsageError
-from pyramid_cli.run.cluster.logs import summarise
 from pyramid_cli.run.report import Reporter
 from pyramid_cli.run.stream import BAND_PIXELS, MIN_BAND, run_bands
 
@@ -371,6 +370,8 @@ def tile_cluster(in_path: str, out: str, settings, cluster, *, settle: Callable,
                         writer.abort()
                     raise
         finally:
+            from pyramid_cli.run.cluster.logs import summarise
+
             summarise(captured, warned, reporter)
     ran = tasks.executor or spec.backend
     report = {**report, "path": shown, "input": where, "backend": ran, "analysis": settings.analysis,
@@ -403,6 +404,8 @@ def connection(cluster, timeout: float | None, reporter: Reporter, many: bool) -
             with dask_run.connect(where, timeout) as (client, label):
                 yield client, label
         finally:
+            from pyramid_cli.run.cluster.logs import summarise
+
             summarise(captured, warned, reporter)
 
 

@@ -53,6 +53,9 @@ COMMANDS = [
     (["plan", "--mipmap", "down", "quadratic *v g", "--size", "1001x777"], NO_PIXELS),
     (["plan", "gauss7", "--size", "32768x32768", "--memory", "1G"], NEVER),  # run.stream's estimate: numpy
     (["diff", "--json", "a.png", "b.png"], DIFF),
+    (["tiles", "--help"], NO_PIXELS),
+    # a local tile set loads no cluster client, and no library of another layout
+    (["tiles", "a.png", "a.dzi"], {"dask", "distributed", "matplotlib", "zarr", "ome_zarr", "tifffile"}),
 ]
 
 
