@@ -44,6 +44,7 @@ def taken(monkeypatch):
     ("uint8", 3, "t.dzi", {"tile_size": 16, "memory": "400K"}),   # several bands: the kept rows split and joined
     ("uint8", 1, "t.tif", {"tile_size": 16, "compression": "deflate"}),
     ("uint16", 3, "t.tif", {"tile_size": 16}),
+    ("uint8", 3, "t.ome.zarr", {"tile_size": 16, "memory": "400K"}),
 ])
 def test_stored_level0_writes_the_same_bytes(tmp_path, session, taken, monkeypatch, pixel_type, channels, out, kw):
     top = 255 if pixel_type == "uint8" else 65535

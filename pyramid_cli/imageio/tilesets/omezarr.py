@@ -214,8 +214,16 @@ class OmeZarrWriter(TileSetWriter):
                 raise UsageError(text) from None
 
     # ------------------------------------------------------------------ rows in
+    @property
+    def takes_stored(self) -> bool:  # type: ignore[override]
+        """Level 0 from the input's stored rows (where they come back): only when this writer encodes."""
+        return self.encoded
+
     def _rows(self, level: int, y0: int, pixels: np.ndarray) -> None:
         self.put(level, y0, self.encode(pixels, y0))
+
+    def _rows_stored(self, level: int, y0: int, stored: np.ndarray) -> None:
+        self.put(level, y0, stored.astype(self.dtype, copy=False))
 
     def put(self, level: int, y0: int, values: np.ndarray) -> None:
         """Stored values (h, W, C) of rows ``y0 ..`` of ``level`` (in order, each row once), cast to the
