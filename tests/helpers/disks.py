@@ -1,4 +1,4 @@
-"""Real small or read-only disks for the full-disk tests: a tmpfs mounted for the test (root on Linux only)."""
+"""Disks for the failure tests: a small or read-only tmpfs (root on Linux only), and the temporaries a run left."""
 
 from __future__ import annotations
 
@@ -24,3 +24,8 @@ def mounted(path, options: str):
         yield path
     finally:
         subprocess.run(["umount", str(path)], check=False)
+
+
+def leftovers(folder) -> list[str]:
+    """The hidden temporaries (``.NAME.tmp-…``: files, staging folders) in ``folder``."""
+    return [f for f in os.listdir(folder) if ".tmp-" in f]

@@ -13,6 +13,7 @@ import pytest
 from click.testing import CliRunner
 
 from helpers.images import write
+from helpers.tilesets import outputs
 from pyramid_cli import api as pyr
 from pyramid_cli.cli import main
 from pyramid_cli.core.errors import UsageError
@@ -22,22 +23,6 @@ from pyramid_cli.run.tiles_cluster import CRASH_VARIABLE, split
 
 SIZE = (93, 71)  # odd at every level; 12 rows of 8-pixel tiles
 TILE = 8
-
-
-def tree(top: Path) -> dict[str, bytes]:
-    """Every file under ``top`` (a file or a folder), by its path relative to ``top``'s folder."""
-    top = Path(top)
-    if top.is_file():
-        return {top.name: top.read_bytes()}
-    return {str(p.relative_to(top.parent)): p.read_bytes() for p in sorted(top.rglob("*")) if p.is_file()}
-
-
-def outputs(out: Path) -> dict[str, bytes]:
-    """The whole tile set at ``out`` (Deep Zoom: the .dzi and its _files folder)."""
-    found = tree(out)
-    if out.suffix == ".dzi":
-        found.update(tree(out.with_name(out.stem + "_files")))
-    return found
 
 
 # ------------------------------------------------------------------ the arithmetic the split rests on

@@ -9,20 +9,9 @@ import numpy as np
 import pytest
 
 from helpers.images import write
+from helpers.tilesets import tree
 from pyramid_cli.run import tiles as run_tiles
 from pyramid_cli.run.tiles import StoredRows, tiles
-
-
-def tree(root) -> dict[str, bytes]:
-    """Every file under ``root`` (or ``root`` itself), by relative path, with its bytes."""
-    if os.path.isfile(root):
-        return {"": open(root, "rb").read()}
-    out = {}
-    for folder, _, names in os.walk(root):
-        for n in names:
-            p = os.path.join(folder, n)
-            out[os.path.relpath(p, root)] = open(p, "rb").read()
-    return out
 
 
 @pytest.fixture
@@ -55,7 +44,7 @@ def test_stored_level0_writes_the_same_bytes(tmp_path, session, taken, monkeypat
     assert taken == [True]
     monkeypatch.setattr(run_tiles, "stored_rows", lambda *a: None)  # every level encoded from its decoded rows
     tiles(src, tmp_path / "b" / out, session=session, **kw)
-    a, b = tree(tmp_path / "a"), tree(tmp_path / "b")
+    a, b = ({k.split(os.sep, 1)[1]: v for k, v in tree(tmp_path / run).items()} for run in ("a", "b"))
     assert a.keys() == b.keys() and len(a) > (2 if out.endswith(".dzi") else 0)
     assert [k for k in a if a[k] != b[k]] == []
 

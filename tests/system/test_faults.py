@@ -22,7 +22,7 @@ import OpenImageIO as oiio
 import pytest
 
 from helpers.cli import CLI
-from helpers.disks import mounted
+from helpers.disks import leftovers, mounted
 from helpers.images import write
 from pyramid_cli import imageio as pio
 from pyramid_cli.core.errors import InputError, OutputError
@@ -68,10 +68,6 @@ def one_line_error(err: str, *names: str) -> str:
     for name in names:
         assert name in lines[-1], err
     return lines[-1]
-
-
-def leftovers(folder) -> list[str]:
-    return [f for f in os.listdir(folder) if ".tmp-" in f]
 
 
 def previous(path, text=b"previous output\n") -> bytes:

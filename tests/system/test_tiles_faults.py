@@ -7,7 +7,6 @@ is merged: every failure aborts the writer, the previous output stays, no tempor
 
 from __future__ import annotations
 
-import os
 import resource
 import signal
 import subprocess
@@ -17,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from helpers.disks import leftovers
 from helpers.fake_tiles import complete
 from helpers.images import write
 
@@ -36,10 +36,6 @@ def run(args, *, fsize=None):
     r = subprocess.run(FAKE + [str(a) for a in args], capture_output=True, timeout=TIMEOUT,
                        preexec_fn=limit if fsize is not None else None)
     return r.returncode, r.stdout.decode(errors="replace"), r.stderr.decode(errors="replace")
-
-
-def leftovers(folder) -> list[str]:
-    return [f for f in os.listdir(folder) if ".tmp-" in f]
 
 
 @pytest.fixture(scope="module")
