@@ -280,8 +280,14 @@ def speed_band(plan: Plan, executor) -> int | None:
         return None
     if any(im.border == "wrap" for im in plan.images):
         return None
-    band = max(MIN_BAND, BAND_PIXELS // cols // MIN_BAND * MIN_BAND)
+    band = band_rows(cols)
     return band if rows >= 4 * band else None
+
+
+def band_rows(width: int, pixels: int | None = None) -> int:
+    """Rows of a band of about ``pixels`` (default :data:`BAND_PIXELS`, read when called) pixels of a
+    ``width``-pixel-wide image: a multiple of :data:`MIN_BAND`, at least one."""
+    return max(MIN_BAND, (BAND_PIXELS if pixels is None else pixels) // max(1, width) // MIN_BAND * MIN_BAND)
 
 
 def executor_of(session):
@@ -308,11 +314,12 @@ def read_step(plan: Plan, band: int) -> int:
     return max(MIN_BAND, -(-band * rows // anchor))
 
 
-def open_input(path: str, read):
-    """An :class:`~pyramid_cli.imageio.ImageStream` of ``path`` as ``read`` (ReadOptions) asks, half kept half."""
+def open_input(path: str, read, keep_half: bool = True):
+    """An :class:`~pyramid_cli.imageio.ImageStream` of ``path`` as ``read`` (ReadOptions) asks, half kept half
+    (``keep_half`` False: decoded to float32, as the tile writers take every level)."""
     from pyramid_cli import imageio as io
 
-    return io.open_stream(path, colorspace=read.colorspace, alpha=read.alpha, nan=read.nan, keep_half=True,
+    return io.open_stream(path, colorspace=read.colorspace, alpha=read.alpha, nan=read.nan, keep_half=keep_half,
                           colorconfig=read.colorconfig)
 
 
@@ -517,5 +524,5 @@ def run_levels(in_path: str, paths: list[str], work, session, *, memory: int | N
 
 __all__ = ["BandTimes", "Choice", "choose", "choose_mip", "estimate", "parse_size", "default_memory",
            "available_memory", "stream_file", "open_input", "format_size", "run_job", "run_levels", "costs",
-           "executor_of", "read_step", "run_bands", "speed_band", "warn_nonfinite", "MIN_BAND", "STREAM_PIXELS",
-           "BAND_PIXELS"]
+           "executor_of", "read_step", "run_bands", "speed_band", "band_rows", "warn_nonfinite", "MIN_BAND",
+           "STREAM_PIXELS", "BAND_PIXELS"]

@@ -34,10 +34,12 @@ from pyramid_cli.run.joblist import Report
 from pyramid_cli.run.report import Reporter
 from pyramid_cli.run.stream import (
     MIN_BAND,
+    band_rows,
     choose,
     costs,
     estimate,
     executor_of,
+    open_input,
     run_bands,
     warn_nonfinite,
 )
@@ -156,6 +158,7 @@ def tile_source(source, where: str, out: str, settings: TileSettings, session, *
     named ``where`` in messages) at ``out`` (see the module); returns the writer's ``finish()`` description with
     ``input``, ``backend``, ``analysis``, ``border``, ``band`` (rows per band; None: one level, or run whole on
     the reference backend) and ``seconds`` added."""
+    from pyramid_cli import imageio as io
     from pyramid_cli.imageio import tilesets
 
     reporter = reporter or Reporter()
@@ -171,7 +174,7 @@ def tile_source(source, where: str, out: str, settings: TileSettings, session, *
     try:
         writer.check()
         sizes = writer.sizes
-        reporter.detail(_describe_rules(source.info))
+        reporter.detail(io.describe_rules(source.info))
         reporter.detail(f"{out}: layout {layout}, {len(sizes)} level(s) "
                         f"({' '.join(f'{b}×{a}' for a, b in sizes)}), each ⌈n/2⌉ of the one before, reduced with "
                         f"{settings.analysis} ⊗↓ (--border {settings.border})"
@@ -190,12 +193,6 @@ def tile_source(source, where: str, out: str, settings: TileSettings, session, *
               "band": band, "seconds": round(time.perf_counter() - started, 3)}
     reporter.result(f"wrote {out} ({w}×{h}, {len(sizes)} levels, {layout}, {ran})")
     return report
-
-
-def _describe_rules(info) -> str:
-    from pyramid_cli import imageio as io
-
-    return io.describe_rules(info)
 
 
 def _make_levels(source, where: str, writer, sizes, options: TileOptions, settings: TileSettings, session,
@@ -236,7 +233,7 @@ def _make_levels(source, where: str, writer, sizes, options: TileOptions, settin
             f"{where}: this tile set needs at least {format_size(least)} of memory (bands of {MIN_BAND} rows and "
             f"its guard bands at every level, and {format_size(held)} for the tile rows the writer holds), over "
             f"the budget of {format_size(given.size)}; give more with --memory (memory= in Python)"))
-    choice = choose(plan, c, given.size - held, force=True, where=where, prefer=_prefer(plan, executor), **kw)
+    choice = choose(plan, c, given.size - held, force=True, where=where, prefer=_prefer(plan), **kw)
     reporter.detail(f"{where}: {choice.describe()}")
     band = choice.band or MIN_BAND
 
@@ -312,23 +309,18 @@ def stored_rows(source, writer, options: TileOptions) -> StoredRows | None:
     return kept
 
 
-def _prefer(plan, executor) -> int:
-    """Rows of the bands a tile set streams in whatever the budget (flat memory): about
+def _prefer(plan) -> int:
+    """Rows of the bands a tile set streams in whatever the budget and the executor (flat memory): about
     :data:`TILE_BAND_PIXELS` pixels of the widest level made."""
-    del executor  # the same on every executor: the bands bound the memory, the scheduler's cost is per row
-    cols = max(plan.images[k].size[1] for k in plan.outputs)
-    return max(MIN_BAND, TILE_BAND_PIXELS // cols // MIN_BAND * MIN_BAND)
+    return band_rows(max(plan.images[k].size[1] for k in plan.outputs), TILE_BAND_PIXELS)
 
 
 def tile_file(in_path: str, out: str, settings: TileSettings, session, *, memory: int | None = None, read=None,
               reporter: Reporter | None = None, force: bool = False) -> dict:
     """:func:`tile_source` of the image file ``in_path`` decoded as ``read`` (ReadOptions) says."""
-    from pyramid_cli import imageio as io
     from pyramid_cli.run.settings import ReadOptions
 
-    ro = read or ReadOptions()
-    with io.open_stream(in_path, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan, keep_half=False,
-                        colorconfig=ro.colorconfig) as st:
+    with open_input(in_path, read or ReadOptions(), keep_half=False) as st:
         return tile_source(st, in_path, out, settings, session, memory=memory, reporter=reporter, force=force)
 
 

@@ -37,7 +37,7 @@ import numpy as np
 
 from pyramid_cli.core.errors import OutputError, PyramidError, UsageError
 from pyramid_cli.run.report import Reporter
-from pyramid_cli.run.stream import BAND_PIXELS, MIN_BAND, run_bands
+from pyramid_cli.run.stream import band_rows, open_input, run_bands
 
 #: Test hook: a file that, while it exists, holds ``always`` (the task of block 1 kills its worker each time it
 #: starts) or ``once`` (the first task to create FILE.done kills its worker after writing its tiles: its retry
@@ -102,10 +102,6 @@ def _level_file(root: str, m: int, block: int) -> str:
     return os.path.join(root, LEVELS_FOLDER, f"{m}-{block:06d}.npy")
 
 
-def _band(width: int) -> int:
-    return max(MIN_BAND, BAND_PIXELS // max(1, width) // MIN_BAND * MIN_BAND)
-
-
 def _writer(job: PartJob, info, shape):
     from pyramid_cli.imageio import tilesets
 
@@ -113,11 +109,7 @@ def _writer(job: PartJob, info, shape):
 
 
 def _open(job: PartJob):
-    from pyramid_cli import imageio as io
-
-    ro = job.read
-    return io.open_stream(job.input, colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan, keep_half=False,
-                          colorconfig=ro.colorconfig)
+    return open_input(job.input, job.read, keep_half=False)
 
 
 def _crash(after: bool, block: int) -> None:
@@ -192,7 +184,7 @@ def write_block(job: PartJob, session) -> dict:
                     keep(slot[k], r, px)
 
                 windows = {k: spans[slot[k]] for k in plan.outputs}
-                band = _band(plan.images[plan.outputs[0]].size[1])
+                band = band_rows(plan.images[plan.outputs[0]].size[1])
                 tiles.Scheduler(executor, plan, source, sink, band=band, dtype=native, windows=windows).run()
             if level0[0] < spans[0][1]:
                 take0(level0[0], stream.read(level0[0], spans[0][1]))
@@ -258,7 +250,7 @@ def write_coarse(job: PartJob, session) -> dict:
         def level(j: int, y0: int, px: np.ndarray) -> None:
             writer.rows(m + 1 + j, y0, px.astype(np.float32, copy=False))
 
-        run_bands(read, plan, session.executor, _band(plan.images[plan.outputs[0]].size[1]), level)
+        run_bands(read, plan, session.executor, band_rows(plan.images[plan.outputs[0]].size[1]), level)
         return writer.end_part()
     except BaseException:
         writer.abort()
