@@ -51,6 +51,7 @@ FOLDER_LAYOUTS = ("dz", "iiif3", "iiif")   # a folder of tile files: --format pi
 TILE_FORMATS = ("jpeg", "png", "webp", "tif")
 ALPHA_FORMATS = ("png", "webp", "tif")     # tile formats that hold alpha
 FORMAT_ALIASES = {"jpg": "jpeg", "tiff": "tif"}
+WRITER_BANDS = 3  # float bands a writer encodes at once, at most (deepzoom.MAX_BANDS; the TIFF's two)
 DEFAULT_TILE = 256                         # a layout's default tile edge, for the memory estimate (dz: 254)
 PASS_ROWS = 64                             # rows at a time of a one-level tile set (no plan: level 0 only)
 # Pixels of the widest level made per band (level 1: the input's bands are twice the rows of it): half the band
@@ -133,12 +134,17 @@ def tile_format(layout: str, options: TileOptions, info, reporter: Reporter, whe
     return dataclasses.replace(options, suffix=asked)
 
 
-def writer_memory(sizes: list[tuple[int, int]], channels: int, options: TileOptions) -> int:
+def writer_memory(sizes: list[tuple[int, int]], channels: int, options: TileOptions, itemsize: int = 4,
+                  band: int = MIN_BAND) -> int:
     """Bytes a writer holds at most, by the contract: per level the rows of the tile row it completes (tile edge,
-    :data:`DEFAULT_TILE` when the layout decides, plus twice the overlap), as float32 and once encoded (upper
-    bound: 4 bytes per value)."""
+    :data:`DEFAULT_TILE` when the layout decides, plus twice the overlap) in the stored type (``itemsize`` bytes a
+    value), two more of level 0's waiting for the file (the TIFF's queue, Deep Zoom's queued tiles), and
+    :data:`WRITER_BANDS` float32 bands of ``band`` rows of level 0 being encoded (the smallest band by default:
+    the band is chosen within what is left; larger bands' copies fall within the budget's reserve)."""
     rows = (options.tile_size or DEFAULT_TILE) + 2 * (options.overlap if options.overlap is not None else 1)
-    return sum(2 * min(h, rows) * w * channels * 4 for h, w in sizes)
+    (h0, w0) = sizes[0]
+    stored = sum(min(h, rows) * w for h, w in sizes) + 2 * min(h0, rows) * w0
+    return (stored * itemsize + WRITER_BANDS * min(h0, band) * w0 * 4) * channels
 
 
 def _check_not_input(where: str, out: str, force: bool) -> None:
@@ -224,7 +230,8 @@ def _make_levels(source, where: str, writer, sizes, options: TileOptions, settin
         raise RuntimeError(f"the levels plan makes {made}, the writer holds {sizes[1:]}")
     executor = executor_of(session)
     given = resolve(memory)
-    held = writer_memory(sizes, c, options)
+    stored_bytes = np.asarray(writer.encode(np.zeros((1, 1, c), np.float32))).itemsize
+    held = writer_memory(sizes, c, options, stored_bytes)
     reporter.detail(f"{where}: {given.describe()}; the tile writer holds about {format_size(held)}")
     kw = {"in_bytes": source.dtype.itemsize, "out_bytes": 4, "keeps_input": True, **costs(executor)}
     least = estimate(plan, c, MIN_BAND, **kw) + held

@@ -163,8 +163,10 @@ def test_batches_and_shards(recording, session, tmp_path):
     assert len(report.done) == 3 and len(report.failed) == 1 and report.exit_code == 3
 
 
-def test_writer_memory_is_a_tile_row_per_level():
+def test_writer_memory_is_a_tile_row_per_level_in_the_stored_type():
     sizes = [(1000, 2000), (500, 1000), (250, 500)]
-    held = run_tiles.writer_memory(sizes, 3, TileOptions(tile_size=254, overlap=1))
-    assert held == sum(2 * min(h, 256) * w * 3 * 4 for h, w in sizes)
-    assert run_tiles.writer_memory(sizes[2:], 1, TileOptions()) == 2 * 250 * 500 * 4
+    bands = run_tiles.WRITER_BANDS * 64 * 2000 * 4  # float32 bands of level 0 being encoded
+    held = run_tiles.writer_memory(sizes, 3, TileOptions(tile_size=254, overlap=1), itemsize=1, band=64)
+    assert held == (sum(min(h, 256) * w for h, w in sizes) + 2 * 256 * 2000 + bands) * 3
+    assert run_tiles.writer_memory(sizes[2:], 1, TileOptions(), band=1000) == 3 * 250 * 500 * 4 * 2
+    assert run_tiles.writer_memory(sizes, 3, TileOptions(), itemsize=2) < held * 2  # 16-bit: twice the rows
