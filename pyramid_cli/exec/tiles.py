@@ -217,6 +217,10 @@ class Scheduler:
         lo, hi = st.emitted, self.plan.images[k].size[0]
         if ps is None:
             return lo
+        step = 1  # gallop from what is emitted (most bands ready a few rows, or none), then bisect
+        while lo < hi and self._available(st, ps, min(hi, lo + step)):
+            lo, step = min(hi, lo + step), 2 * step
+        hi = min(hi, lo + step - 1)
         while lo < hi:  # bisect: readiness is monotone in the rows asked for
             mid = (lo + hi + 1) // 2
             if self._available(st, ps, mid):
@@ -230,7 +234,7 @@ class Scheduler:
         if rows <= start:
             return True
         step = ps.tile((start, rows), st.comp)
-        for s, (rr, _) in ps.reads(step.rows, step.cols).items():
+        for s, (rr, _) in _reads_of(ps, step.rows, step.cols).items():
             src = self.state[s]
             if src.done is None or _restrict(rr, src.rows, src.border)[1] > src.done:
                 return False
@@ -371,12 +375,25 @@ class Scheduler:
             if t.done >= t.rows[1] and (ps.target not in self.out_cols or t.emitted >= t.rows[1]):
                 continue
             step = ps.tile((t.done, max(t.rows[1], t.done + 1)), t.computed())  # every row still to come
-            rr = ps.reads(step.rows, step.cols).get(s)
+            rr = _reads_of(ps, step.rows, step.cols).get(s)
             if rr is not None:
                 keep = min(keep, _restrict(rr[0], st.rows, st.border)[0])
         if keep > start:
             st.buf = buf[keep - start:]
             st.start = keep
+
+
+def _reads_of(ps, rows: tuple[int, int], cols: tuple[int, int]) -> dict:
+    """``ps.reads(rows, cols)`` of many rows from its first and last periods: a phased pass reads its lowest
+    source row in the first period and its highest in the last (each phase's source index grows with the row,
+    :func:`pyramid_cli.core.geometry.base_index`), so two lookups of one shape in the pass's memo answer for
+    any number of rows."""
+    p = ps_period(ps) if hasattr(ps, "phases") else 0
+    if not p or rows[1] - rows[0] <= 2 * p:
+        return ps.reads(rows, cols)
+    first = ps.reads((rows[0], rows[0] + p), cols)
+    last = ps.reads((rows[1] - p, rows[1]), cols)
+    return {s: ((rr[0], last[s][0][1]), cc) for s, (rr, cc) in first.items()}
 
 
 def ps_period(ps) -> int:

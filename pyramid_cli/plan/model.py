@@ -84,6 +84,9 @@ class Image:
         return self.size[0] + t + b, self.size[1] + l + r
 
 
+READS_MEMO = 4096  # shapes of rectangles whose reads a pass remembers (Pass.reads)
+
+
 @dataclass(frozen=True)
 class TileStep:
     """A pass restricted to a rectangle of its target (see :meth:`Pass.tile`)."""
@@ -112,9 +115,29 @@ class Pass:
         return sum(len(t) for t in self.phases.values()) / len(self.phases)
 
     def reads(self, rows: tuple[int, int], cols: tuple[int, int]) -> dict[int, tuple[tuple[int, int], tuple[int, int]]]:
-        """Source rectangles (0-based half-open logical) read by the output rectangle ``rows × cols``."""
+        """Source rectangles (0-based half-open logical) read by the output rectangle ``rows × cols``.
+
+        The reads of a rectangle moved by whole periods are those of the first period moved by as many strides
+        (``R = S·⌈r/P⌉``, :func:`needed`), so each shape is worked out once and moved: the band engine asks this
+        thousands of times a picture, for a few shapes."""
         if rows[0] >= rows[1] or cols[0] >= cols[1]:
             return {}
+        (pr, pc), (sr, sc) = self.period, self.stride
+        qr, qc = rows[0] // pr, cols[0] // pc
+        a, b = rows[0] - qr * pr, cols[0] - qc * pc
+        key = (a, rows[1] - rows[0], b, cols[1] - cols[0])
+        memo = self.__dict__.setdefault("_reads_memo", {})
+        found = memo.get(key)
+        if found is None:
+            if len(memo) >= READS_MEMO:
+                memo.clear()
+            found = memo[key] = self._reads((a, a + key[1]), (b, b + key[3]))
+        dr, dc = qr * sr, qc * sc
+        if not dr and not dc:
+            return dict(found)
+        return {s: ((r0 + dr, r1 + dr), (c0 + dc, c1 + dc)) for s, ((r0, r1), (c0, c1)) in found.items()}
+
+    def _reads(self, rows: tuple[int, int], cols: tuple[int, int]) -> dict[int, tuple[tuple[int, int], ...]]:
         out = {}
         for src in self.sources():
             (r0, r1), (c0, c1) = needed(self, (rows[0] + 1, rows[1]), (cols[0] + 1, cols[1]), src)

@@ -390,3 +390,13 @@ def test_a_row_window_makes_exactly_its_rows_with_the_whole_runs_pixels(border, 
             want = np.zeros_like(seen)
             want[slice(*windows[k])] = 1
             np.testing.assert_array_equal(seen, want, err_msg=f"output {k}, window {windows[k]}")
+
+
+def test_reads_of_many_rows_come_from_their_first_and_last_periods():
+    """The scheduler's two-lookup bounds of a tall rectangle (``_reads_of``) are the pass's own, for every phased
+    pass, offset and height: what it keeps and what it waits for are unchanged."""
+    for text in ("gauss5", "box4 *v g", "fourpoint *^ (cubic *v g)"):
+        for ps in plan(parse(text), (61, 23)).passes:
+            for r0 in range(-6, 30):
+                for n in range(1, 40, 3):
+                    assert tiles._reads_of(ps, (r0, r0 + n), (0, 23)) == ps._reads((r0, r0 + n), (0, 23))

@@ -28,3 +28,20 @@ def test_releases_name_each_image_once_after_its_last_read():
         for i, done in enumerate(released):
             for s in done:
                 assert s in p.passes[i].sources() and all(s not in ps.sources() for ps in p.passes[i + 1:])
+
+
+def test_reads_moved_by_whole_periods_are_worked_out_once_and_exact():
+    """Pass.reads remembers a rectangle's reads by its shape and moves them by whole periods: every answer equals
+    the bounds worked out afresh (``_reads``), for phased passes (periods 2 and 4) at every offset and size."""
+    import random
+
+    rng = random.Random(7)
+    for text in ("gauss5", "box4 *v g", "fourpoint *^ (cubic *v g)", "cubic *^ (cubic *v g)"):
+        for ps in plan(parse(text), (37, 29)).passes:
+            if not hasattr(ps, "phases"):
+                continue
+            for _ in range(200):
+                r0, c0 = rng.randrange(-9, 40), rng.randrange(-9, 40)
+                rows, cols = (r0, r0 + rng.randrange(1, 20)), (c0, c0 + rng.randrange(1, 20))
+                assert ps.reads(rows, cols) == ps._reads(rows, cols), (text, ps.label, rows, cols)
+            assert len(ps.__dict__["_reads_memo"]) <= 200

@@ -397,7 +397,7 @@ class CPUExecutor:
         fn = self.pointwise_kernel(wt)
         flat = out.reshape(-1)
         operands = [np.ascontiguousarray(a, dtype=wt).reshape(-1) for a in srcs]
-        operands += [_NO_FLOAT_1D[wt.name]] * (3 - len(operands))  # operands the op does not read
+        operands += [_NO_FLOAT_1D[wt]] * (3 - len(operands))  # operands the op does not read
         args = [*operands, wt.type(float(ps.param)), POINTWISE_CODES[ps.op]]
         n = flat.size
         if self.threads == 1 or n < SMALL:
@@ -464,8 +464,8 @@ class CPUExecutor:
 
     def _call(self, kern: Kernel, out, srcs, rows, cols, offs, yoff, xoff, parallel: bool) -> None:
         half = sum(1 << k for k, a in enumerate(srcs) if a.dtype == np.uint16)  # float32 runs only
-        none = _NO_FLOAT[out.dtype.name]
-        extra = [self._half_lut() if half else _NO_FLOAT_1D[out.dtype.name], half, out.shape[2]]
+        none = _NO_FLOAT[out.dtype]
+        extra = [self._half_lut() if half else _NO_FLOAT_1D[out.dtype], half, out.shape[2]]
         out = out.reshape(out.shape[0], -1)
         flat = [a.reshape(a.shape[0], -1) for a in srcs]
         srcs = [v for a in flat for v in ((none, a) if a.dtype == np.uint16 else (a, _NO_U16))]
@@ -494,10 +494,11 @@ class CPUExecutor:
         return self._lut
 
 
-# placeholders for the arguments a call does not use (a source's other storage, an op's missing operands)
-_NO_FLOAT = {t: np.zeros((1, 1), t) for t in ("float32", "float64")}
+# placeholders for the arguments a call does not use (a source's other storage, an op's missing operands), keyed
+# by dtype (not its ``.name``: numpy computes that in Python, a few µs a call, and the band engine makes thousands)
+_NO_FLOAT = {np.dtype(t): np.zeros((1, 1), t) for t in ("float32", "float64")}
 _NO_U16 = np.zeros((1, 1), np.uint16)
-_NO_FLOAT_1D = {t: np.zeros(1, t) for t in ("float32", "float64")}
+_NO_FLOAT_1D = {np.dtype(t): np.zeros(1, t) for t in ("float32", "float64")}
 
 
 def _work(dtype) -> str:
