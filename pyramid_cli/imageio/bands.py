@@ -14,7 +14,7 @@ import OpenImageIO as oiio
 from pyramid_cli.core import options
 from pyramid_cli.core.errors import InputError, OutputError
 from pyramid_cli.imageio.atomic import atomic_paths
-from pyramid_cli.imageio.encode import check_output_path, check_write_options, encode, set_windows
+from pyramid_cli.imageio.encode import Encoder, check_output_path, check_write_options, set_windows
 from pyramid_cli.imageio.formats import (
     ALPHA_MODES,
     ENCODE_IN_MEMORY,
@@ -24,7 +24,7 @@ from pyramid_cli.imageio.formats import (
     one_line,
     pixel_type_name,
 )
-from pyramid_cli.imageio.image import Image, ImageInfo
+from pyramid_cli.imageio.image import ImageInfo
 from pyramid_cli.imageio.ocio import check_names
 from pyramid_cli.imageio.read import (
     apply_nan_policy,
@@ -165,6 +165,7 @@ class BandWriter:
         self.spec: oiio.ImageSpec | None = None
         self._out: oiio.ImageOutput | None = None
         self._pending: list[np.ndarray] = []  # rows waiting for a whole row of tiles, or 8 rows of dither
+        self._encoder: Encoder | None = None   # decided at the first rows
 
     def write(self, y0: int, pixels: np.ndarray) -> None:
         """Linear pixels of rows ``y0 ..`` (in order: ``y0`` is the first row not handed over yet), encoded as
@@ -178,7 +179,9 @@ class BandWriter:
         self._pending.append(pixels)
         try:
             if self._out is None:
-                self._open(encode(self.path, Image(pixels[:1], self.info), **self.options)[0])
+                self._encoder = Encoder(self.path, self.info, pixels.shape[2] if pixels.ndim == 3 else 1,
+                                        **self.options)
+                self._open(self._encoder.spec(pixels.shape[1], 1))
             self._flush(final=self.next >= self.height)
         except WriteFailed as exc:
             raise OutputError(f"cannot write {self.path}: {str(exc).replace(self.tmp, self.path)}"
@@ -210,7 +213,8 @@ class BandWriter:
             return
         pixels = np.concatenate(self._pending) if len(self._pending) > 1 else self._pending[0]
         self._pending = [pixels[whole:]] if whole < rows else []
-        data = encode(self.path, Image(pixels[:whole], self.info), **self.options)[1]
+        assert self._encoder is not None, "the first rows made the encoder"
+        data = self._encoder.values(pixels[:whole])
         start = self.written
         if tiled:
             for a in range(0, whole, quantum):

@@ -234,91 +234,114 @@ def encode(path, image: Image, *, pixel_type=None, colorspace=None, alpha=None, 
     """The spec and encoded pixels :func:`~pyramid_cli.imageio.write.write_image` would write (checks included).
 
     ``check_path`` False: ``path`` only names the format (a tile set's tiles, a streamed texture's statistics):
-    what is on disk there is not looked at."""
-    out_path = os.fspath(path)
-    info = image.spec
-    if pixel_type is not None:
-        check_choice("pixel type", pixel_type, PIXEL_TYPES)
-    if alpha is not None:
-        check_choice("alpha mode", alpha, ALPHA_MODES)
+    what is on disk there is not looked at. Rows written band by band decide once: :class:`Encoder`."""
+    pixels = _as_rows(os.fspath(path), image.pixels)
+    enc = Encoder(path, image.spec, pixels.shape[2], pixel_type=pixel_type, colorspace=colorspace, alpha=alpha,
+                  dither=dither, compression=compression, force=force, inputs=inputs, check_path=check_path)
+    return enc.spec(pixels.shape[1], pixels.shape[0]), enc.values(pixels)
 
-    fmt = check_output_path(out_path, force, inputs) if check_path else format_from_path(out_path)
-    if not fmt:
-        raise OutputError(f"cannot write {out_path}: unknown image file extension")
-    check_write_options(out_path, pixel_type, compression, colorspace, info.colorconfig)
 
-    pixels = np.asarray(image.pixels)
+def _as_rows(out_path: str, pixels) -> np.ndarray:
+    pixels = np.asarray(pixels)
     if pixels.ndim == 2:
         pixels = pixels[..., None]
     if pixels.ndim != 3 or 0 in pixels.shape:
         raise OutputError(f"cannot write {out_path}: bad pixel array shape {pixels.shape}")
-    height, width, nch = pixels.shape
-    names = list(info.channel_names)
-    alpha_channel = info.alpha_channel
-    if len(names) != nch:
-        names = default_channel_names(nch)
-        alpha_channel = names.index("A") if "A" in names else -1
+    return pixels
 
-    out_type, encoding, memory_premultiplied, mode = _write_rules(out_path, info, alpha_channel, pixel_type,
-                                                                  colorspace, alpha)
-    out_int = out_type in ("uint8", "uint16")
-    how = _encoding(info, encoding)
-    # "ocio" into a linear space is a matrix: it commutes with premultiplication
-    transfer = how == "srgb" or how == "ocio" and not is_linear(encoding, info.colorconfig)
 
-    if (out_type == "uint8" and how == "srgb" and mode == "none" and not dither
-            and not (fmt in NO_ALPHA_FORMATS and alpha_channel >= 0)):
-        # The common 8-bit sRGB file without alpha: encoded by table, a channel at a time.
-        colour = colour_mask(nch, alpha_channel, names)
-        if all(colour):  # one pass over the whole array: no strided per-channel copies (1.6× faster at 4K)
-            return _output_spec(info, fmt, out_type, names, alpha_channel, nch, width, height, encoding, mode,
-                                pixel_type, compression), srgb8(pixels)
-        data: np.ndarray = np.empty(pixels.shape, dtype=np.uint8)
-        for c in range(nch):
-            data[..., c] = srgb8(pixels[..., c]) if colour[c] else \
-                encode_integer(pixels[..., c:c + 1].astype(np.float64), out_type, False, colour[c:c + 1])[..., 0]
-        return _output_spec(info, fmt, out_type, names, alpha_channel, nch, width, height, encoding, mode,
-                            pixel_type, compression), data
-    if not out_int and not _converts(fmt, alpha_channel, memory_premultiplied, how, mode):
-        # Stored as they are: no copy (float16 stays float16 for a half file; OIIO converts float32).
-        px = pixels if pixels.dtype in (np.float16, np.float32) else pixels.astype(np.float32)
-    else:
-        px = pixels.astype(np.float64 if out_int else np.float32)  # a copy: encoded in place below
-    if fmt in NO_ALPHA_FORMATS and alpha_channel >= 0:
-        # No alpha in the file: premultiplied linear colour alone is the image
-        # composited over black.
-        if not memory_premultiplied:
-            premultiply(px, alpha_channel, colour_mask(nch, alpha_channel, names))
-        keep = [i for i in range(nch) if i != alpha_channel]
-        px = px[..., keep]
-        names = [names[i] for i in keep]
-        alpha_channel = -1
-        mode = "none"
-        nch -= 1
-    colour = colour_mask(nch, alpha_channel, names)
+class Encoder:
+    """How :func:`encode` stores linear premultiplied pixels of ``channels`` channels described by ``info`` at
+    ``path`` (the options as :func:`encode` takes them, checked here): decided once, then applied to any number
+    of bands of rows (:meth:`values`) — the rules take longer to work out than a band of 8-bit rows takes to
+    encode, and a streamed picture or a tile set encodes hundreds of bands."""
 
-    def to_output(values: np.ndarray) -> np.ndarray:
-        if how == "srgb":
-            return linear_to_srgb(values)
-        return convert(values, info.linear_space, encoding, info.colorconfig).astype(values.dtype)
+    def __init__(self, path, info: ImageInfo, channels: int, *, pixel_type=None, colorspace=None, alpha=None,
+                 dither=False, compression=None, force=False, inputs=(), check_path: bool = True):
+        out_path = os.fspath(path)
+        if pixel_type is not None:
+            check_choice("pixel type", pixel_type, PIXEL_TYPES)
+        if alpha is not None:
+            check_choice("alpha mode", alpha, ALPHA_MODES)
+        fmt = check_output_path(out_path, force, inputs) if check_path else format_from_path(out_path)
+        if not fmt:
+            raise OutputError(f"cannot write {out_path}: unknown image file extension")
+        check_write_options(out_path, pixel_type, compression, colorspace, info.colorconfig)
+        names, alpha_channel = list(info.channel_names), info.alpha_channel
+        if len(names) != channels:
+            names = default_channel_names(channels)
+            alpha_channel = names.index("A") if "A" in names else -1
+        out_type, encoding, self.memory_premultiplied, mode = _write_rules(out_path, info, alpha_channel,
+                                                                            pixel_type, colorspace, alpha)
+        self.how = _encoding(info, encoding)
+        # "ocio" into a linear space is a matrix: it commutes with premultiplication
+        self.transfer = self.how == "srgb" or self.how == "ocio" and not is_linear(encoding, info.colorconfig)
+        self.path, self.info, self.fmt, self.out_type, self.encoding = out_path, info, fmt, out_type, encoding
+        self.pixel_type, self.compression, self.dither, self.channels = pixel_type, compression, dither, channels
+        self.in_names, self.in_alpha, self.in_mode = names, alpha_channel, mode
+        # The common 8-bit sRGB file without alpha: encoded by table, a channel at a time
+        self.table = (out_type == "uint8" and self.how == "srgb" and mode == "none" and not dither
+                      and not (fmt in NO_ALPHA_FORMATS and alpha_channel >= 0))
+        self.drops_alpha = not self.table and fmt in NO_ALPHA_FORMATS and alpha_channel >= 0
+        if self.drops_alpha:  # no alpha in the file: premultiplied linear colour alone is the image, over black
+            self.names = [n for i, n in enumerate(names) if i != alpha_channel]
+            self.alpha_channel, self.mode, self.nch = -1, "none", channels - 1
+        else:
+            self.names, self.alpha_channel, self.mode, self.nch = names, alpha_channel, mode, channels
+        self.colour = colour_mask(self.nch, self.alpha_channel, self.names)
+        self.converts = _converts(fmt, alpha_channel, self.memory_premultiplied, self.how, mode)
 
-    if mode != "none":
-        if memory_premultiplied and (mode == "straight" or transfer):
-            unpremultiply(px, alpha_channel, colour)
-        if how != "none":
+    def spec(self, width: int, height: int) -> oiio.ImageSpec:
+        """The file's spec for ``width`` × ``height`` pixels (:func:`_output_spec`)."""
+        return _output_spec(self.info, self.fmt, self.out_type, self.names, self.alpha_channel, self.nch, width,
+                            height, self.encoding, self.mode, self.pixel_type, self.compression)
+
+    def values(self, pixels: np.ndarray) -> np.ndarray:
+        """The stored values of ``pixels`` (H×W×C or H×W; a band of rows decodes as the whole picture does, the
+        dither pattern starting at its first row)."""
+        pixels = _as_rows(self.path, pixels)
+        if pixels.shape[2] != self.channels:
+            raise ValueError(f"{pixels.shape[2]} channels given to an encoder of {self.channels}")
+        out_type, how, colour = self.out_type, self.how, self.colour
+        if self.table:
+            if all(colour):  # one pass over the whole array: no strided per-channel copies (1.6× faster at 4K)
+                return srgb8(pixels)
+            data: np.ndarray = np.empty(pixels.shape, dtype=np.uint8)
+            for c in range(self.nch):
+                data[..., c] = srgb8(pixels[..., c]) if colour[c] else \
+                    encode_integer(pixels[..., c:c + 1].astype(np.float64), out_type, False, colour[c:c + 1])[..., 0]
+            return data
+        out_int = out_type in ("uint8", "uint16")
+        if not out_int and not self.converts:
+            # Stored as they are: no copy (float16 stays float16 for a half file; OIIO converts float32).
+            px = pixels if pixels.dtype in (np.float16, np.float32) else pixels.astype(np.float32)
+        else:
+            px = pixels.astype(np.float64 if out_int else np.float32)  # a copy: encoded in place below
+        if self.drops_alpha:
+            if not self.memory_premultiplied:
+                premultiply(px, self.in_alpha, colour_mask(self.channels, self.in_alpha, self.in_names))
+            px = px[..., [i for i in range(self.channels) if i != self.in_alpha]]
+        info, mode, alpha_channel = self.info, self.mode, self.alpha_channel
+
+        def to_output(values: np.ndarray) -> np.ndarray:
+            if how == "srgb":
+                return linear_to_srgb(values)
+            return convert(values, info.linear_space, self.encoding, info.colorconfig).astype(values.dtype)
+
+        if mode != "none":
+            if self.memory_premultiplied and (mode == "straight" or self.transfer):
+                unpremultiply(px, alpha_channel, colour)
+            if how != "none":
+                px[..., colour] = to_output(px[..., colour])
+            if mode == "premultiplied" and (self.transfer or not self.memory_premultiplied):
+                premultiply(px, alpha_channel, colour)
+        elif how != "none":
             px[..., colour] = to_output(px[..., colour])
-        if mode == "premultiplied" and (transfer or not memory_premultiplied):
-            premultiply(px, alpha_channel, colour)
-    elif how != "none":
-        px[..., colour] = to_output(px[..., colour])
-
-    if out_int:
-        data = encode_integer(px, out_type, dither, colour)
-    else:
-        data = px if px.dtype == np.float16 and out_type == "half" else px.astype(np.float32, copy=False)
-    data = np.ascontiguousarray(data)
-    return _output_spec(info, fmt, out_type, names, alpha_channel, nch, width, height, encoding, mode,
-                        pixel_type, compression), data
+        if out_int:
+            data = encode_integer(px, out_type, self.dither, colour)
+        else:
+            data = px if px.dtype == np.float16 and out_type == "half" else px.astype(np.float32, copy=False)
+        return np.ascontiguousarray(data)
 
 
 def _output_spec(info: ImageInfo, fmt: str, out_type: str, names: list[str], alpha_channel: int, nch: int,
@@ -433,4 +456,5 @@ def encoded_rows(path: str | os.PathLike[str], image: Image, **options) -> np.nd
     """The values :func:`~pyramid_cli.imageio.write.write_image` would store for ``image`` at ``path`` (a band
     of rows: dithering lines up when the band starts at a multiple of 8 rows), e.g. for a streamed texture's
     ``oiio:AverageColor``. ``path`` only names the format: nothing on disk there is looked at."""
-    return encode(os.fspath(path), image, check_path=False, **options)[1]
+    pixels = _as_rows(os.fspath(path), image.pixels)
+    return Encoder(path, image.spec, pixels.shape[2], check_path=False, **options).values(pixels)

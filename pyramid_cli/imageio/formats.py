@@ -6,6 +6,7 @@ things the way OpenImageIO does (format names from extensions, pixel type names)
 
 from __future__ import annotations
 
+import functools
 import os
 from collections.abc import Iterable
 
@@ -94,7 +95,11 @@ def pixel_type_name(t: oiio.TypeDesc) -> str:
 
 def format_from_path(path: str) -> str:
     """The OpenImageIO format name of ``path``'s extension (``"openexr"`` for ``.exr``), ``""`` if unknown."""
-    ext = os.path.splitext(path)[1].lower().lstrip(".")
+    return _format_of_extension(os.path.splitext(path)[1].lower().lstrip("."))
+
+
+@functools.lru_cache(maxsize=64)  # the tile writers ask for every band and tile: parse OIIO's list once per extension
+def _format_of_extension(ext: str) -> str:
     if not ext:
         return ""
     for entry in oiio.get_string_attribute("extension_list").split(";"):

@@ -15,7 +15,7 @@ from pyramid_cli.core.errors import InputError, OutputError, UsageError
 from pyramid_cli.core.geometry import halved
 from pyramid_cli.imageio.atomic import atomic_path
 from pyramid_cli.imageio.bands import BandWriter, band_quantum, check_band_output
-from pyramid_cli.imageio.encode import encode, set_windows
+from pyramid_cli.imageio.encode import Encoder, encode, set_windows
 from pyramid_cli.imageio.formats import format_from_path, format_title, one_line
 from pyramid_cli.imageio.image import Image, ImageInfo
 from pyramid_cli.imageio.write import WriteFailed, checked, diagnosis, verify, write_file
@@ -202,12 +202,15 @@ class MipBandWriter(BandWriter):
         assert out is not None, "level 0 opens the file, and it stays open until finish"
         step = band_quantum(self.tile, self.options.get("dither", False))
         try:
-            spec = None
+            spec, enc = None, None
             for r0 in range(0, h, step):
                 r1 = min(h, r0 + step)
-                spec_k, data = encode(self.path, Image(rows(r0, r1), self.info), **self.options)
+                px = rows(r0, r1)
+                if enc is None:
+                    enc = Encoder(self.path, self.info, px.shape[2] if px.ndim == 3 else 1, **self.options)
+                data = enc.values(px)
                 if spec is None:
-                    spec = spec_k
+                    spec = enc.spec(px.shape[1], r1 - r0)
                     spec.height = spec.full_height = h
                     set_windows(spec, self.info, w, h)
                     _mark_mip_level(spec, self.fmt, self.tile, self.round_up, self.options.get("compression"))

@@ -436,3 +436,32 @@ def test_stores_half_unchanged_rules(tmp_path):
     assert not pio.stores_half_unchanged("o.hdr", half)            # float-only format without half
     assert not pio.stores_half_unchanged("o.unknown", half)
 
+
+
+@pytest.mark.parametrize("out, channels, alpha, options", [
+    ("x.jpg", 3, -1, {}),                      # the 8-bit sRGB table
+    ("x.png", 4, 3, {}),                       # straight alpha in an 8-bit file
+    ("x.jpg", 4, 3, {}),                       # alpha dropped: colour over black
+    ("x.png", 3, -1, {"dither": True}),        # the 8-row dither pattern
+    ("x.tif", 3, -1, {"pixel_type": "uint16"}),
+    ("x.exr", 4, 3, {"pixel_type": "half"}),
+])
+def test_an_encoder_decides_once_and_encodes_bands_as_the_whole(out, channels, alpha, options):
+    """Encoder (what a streamed file and a tile set keep from band to band) gives, band by band, the values and
+    the spec :func:`encode` gives for the whole picture."""
+    from pyramid_cli.imageio.encode import Encoder, encode
+
+    names = list("RGBA")[:channels]
+    info = pio.ImageInfo(path="mem", format="png", pixel_type="uint8", channel_names=names, alpha_channel=alpha,
+                         colorspace="srgb", alpha_mode="premultiplied" if alpha >= 0 else "none", attributes={})
+    rng = np.random.default_rng(3)
+    px = rng.uniform(-0.1, 1.2, (24, 13, channels)).astype(np.float32)
+    if alpha >= 0:
+        px[..., alpha] = rng.uniform(0, 1, (24, 13))
+        px[..., :alpha] *= px[..., alpha:alpha + 1]
+    spec, whole = encode(out, pio.Image(px, info), check_path=False, **options)
+    enc = Encoder(out, info, channels, check_path=False, **options)
+    bands = np.concatenate([enc.values(px[y:y + 8]) for y in range(0, 24, 8)])
+    assert bands.dtype == whole.dtype and np.array_equal(bands, whole)
+    assert enc.spec(13, 24).nchannels == spec.nchannels and enc.spec(13, 24).format == spec.format
+    assert list(enc.spec(13, 24).channelnames) == list(spec.channelnames)

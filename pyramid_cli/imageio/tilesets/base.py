@@ -22,8 +22,8 @@ from typing import ClassVar
 import numpy as np
 
 from pyramid_cli.core.geometry import halved
-from pyramid_cli.imageio.encode import encoded_rows
-from pyramid_cli.imageio.image import Image, ImageInfo
+from pyramid_cli.imageio.encode import Encoder
+from pyramid_cli.imageio.image import ImageInfo
 
 
 @dataclass(frozen=True)
@@ -92,6 +92,7 @@ class TileSetWriter(abc.ABC):
 
     def __init__(self, path: str, info: ImageInfo, size: tuple[int, int], channels: int, options: TileOptions):
         self.path, self.info, self.channels, self.options = os.fspath(path), info, channels, options
+        self._encoders: dict[tuple[int, str], Encoder] = {}
         self.sizes = ceil_levels(size, self.level_count(size, options))
 
     @classmethod
@@ -110,7 +111,17 @@ class TileSetWriter(abc.ABC):
         :attr:`encode_as`'s format holds them). ``y0``: the rows' first row (dithering lines up at multiples
         of 8)."""
         del y0  # the 8-row dither pattern starts at each band: bands are multiples of 8 rows
-        return encoded_rows(self.encode_as, Image(pixels, self.info), **self.options.write)
+        return self.encoder(pixels.shape[2] if pixels.ndim == 3 else 1).values(pixels)
+
+    def encoder(self, channels: int, encode_as: str | None = None) -> Encoder:
+        """How rows of ``channels`` channels are stored in the format of ``encode_as`` (default :attr:`encode_as`)
+        with the write options, as :func:`~pyramid_cli.imageio.encode.encoded_rows` stores them: decided at the
+        first band, kept for the others."""
+        key = (channels, encode_as or self.encode_as)
+        enc = self._encoders.get(key)
+        if enc is None:
+            enc = self._encoders[key] = Encoder(key[1], self.info, channels, check_path=False, **self.options.write)
+        return enc
 
     def passes_stored(self, codes: np.ndarray, decode: Callable[[np.ndarray], np.ndarray]) -> bool:
         """Does :meth:`encode` give back the stored values ``codes`` that ``decode`` turns into linear pixels?
