@@ -26,8 +26,9 @@ Parts (``--only``):
 Timing is bench/peers.py's: each round runs every contender once in a fresh process (order rotated by the
 round), through bench/scripts/peak_rss.py (time from fork to exit, peak RSS from ``os.wait4``), after one
 dropped warm-up round; medians, ratios ours / peer against the issue's targets (time ≤ 1.5×, memory ≤ 4×),
-reported, never asserted. Every run starts on an empty output folder. Without ``pyramid tiles`` in a
-checkout, its rows say "not available" and the peers are still measured.
+reported, never asserted. Every run starts on an empty output folder (the previous run's set aside, deleted at the
+end: :func:`set_aside`). Without ``pyramid tiles`` in a checkout, its rows say "not available" and the peers are
+still measured.
 """
 
 from __future__ import annotations
@@ -84,11 +85,30 @@ def make_input(path: Path, rows: int, cols: int) -> Path:
 
 
 # ====================================================================== contenders
+def set_aside(folder: Path) -> None:
+    """Move ``folder`` (a run's tile tree) out of the way, into ``.set-aside`` beside it, deleted by
+    :func:`clear_aside` when the timing is over. Not deleted now: on ext4 without a journal (these machines'
+    disks), a file made within minutes of thousands being deleted first passes over the deleted inodes
+    (``recently_deleted`` in the kernel's inode allocator), and the next contender's run paid for the previous
+    one's tiles: 0.3-1 s of kernel time in an 8K Deep Zoom, whichever tool wrote it."""
+    if folder.exists():
+        aside = folder.parent / ".set-aside"
+        aside.mkdir(exist_ok=True)
+        folder.rename(aside / f"{folder.name}.{len(list(aside.iterdir()))}")
+
+
+def clear_aside(root: Path) -> None:
+    """Delete every ``.set-aside`` folder under ``root`` (:func:`set_aside`)."""
+    for aside in root.rglob(".set-aside"):
+        shutil.rmtree(aside, ignore_errors=True)
+
+
 class TileRuns(peers.Runs):
-    """peers.Runs on an empty output folder each time (a tile tree is a folder), its size counted recursively."""
+    """peers.Runs on an empty output folder each time (a tile tree is a folder, set aside, not deleted, before the
+    next run: :func:`set_aside`), its size counted recursively."""
 
     def __call__(self, keep: bool = True) -> None:
-        shutil.rmtree(self.out, ignore_errors=True)
+        set_aside(self.out)
         self.out.mkdir(parents=True)
         super().__call__(keep)
 
@@ -177,7 +197,7 @@ def flat(args, ours: list[peers.Pyramid], speed_jobs: list[dict], data: Path) ->
         log(f"tiles: ours alone at {s} (one run) …")
         src = make_input(data / f"v1_tiles_{sizes[s][1]}x{sizes[s][0]}.jpg", *sizes[s])
         o = data / "out" / f"flat-{s}"
-        shutil.rmtree(o, ignore_errors=True)
+        set_aside(o)
         o.mkdir(parents=True)
         try:
             t, mib = cmd_time_peak_rss(p.argv + [a.replace("{o}", str(o)) for a in ours_dz(str(src))], p.env)
@@ -265,6 +285,7 @@ def main(argv=None) -> int:
         report["skipped"] += [f"{j['id']}: {j['skipped']}" for j in report["jobs"] if j.get("skipped")]
     if "flat" in parts:
         report["flat"] = flat(args, ours, report["jobs"], data)
+    clear_aside(data / "out")
     report["load_avg"]["end"] = os.getloadavg()[0]
     report["failed"] = [f"{j['id']}: {n}: {c['error']}" for j in report["jobs"]
                         for n, c in j.get("contenders", {}).items() if "error" in c]

@@ -108,6 +108,7 @@ def test_tiles_quick_writes_json(tmp_path):
             assert r[ref]["verdict"] in ("PASS", "MISS") and r[ref]["ratio_linear"] > 0
     # the 1-pixel pattern: linear light in ours, the mean of the codes in dzsave
     assert q["pattern"]["ours"]["1"]["median_code"] == 188
+    assert not list((tmp_path / "data" / "out").rglob(".set-aside")), "the runs' trees are deleted at the end"
     assert abs(q["pattern"]["dzsave"]["1"]["mean_code"] - 127.5) <= 1
     # the disc's edge: straight averaging darkens it, premultiplied does not
     assert q["alpha_fringe"]["ours"]["1"]["weighted_darkness"] < 0.01
@@ -119,3 +120,20 @@ def test_tiles_rejects_an_unknown_part(tmp_path):
     p = subprocess.run([sys.executable, str(TILES), "--only", "nope", "--data", str(tmp_path)],
                        capture_output=True, text=True, timeout=60, cwd=ROOT)
     assert p.returncode == 2 and "unknown part" in p.stderr
+
+
+def test_a_run_set_aside_is_moved_not_deleted_until_the_end(tmp_path):
+    """The timed runs never follow a mass delete (ext4's inode allocator passes over recently deleted inodes):
+    the previous tree is moved aside whole and deleted by clear_aside when the timing is over."""
+    import tiles
+
+    run = tmp_path / "out" / "job" / "ours"
+    for i in range(3):
+        run.mkdir(parents=True)
+        (run / "tile.jpg").write_bytes(b"x" * i)
+        tiles.set_aside(run)
+        assert not run.exists()
+    kept = sorted(p.read_bytes() for p in (tmp_path / "out").rglob("tile.jpg"))
+    assert kept == [b"", b"x", b"xx"]
+    tiles.clear_aside(tmp_path / "out")
+    assert not list((tmp_path / "out").rglob("tile.jpg"))
