@@ -121,7 +121,8 @@ class Scheduler:
         Any plan of tileable passes (every kind with ``reads`` and ``tile``).
     source : callable
         ``source(k, rows, cols)``: pixels of input image ``k`` over 0-based half-open ``rows × cols``
-        (inside the image), (h, w, C).
+        (inside the image), (h, w, C), or a list of such arrays of consecutive rows (joined once, with the rows
+        the image keeps).
     sink : callable
         ``sink(k, row, col, pixels)``: output image ``k``'s pixels at ``(row, col)``; called in row order
         within a strip. ``pixels`` is a view of the scheduler's buffers, valid during the call only: copy
@@ -317,9 +318,12 @@ class Scheduler:
         for s, *_ in origins:
             self._trim(s)
 
-    def _append(self, st: _State, px: np.ndarray) -> None:
-        st.buf = px.copy() if st.buf is None else np.concatenate([st.buf, px])  # (a ring buffer measured no
-        st.done = st.held()[1] + px.shape[0]                                     # faster, and held more)
+    def _append(self, st: _State, px: np.ndarray | list[np.ndarray]) -> None:
+        parts = px if isinstance(px, list) else [px]
+        kept = [] if st.buf is None or not len(st.buf) else [st.buf]
+        # one copy of the kept rows and the new ones (a ring buffer measured no faster, and held more)
+        st.buf = np.concatenate(kept + parts) if len(kept) + len(parts) > 1 else parts[0].copy()
+        st.done = st.held()[1] + sum(p.shape[0] for p in parts)
         self.peak_pixels = max(self.peak_pixels, sum(s.buf.shape[0] * s.buf.shape[1] for s in self.state.values()
                                                  if s.buf is not None))
 

@@ -110,6 +110,11 @@ class Reader(_Side):
     def rows(self, y0: int, y1: int) -> np.ndarray:
         """Rows ``y0 .. y1 − 1``; ``y0`` is at or past the first row not handed out yet (rows skipped are
         dropped)."""
+        parts = self.parts(y0, y1)
+        return parts[0] if len(parts) == 1 else np.concatenate(parts)
+
+    def parts(self, y0: int, y1: int) -> list[np.ndarray]:
+        """:meth:`rows` as the consecutive pieces of the steps they were decoded in (views, no copy)."""
         if y0 < self._at:
             raise ValueError(f"rows are read in order: row {self._at} or later expected, not {y0}")
         parts = []
@@ -122,7 +127,7 @@ class Reader(_Side):
                 y0 = self._at + hi
                 if y0 >= y1:
                     self._held, self._at = held[y1 - self._at:], y1
-                    return parts[0] if len(parts) == 1 else np.concatenate(parts)
+                    return parts
             self._at += 0 if held is None else len(held)
             self._held = self._next()
 

@@ -364,11 +364,14 @@ def run_bands(read: Callable[[int, int], np.ndarray], plan: Plan, executor, band
     slot = {k: i for i, k in enumerate(plan.outputs)}
     with overlapped(read, h, read_step(plan, band)) as (reader, writer):
         def source(k, rows, cols):
-            px = reader.rows(*rows)
-            if input_rows is not None:
-                writer.call(input_rows, rows[0], px)
-            px = px[:, cols[0]:cols[1]] if (cols[0], cols[1]) != (0, w) else px
-            return px.astype(np.float64) if emu else px
+            parts, y = reader.parts(*rows), rows[0]
+            for px in parts:  # as decoded: the steps' own arrays, joined once by the scheduler
+                if input_rows is not None:
+                    writer.call(input_rows, y, px)
+                y += len(px)
+            if (cols[0], cols[1]) != (0, w):
+                parts = [px[:, cols[0]:cols[1]] for px in parts]
+            return [px.astype(np.float64) for px in parts] if emu else parts
 
         def sink(k, r, c0, px):  # px is the scheduler's buffer: the writer keeps rows, so a copy
             writer.call(output_rows, slot[k], r, px.copy())
