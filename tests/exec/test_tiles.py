@@ -400,3 +400,16 @@ def test_reads_of_many_rows_come_from_their_first_and_last_periods():
             for r0 in range(-6, 30):
                 for n in range(1, 40, 3):
                     assert tiles._reads_of(ps, (r0, r0 + n), (0, 23)) == ps._reads((r0, r0 + n), (0, 23))
+
+
+def test_coarse_outputs_advance_a_band_at_a_time():
+    """An output that is not the lead advances once it can make a band of its own rows (or all it has left), not
+    by the row or two each band allows: a pyramid's steps stay about twice the lead's bands, the pixels unchanged
+    (the equality tests above)."""
+    size = (512, 40)
+    p = Levels(levels=6).plan((size,))
+    s = tiles.Scheduler(EMU, p, lambda k, r, c: image(size, 1)[r[0]:r[1], c[0]:c[1]].astype(np.float64),
+                        lambda k, r, c, px: None, band=8, dtype=np.float64)
+    s.run()
+    lead_bands = p.images[p.outputs[0]].size[0] // 8
+    assert s.steps <= 2 * lead_bands + len(p.outputs), s.steps
