@@ -138,7 +138,7 @@ class Pass:
         return {s: ((r0 + dr, r1 + dr), (c0 + dc, c1 + dc)) for s, ((r0, r1), (c0, c1)) in found.items()}
 
     def _reads(self, rows: tuple[int, int], cols: tuple[int, int]) -> dict[int, tuple[tuple[int, int], ...]]:
-        out = {}
+        out: dict[int, tuple[tuple[int, int], ...]] = {}
         for src in self.sources():
             (r0, r1), (c0, c1) = needed(self, (rows[0] + 1, rows[1]), (cols[0] + 1, cols[1]), src)
             if r0 <= r1 and c0 <= c1:
