@@ -86,6 +86,7 @@ if TYPE_CHECKING:  # what each name is, for readers and checkers; loaded on firs
     )
     from pyramid_cli.imageio.colour import count_nonfinite, linear_to_srgb, srgb_to_linear
     from pyramid_cli.imageio.encode import (
+        Encoder,
         check_write_options,
         describe_output,
         encoded_rows,
@@ -114,8 +115,8 @@ _HOMES = {
     **dict.fromkeys(["BandWriter", "ImageStream", "open_stream", "stream_writer", "stream_writers", "streams_to"],
                     "pyramid_cli.imageio.bands"),
     **dict.fromkeys(["count_nonfinite", "linear_to_srgb", "srgb_to_linear"], "pyramid_cli.imageio.colour"),
-    **dict.fromkeys(["check_write_options", "describe_output", "encoded_rows", "pixels_in", "stores_half_unchanged"],
-                    "pyramid_cli.imageio.encode"),
+    **dict.fromkeys(["Encoder", "check_write_options", "describe_output", "encoded_rows", "pixels_in",
+                     "stores_half_unchanged"], "pyramid_cli.imageio.encode"),
     **dict.fromkeys(["oiio_version", "output_pixel_type"], "pyramid_cli.imageio.formats"),
     **dict.fromkeys(["Image", "ImageInfo", "describe_rules", "info_for_array"], "pyramid_cli.imageio.image"),
     "check_colorspaces": "pyramid_cli.imageio.ocio",
@@ -145,6 +146,7 @@ def __dir__() -> list[str]:
 
 __all__ = [
     "BandWriter",
+    "Encoder",
     "Image",
     "ImageInfo",
     "ImageStream",

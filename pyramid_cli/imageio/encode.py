@@ -278,7 +278,7 @@ class Encoder:
         self.transfer = self.how == "srgb" or self.how == "ocio" and not is_linear(encoding, info.colorconfig)
         self.path, self.info, self.fmt, self.out_type, self.encoding = out_path, info, fmt, out_type, encoding
         self.pixel_type, self.compression, self.dither, self.channels = pixel_type, compression, dither, channels
-        self.in_names, self.in_alpha, self.in_mode = names, alpha_channel, mode
+        self.in_names, self.in_alpha = names, alpha_channel
         # The common 8-bit sRGB file without alpha: encoded by table, a channel at a time
         self.table = (out_type == "uint8" and self.how == "srgb" and mode == "none" and not dither
                       and not (fmt in NO_ALPHA_FORMATS and alpha_channel >= 0))

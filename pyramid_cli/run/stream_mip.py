@@ -58,12 +58,13 @@ def _level0_stats(st, stats, step: int, out_path: str, options: dict):
     from pyramid_cli import imageio as io
 
     h = st.shape[0]
+    enc = io.Encoder(out_path, st.info, st.shape[2], check_path=False, **options)
     st.on_stored = stats.hash_rows
     try:
         for y in range(0, h, step):
             px = st.read(y, min(h, y + step)).astype(np.float32, copy=False)
             stats.add_decoded(px)
-            stats.add_encoded(io.encoded_rows(out_path, io.Image(px, st.info), **options))
+            stats.add_encoded(enc.values(px))
     finally:
         st.on_stored = None
     return stats
@@ -163,6 +164,7 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
         slot = {k: i for i, k in enumerate(plan.outputs)}
 
         encoded = [0]  # level 0's rows gathered as encoded: in the bands of the two-read way (dithering lines up)
+        enc = io.Encoder(out_path, info, c, check_path=False, **options)
 
         def keep_level0(y: int, px: np.ndarray) -> None:  # on the writer's thread, beside the work
             level0.write(0, y, px)
@@ -170,7 +172,7 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
             while encoded[0] < h and y + len(px) >= min(h, encoded[0] + step):
                 a, b = encoded[0], min(h, encoded[0] + step)
                 rows = level0.rows(0, a, b).astype(np.float32, copy=False)
-                stats.add_encoded(io.encoded_rows(out_path, io.Image(rows, info), **options))
+                stats.add_encoded(enc.values(rows))
                 encoded[0] = b
 
         with overlapped(st.read, h, read_step(plan, band)) as (reader, behind):

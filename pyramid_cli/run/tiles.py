@@ -61,7 +61,7 @@ PASS_ROWS = 64                             # rows at a time of a one-level tile 
 # scheduler's, the writer's queue), and the process itself is 190 MiB (numba's LLVM is 120 of them).
 TILE_BAND_PIXELS = 1 << 17
 # ... but never fewer rows than this: every band costs the same Python work whatever its width, and a 16K Deep Zoom
-# took 8.4 s in bands of 16 rows against 7.2 s in 32 (fresh processes interleaved; 306 and 363 MiB peak, where
+# took 6.8 s in bands of 16 rows against 6.0 s in 32 (3 fresh processes interleaved; 295 and 358 MiB peak, where
 # libvips holds 142). Wider pictures hold wider bands, as libvips's tile rows are.
 TILE_BAND_ROWS = 32
 
