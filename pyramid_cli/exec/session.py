@@ -175,9 +175,9 @@ class LoadingCPU:
             self._ready = CPUExecutor(threads=self.threads)
         return self._ready
 
-    def run_outputs(self, plan: Plan, images, dtype=np.float32) -> list[np.ndarray]:
+    def run_outputs(self, plan: Plan, images, dtype=np.float32, codes=None) -> list[np.ndarray]:
         """:meth:`~pyramid_cli.exec.cpu.CPUExecutor.run_outputs`, once the executor is ready."""
-        return self.result().run_outputs(plan, images, dtype)
+        return self.result().run_outputs(plan, images, dtype, codes=codes)
 
     def run(self, plan: Plan, image) -> np.ndarray:
         """:meth:`~pyramid_cli.exec.cpu.CPUExecutor.run`, once the executor is ready."""

@@ -141,11 +141,16 @@ class Scheduler:
         ``{output image: (first row, end row)}``: make only these rows of each output (an output not named:
         none), with the pixels of the whole run (a part of a picture run on a cluster worker). Every image is
         then read and made from the first row its window needs (:meth:`run`).
+    codes : ndarray, optional
+        The sources give 8/16-bit codes, kept as they are and read through this table of their float32 values
+        by the executor (the CPU executor's ``run_outputs(..., codes=)``).
     """
 
     def __init__(self, executor: Executor, plan: Plan, source: Source, sink: Sink, *, band: int,
-                 width: int | None = None, dtype=np.float32, windows: dict[int, tuple[int, int]] | None = None):
+                 width: int | None = None, dtype=np.float32, windows: dict[int, tuple[int, int]] | None = None,
+                 codes: np.ndarray | None = None):
         self.executor, self.plan, self.source, self.sink = executor, plan, source, sink
+        self.codes = {} if codes is None else {"codes": codes}
         self.windows = None if windows is None else {k: windows.get(k, (0, 0)) for k in plan.outputs}
         self.band = max(1, int(band))
         rows = max(plan.images[k].size[0] for k in plan.outputs)
@@ -372,7 +377,7 @@ class Scheduler:
         sub = Plan(images, [step.run], plan.expression, outputs=[target], inputs=[s for s, *_ in origins],
                    border=plan.border)
         self.steps += 1
-        return self.executor.run_outputs(sub, arrays, self.dtype)[0]
+        return self.executor.run_outputs(sub, arrays, self.dtype, **self.codes)[0]
 
     def _trim(self, s: int) -> None:
         """Drop the rows of ``s`` that no later step reads (and that are emitted, for an output)."""

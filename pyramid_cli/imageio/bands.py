@@ -122,6 +122,11 @@ class ImageStream:
             err = (err or oiio.geterror()).replace(self._name, self.path)
             raise InputError(f"cannot read {self.path}: {one_line(err, 'read failed')} (truncated or corrupt file?)")
 
+    def read_stored(self, y0: int, y1: int) -> np.ndarray:
+        """Rows ``y0 .. y1 − 1`` as stored (:attr:`stored_dtype`), not decoded: for a consumer that reads 8/16-bit
+        codes through :func:`~pyramid_cli.imageio.read.code_table` itself (``on_stored`` is not called)."""
+        return np.asarray(self._stored(y0, y1), dtype=self.stored_dtype)
+
     def read(self, y0: int, y1: int) -> np.ndarray:
         """Decoded rows ``y0 .. y1 − 1`` (0 is the top row), (rows, columns, channels)."""
         data = self._stored(y0, y1)

@@ -120,10 +120,17 @@ def _integer_levels(dtype: str, srgb: bool) -> np.ndarray:
 
 
 @cache
+def integer_table(dtype: str, srgb: bool) -> np.ndarray:
+    """float32 value of every code of ``dtype`` ("uint8" or "uint16") in a colour channel without alpha to
+    premultiply: what :func:`decode_integer` gives each code (sRGB-decoded if asked), rounded once."""
+    return _integer_levels(dtype, srgb).astype(np.float32)
+
+
+@cache
 def _pair_table(srgb: bool) -> np.ndarray:
     """float32 values of every two consecutive 8-bit codes, by the uint16 they read as in memory: (65536, 2)."""
     codes = np.arange(65536, dtype=np.uint16).view(np.uint8).reshape(-1, 2)  # the machine's byte order
-    return _integer_levels("uint8", srgb).astype(np.float32)[codes]
+    return integer_table("uint8", srgb)[codes]
 
 
 PAIR_BAND = 1 << 15  # code pairs gathered per step: their index conversion stays in cache
@@ -141,7 +148,7 @@ def _decode_pairs(data: np.ndarray, srgb: bool) -> np.ndarray:
         j = min(index.size, i + PAIR_BAND)
         np.take(pairs, index[i:j], axis=0, out=res[2 * i:2 * j].reshape(-1, 2))
     if even < flat.size:
-        res[even:] = _integer_levels("uint8", srgb).astype(np.float32)[flat[even:]]
+        res[even:] = integer_table("uint8", srgb)[flat[even:]]
     return out
 
 
@@ -165,7 +172,7 @@ def decode_integer(data: np.ndarray, srgb: bool, colour: np.ndarray, alpha: int,
     if a is None and all(colour):  # gathers through a float32 table (the same single rounding), no strides,
         if data.dtype == np.uint8 and data.flags.c_contiguous:
             return _decode_pairs(data, srgb)
-        table = decoded.astype(np.float32)  # in bands of rows so the index conversion stays in cache
+        table = integer_table(data.dtype.name, srgb)  # in bands of rows so the index conversion stays in cache
         out = np.empty(data.shape, dtype=np.float32)
         for y in range(0, data.shape[0], 64):
             np.take(table, data[y:y + 64], out=out[y:y + 64])

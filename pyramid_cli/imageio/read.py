@@ -22,6 +22,7 @@ from pyramid_cli.imageio.colour import (
     colour_mask,
     count_nonfinite,
     decode_integer,
+    integer_table,
     premultiply,
     srgb_to_linear,
     unpremultiply,
@@ -201,6 +202,20 @@ def decode_stored(px: np.ndarray, info: ImageInfo) -> np.ndarray:
     elif has_alpha and alpha_mode == "straight":
         premultiply(px, alpha_channel, colour)
     return px if px.dtype == np.float16 else px.astype(np.float32, copy=False)
+
+
+def code_table(info: ImageInfo, dtype, channels: int) -> np.ndarray | None:
+    """The float32 value of every code of ``dtype`` when :func:`decode_stored` decodes rows of ``channels``
+    channels code by code through one table: 8- or 16-bit codes of sRGB or linear light (or data), every channel
+    colour, no alpha to premultiply. ``table[codes]`` is then exactly the decoded rows, so a consumer may keep
+    the codes (a quarter or half the bytes) and read them through the table itself; None otherwise."""
+    dtype = np.dtype(dtype)
+    if dtype not in (np.uint8, np.uint16) or info.alpha_channel >= 0 and info.alpha_mode != "none":
+        return None
+    how = _decoding(info)
+    if how == "ocio" or not all(colour_mask(channels, info.alpha_channel, info.channel_names)):
+        return None
+    return integer_table(dtype.name, how == "srgb")
 
 
 def _decoding(info: ImageInfo) -> str:

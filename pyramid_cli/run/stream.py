@@ -347,7 +347,8 @@ class BandTimes:
 
 def run_bands(read: Callable[[int, int], np.ndarray], plan: Plan, executor, band: int,
               output_rows: Callable[[int, int, np.ndarray], None],
-              input_rows: Callable[[int, np.ndarray], None] | None = None) -> BandTimes:
+              input_rows: Callable[[int, np.ndarray], None] | None = None, codes: np.ndarray | None = None
+              ) -> BandTimes:
     """The band engine: ``plan`` (one input) on the row-band scheduler of :mod:`pyramid_cli.exec.tiles` in bands of
     ``band`` output rows, the input decoded ahead by ``read(y0, y1)`` and the rows handed behind
     (:mod:`pyramid_cli.run.overlap`).
@@ -356,10 +357,16 @@ def run_bands(read: Callable[[int, int], np.ndarray], plan: Plan, executor, band
     each output; ``input_rows(y0, px)``: each input row once, in order, as decoded (a job that keeps its input
     writes it as level 0). Both are called on the writer's thread, in the order the scheduler makes the rows.
     Whatever they hold is theirs to release; an error on any thread, or an interruption, stops and joins both
-    threads before it goes on (:func:`~pyramid_cli.run.overlap.overlapped`)."""
+    threads before it goes on (:func:`~pyramid_cli.run.overlap.overlapped`).
+
+    ``codes``: ``read`` gives 8/16-bit codes, which the executor reads through this table of their float32 values
+    (a CPU executor's; :func:`pyramid_cli.imageio.read.code_table`): no float copy of the input exists.
+    ``input_rows`` is then given the codes."""
     from pyramid_cli.exec import tiles
 
     emu = executor.work_dtype == np.float64
+    if emu and codes is not None:
+        raise ValueError("codes are read by a float32 executor")
     (h, w), = (plan.images[k].size for k in plan.inputs)
     slot = {k: i for i, k in enumerate(plan.outputs)}
     with overlapped(read, h, read_step(plan, band)) as (reader, writer):
@@ -376,7 +383,8 @@ def run_bands(read: Callable[[int, int], np.ndarray], plan: Plan, executor, band
         def sink(k, r, c0, px):  # px is the scheduler's buffer: the writer keeps rows, so a copy
             writer.call(output_rows, slot[k], r, px.copy())
 
-        scheduler = tiles.Scheduler(executor, plan, source, sink, band=band, dtype=np.float64 if emu else np.float32)
+        scheduler = tiles.Scheduler(executor, plan, source, sink, band=band, dtype=np.float64 if emu else np.float32,
+                                    codes=codes)
         started = time.thread_time()
         scheduler.run()
         computed = time.thread_time() - started

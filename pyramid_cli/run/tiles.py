@@ -237,7 +237,10 @@ def _make_levels(source, where: str, writer, sizes, options: TileOptions, settin
     stored_bytes = np.asarray(writer.encode(np.zeros((1, 1, c), np.float32))).itemsize
     held = writer_memory(sizes, c, options, stored_bytes)
     reporter.detail(f"{where}: {given.describe()}; the tile writer holds about {format_size(held)}")
-    kw = {"in_bytes": source.dtype.itemsize, "out_bytes": 4, "keeps_input": True, **costs(executor)}
+    stored = stored_rows(source, writer, options)
+    table = _codes(source, executor) if stored is not None else None
+    in_bytes = source.stored_dtype.itemsize if table is not None else source.dtype.itemsize
+    kw = {"in_bytes": in_bytes, "out_bytes": 4, "keeps_input": True, **costs(executor)}
     least = estimate(plan, c, MIN_BAND, **kw) + held
     if least > given.size:
         raise given.refusal(DataError(
@@ -248,19 +251,26 @@ def _make_levels(source, where: str, writer, sizes, options: TileOptions, settin
     reporter.detail(f"{where}: {choice.describe()}")
     band = choice.band or MIN_BAND
 
-    stored = stored_rows(source, writer, options)
     if stored is not None:
         reporter.detail(f"{where}: level 0's tiles hold the input's own stored values (encoding its decoded "
-                        "values gives every one of them back)")
+                        "values gives every one of them back)"
+                        + ("; level 1 is made from them through the decoding table" if table is not None else ""))
 
     def level0(y0: int, px: np.ndarray) -> None:  # on the writer's thread: each input row once, in order
-        writer.rows(0, y0, px.astype(np.float32, copy=False), None if stored is None else stored.take(len(px)))
+        if table is not None:  # px are the codes: the stored rows themselves
+            writer.rows(0, y0, None, px)
+        else:
+            writer.rows(0, y0, px.astype(np.float32, copy=False), None if stored is None else stored.take(len(px)))
 
     def level(j: int, y0: int, px: np.ndarray) -> None:  # on the writer's thread
         writer.rows(j + 1, y0, px.astype(np.float32, copy=False))
 
     try:
-        times = run_bands(source.read, plan, executor, band, level, level0)
+        if table is not None:
+            source.on_stored = None  # the codes reach level 0 themselves
+            times = run_bands(source.read_stored, plan, executor, band, level, level0, codes=table)
+        else:
+            times = run_bands(source.read, plan, executor, band, level, level0)
     finally:
         if stored is not None:
             source.on_stored = None
@@ -318,6 +328,17 @@ def stored_rows(source, writer, options: TileOptions) -> StoredRows | None:
     kept = StoredRows()
     source.on_stored = kept.keep
     return kept
+
+
+def _codes(source, executor) -> np.ndarray | None:
+    """The table through which the CPU executor reads ``source``'s stored codes itself (no float copy of level 0;
+    :func:`pyramid_cli.imageio.read.code_table`), or None (another executor, or rows not decoded code by code)."""
+    from pyramid_cli.imageio.read import code_table
+
+    if getattr(executor, "backend", None) != "cpu" or executor.work_dtype != np.float32 \
+            or not hasattr(source, "read_stored"):
+        return None
+    return code_table(source.info, source.stored_dtype, source.shape[2])
 
 
 def _prefer(plan) -> int:

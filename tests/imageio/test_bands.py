@@ -51,3 +51,30 @@ def test_formats_encoded_whole_do_not_stream(tmp_path):
         pass
     assert bands.band_quantum(1, False) == 1 and bands.band_quantum(1, True) == 8
     assert bands.band_quantum(64, True) == 64 and bands.band_quantum(12, True) == 24
+
+
+@pytest.mark.parametrize("pixel_type, channels, alpha, table", [
+    ("uint8", 3, None, True), ("uint16", 1, None, True), ("uint8", 4, 3, False), ("float", 3, None, False),
+])
+def test_code_table_decodes_every_stored_row_as_read_does(tmp_path, pixel_type, channels, alpha, table):
+    """read_stored gives the rows as stored, and code_table (where decoding is one table for every code and
+    channel: no alpha, integer codes) looks them up into exactly what read gives."""
+    from pyramid_cli.imageio.read import code_table
+
+    top = {"uint8": 255, "uint16": 65535}.get(pixel_type, 1)
+    rng = np.random.default_rng(5)
+    stored = (rng.integers(0, top + 1, (9, 300, channels)).astype(pixel_type) if top > 1
+              else rng.uniform(0, 1, (9, 300, channels)).astype(np.float32))
+    src = write_raw(tmp_path / ("in.png" if top > 1 else "in.exr"), stored, pixel_type, alpha=alpha)
+    with pio.open_stream(src) as st:
+        codes, decoded = st.read_stored(2, 7), None
+        t = code_table(st.info, st.stored_dtype, channels)
+        assert (t is not None) == table
+        if table:
+            assert codes.dtype == st.stored_dtype and np.array_equal(codes, stored[2:7])
+            assert t[0] == 0  # what a zero border reads
+    with pio.open_stream(src) as st:
+        st.read(0, 2)
+        decoded = st.read(2, 7)
+    if table:
+        np.testing.assert_array_equal(t[codes], decoded)

@@ -36,12 +36,17 @@ def taken(monkeypatch):
     ("uint8", 3, "t.ome.zarr", {"tile_size": 16, "memory": "400K"}),
 ])
 def test_stored_level0_writes_the_same_bytes(tmp_path, session, taken, monkeypatch, pixel_type, channels, out, kw):
+    """Level 0 from the stored rows, and level 1 from them read through the decoding table by the CPU executor
+    (no float copy of the input, run_tiles._codes): the same bytes as every level encoded from decoded floats."""
     top = 255 if pixel_type == "uint8" else 65535
     codes = np.random.default_rng(3).integers(0, top + 1, (71, 93, channels)).astype(pixel_type)
     codes[0, :, 0] = np.arange(93)  # every small code: the linear segment of sRGB
     src = write(tmp_path / "in.png", codes, pixel_type)
+    tables = []
+    real = run_tiles._codes
+    monkeypatch.setattr(run_tiles, "_codes", lambda *a: tables.append(real(*a)) or tables[-1])
     tiles(src, tmp_path / "a" / out, session=session, **kw)
-    assert taken == [True]
+    assert taken == [True] and len(tables) == 1 and tables[0] is not None
     monkeypatch.setattr(run_tiles, "stored_rows", lambda *a: None)  # every level encoded from its decoded rows
     tiles(src, tmp_path / "b" / out, session=session, **kw)
     a, b = ({k.split(os.sep, 1)[1]: v for k, v in tree(tmp_path / run).items()} for run in ("a", "b"))

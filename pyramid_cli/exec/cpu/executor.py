@@ -115,6 +115,22 @@ def _window(src: np.ndarray, rows: tuple[int, int], cols: tuple[int, int], borde
     return win
 
 
+_TABLES: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+
+
+def _codes_table(codes: np.ndarray) -> np.ndarray:
+    """``codes`` as float32, padded to the 65536 entries a uint16 index may reach (once per table object)."""
+    hit = _TABLES.get(id(codes))
+    if hit is not None and hit[0] is codes:
+        return hit[1]
+    table = np.zeros(1 << 16, np.float32)
+    table[:len(codes)] = np.asarray(codes, np.float32)
+    if len(_TABLES) > 8:
+        _TABLES.clear()
+    _TABLES[id(codes)] = (codes, table)
+    return table
+
+
 def _ceil_div(a: int, b: int) -> int:
     return -(-a // b)
 
@@ -166,6 +182,7 @@ class CPUExecutor:
         self._by_pass: dict[tuple[int, str], tuple] = {}   # (id(pass), working type) → (pass, Kernel)
         self._pool: ThreadPoolExecutor | None = None
         self._lut: np.ndarray | None = None
+        self._table: np.ndarray | None = None  # a run's table of codes (run_outputs' ``codes``), 65536 entries
 
     # ------------------------------------------------------------ lifetime
     def close(self) -> None:
@@ -301,7 +318,7 @@ class CPUExecutor:
         """Execute ``plan`` on ``image`` (H, W) or (H, W, C); the logical pixels of the last output, float32."""
         return self.run_outputs(plan, image)[-1]
 
-    def run_outputs(self, plan: Plan, images, dtype=np.float32) -> list[np.ndarray]:
+    def run_outputs(self, plan: Plan, images, dtype=np.float32, codes: np.ndarray | None = None) -> list[np.ndarray]:
         """Execute ``plan`` with one image per ``plan.inputs``; the logical pixels of every ``plan.outputs``.
 
         Parameters
@@ -315,6 +332,11 @@ class CPUExecutor:
         dtype : float32, float16 or float64
             Output type; float16 is rounded to nearest even from the float32 result. float64 computes
             in float64 throughout, on the float64 kernels.
+        codes : ndarray, optional
+            The float32 value of every code (256 or 65536 of them): uint8 and uint16 inputs are then codes, read
+            through it wherever a pass reads them (exactly as if ``codes[input]`` were given; the table takes the
+            place of the float16 one, so 8-bit rows need not be decoded to floats first). ``codes[0]`` must be 0
+            (a zero border reads code 0, as it reads the float16 0); float32 runs only.
 
         Returns
         -------
@@ -324,6 +346,22 @@ class CPUExecutor:
         dtype = np.dtype(dtype)
         if dtype not in OUT_DTYPES:
             raise ValueError(f"outputs are float32, float16 or float64, not {dtype}")
+        if codes is not None:
+            if dtype == np.float64:
+                raise ValueError("codes are read in float32 runs only")
+            if codes[0] != 0:
+                raise ValueError("a table of codes reads 0 for code 0 (the zero border's)")
+            listed = images if isinstance(images, (list, tuple)) else [images]
+            # uint16 inputs are read through a table as float16 bit patterns are: these, through this one
+            images = [np.asarray(a, np.uint16).view(np.float16) if np.asarray(a).dtype in (np.uint8, np.uint16)
+                      else a for a in listed]
+            self._table = _codes_table(codes)
+        try:
+            return self._run_outputs(plan, images, dtype)
+        finally:
+            self._table = None
+
+    def _run_outputs(self, plan: Plan, images, dtype) -> list[np.ndarray]:
         wt = np.dtype(_work(dtype))  # the working type
         arrays = plan_inputs(plan, images, np.float64 if wt == np.float64 else None)
         flat = arrays[0].ndim == 2
@@ -371,7 +409,7 @@ class CPUExecutor:
             t, le = im.guard[0], im.guard[1]
             a = stored[k]
             if k in half:
-                a = a.view(np.float16)
+                a = self._half_lut()[a] if self._table is not None else a.view(np.float16)
             a = a[t:t + im.size[0], le:le + im.size[1]]
             if flat:
                 a = a[:, :, 0]
@@ -489,6 +527,9 @@ class CPUExecutor:
         return self._pool
 
     def _half_lut(self) -> np.ndarray:
+        """What uint16 inputs are read through: float16 bit patterns, or the run's table of codes."""
+        if self._table is not None:
+            return self._table
         if self._lut is None:
             self._lut = np.arange(1 << 16, dtype=np.uint16).view(np.float16).astype(np.float32)
         return self._lut

@@ -139,15 +139,17 @@ class TileSetWriter(abc.ABC):
             back = back[..., None]
         return back.dtype == codes.dtype and back.shape == codes.shape and bool(np.array_equal(back, codes))
 
-    def rows(self, level: int, y0: int, pixels: np.ndarray, stored: np.ndarray | None = None) -> None:
+    def rows(self, level: int, y0: int, pixels: np.ndarray | None, stored: np.ndarray | None = None) -> None:
         """Linear, premultiplied float32 rows ``y0 ..`` of level ``level`` (0 = the input), (h, W, C), each row of
         each level exactly once and in order; ``pixels`` may be reused by the caller after the call.
 
         ``stored``: the same rows as :meth:`encode` stores them (the caller has checked that with
         :meth:`passes_stored`), the writer's to keep; a writer that :attr:`takes_stored` stores them as they are
-        instead of encoding ``pixels``, the others ignore them."""
+        instead of encoding ``pixels`` (which may then be None), the others ignore them."""
         if stored is not None and self.takes_stored:
             self._rows_stored(level, y0, stored)
+        elif pixels is None:
+            raise ValueError(f"{self.layout}: rows of level {level} without pixels need stored rows it takes")
         else:
             self._rows(level, y0, pixels)
 

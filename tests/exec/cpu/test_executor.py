@@ -242,3 +242,31 @@ def test_pointwise_kernel_equals_the_emulator_on_every_op_at_any_offset(ex):
                 keep = keep[~np.isnan(ops[0][keep])]
             np.testing.assert_array_equal(out[keep], want[keep], err_msg=op)
             assert np.all(out[:i0] == 7) and np.all(out[i1:] == 7)
+
+
+@pytest.mark.parametrize("text, border", [("quadratic *v g", "clamp"), ("gauss5", "mirror"), ("bartlett", "zero"),
+                                          ("doosabin *^ (box4 *v g)", "wrap")])
+@pytest.mark.parametrize("bits", [8, 16])
+def test_codes_read_through_a_table_equal_the_table_applied_first(ex, text, border, bits):
+    """run_outputs(codes=table) on 8/16-bit codes gives, to the bit, what the floats ``table[codes]`` give: the
+    table takes the float16 one's place in every kernel read (and an input read back is looked up too)."""
+    rng = np.random.default_rng(bits)
+    n = 256 if bits == 8 else 65536
+    table = np.sort(rng.uniform(-0.5, 2.0, n)).astype(np.float32)
+    table[0] = 0  # what a zero border reads
+    codes = rng.integers(0, n, (13, 17, 3)).astype(np.uint8 if bits == 8 else np.uint16)
+    _, p = planned(text, (13, 17), border=border)
+    np.testing.assert_array_equal(ex.run_outputs(p, [codes], codes=table)[-1], ex.run(p, table[codes]))
+    b = Builder((13, 17))
+    done = step(b, 0, "box *v g")
+    both = b.build("x", outputs=[0, done])
+    for got, want in zip(ex.run_outputs(both, [codes], codes=table), ex.run_outputs(both, [table[codes]]),
+                         strict=True):
+        np.testing.assert_array_equal(got, want)
+    mip = pyramids.levels_plan((13, 17), 4, "quadratic")  # resampling passes read the table too
+    for got, want in zip(ex.run_outputs(mip, [codes], codes=table), ex.run_outputs(mip, [table[codes]]),
+                         strict=True):
+        np.testing.assert_array_equal(got, want)
+    assert ex._table is None  # the run's table is forgotten after it
+    with pytest.raises(ValueError, match="code 0"):
+        ex.run_outputs(p, [codes], codes=table + 1)
