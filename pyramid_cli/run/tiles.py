@@ -266,10 +266,11 @@ def _make_levels(source, where: str, writer, sizes, options: TileOptions, settin
         writer.rows(j + 1, y0, px.astype(np.float32, copy=False))
 
     try:
-        if table is not None:
-            source.on_stored = None  # the codes reach level 0 themselves
+        if table is not None:  # the codes reach level 0 themselves
             times = run_bands(source.read_stored, plan, executor, band, level, level0, codes=table)
         else:
+            if stored is not None:
+                source.on_stored = stored.keep
             times = run_bands(source.read, plan, executor, band, level, level0)
     finally:
         if stored is not None:
@@ -309,9 +310,9 @@ class StoredRows:
 def stored_rows(source, writer, options: TileOptions) -> StoredRows | None:
     """Level 0 as the input stores it, when that is what the writer would store (8/16-bit codes of sRGB or linear
     light, without alpha, dither or another colour space asked: every code of every channel encodes back to
-    itself, :meth:`~pyramid_cli.imageio.tilesets.TileSetWriter.passes_stored`): the input's rows are then kept as
-    stored (``source.on_stored``) and handed to the writer beside the decoded ones, which it need not encode again
-    (three quarters of all pixels, and the same bytes). None otherwise."""
+    itself, :meth:`~pyramid_cli.imageio.tilesets.TileSetWriter.passes_stored`): the caller may then keep the input's
+    rows as stored (``source.on_stored = kept.keep``) and hand them to the writer beside the decoded ones, which it
+    need not encode again (three quarters of all pixels, and the same bytes). None otherwise."""
     from pyramid_cli.imageio.read import decode_stored
 
     dtype, info = getattr(source, "stored_dtype", None), source.info
@@ -325,9 +326,7 @@ def stored_rows(source, writer, options: TileOptions) -> StoredRows | None:
     codes = np.repeat(np.arange(n, dtype=dtype).reshape(-1, 256, 1), source.shape[2], axis=2)
     if not writer.passes_stored(codes, lambda c: decode_stored(c, info)):
         return None
-    kept = StoredRows()
-    source.on_stored = kept.keep
-    return kept
+    return StoredRows()
 
 
 def _codes(source, executor) -> np.ndarray | None:
