@@ -520,19 +520,27 @@ def main(argv=None) -> int:
         if res.get("skipped"):
             report["skipped"].append(f"{job_id}: {res['skipped']}")
         report["jobs"].append(res)
+    report["failed"] = [f"{j['id']}: {r['pyramid']}: {r['error']}" for j in report["jobs"] for r in j["rows"]
+                        if "error" in r]
+    return finish(report, table_lines, out_json, args.plot)
+
+
+def finish(report: dict, lines, out_json: Path, plot_path: str | None) -> int:
+    """End a bench run (this one's, bench/tiles.py's): the load average at the end, every contender's error added
+    to ``report["failed"]``, the table (``lines(report)``) printed and kept, the JSON written, and the plot drawn
+    when anything was timed. 1 when anything failed."""
     report["load_avg"]["end"] = os.getloadavg()[0]
     report["failed"] = [f"{j['id']}: {name}: {c['error']}" for j in report["jobs"]
-                        for name, c in j.get("contenders", {}).items() if "error" in c]
-    report["failed"] += [f"{j['id']}: {r['pyramid']}: {r['error']}" for j in report["jobs"] for r in j["rows"]
-                         if "error" in r]
-    report["table"] = table_lines(report)
+                        for name, c in j.get("contenders", {}).items() if "error" in c] + report.get("failed", [])
+    report["table"] = lines(report)
     print("\n".join(report["table"] + [f"failed: {f}" for f in report["failed"]]))
     print(f"load average {report['load_avg']['start']:.1f} at the start, {report['load_avg']['end']:.1f} at the end")
     out_json.parent.mkdir(parents=True, exist_ok=True)
     out_json.write_text(json.dumps(report, indent=1, ensure_ascii=False, default=str) + "\n")
     print(f"wrote {out_json}")
-    why = plot(report, Path(args.plot or out_json.with_suffix(".png")))
-    print(why or f"plot: {args.plot or out_json.with_suffix('.png')}")
+    if report["jobs"]:
+        why = plot(report, Path(plot_path or out_json.with_suffix(".png")))
+        print(why or f"plot: {plot_path or out_json.with_suffix('.png')}")
     return 1 if report["failed"] else 0
 
 

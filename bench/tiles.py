@@ -35,7 +35,6 @@ from __future__ import annotations
 
 import argparse
 import datetime as _dt
-import json
 import os
 import shlex
 import shutil
@@ -286,20 +285,8 @@ def main(argv=None) -> int:
     if "flat" in parts:
         report["flat"] = flat(args, ours, report["jobs"], data)
     clear_aside(data / "out")
-    report["load_avg"]["end"] = os.getloadavg()[0]
-    report["failed"] = [f"{j['id']}: {n}: {c['error']}" for j in report["jobs"]
-                        for n, c in j.get("contenders", {}).items() if "error" in c]
-    report["failed"] += [f"flat {s}: {e}" for s, e in report.get("flat", {}).get("errors", {}).items()]
-    report["table"] = summary_lines(report)
-    print("\n".join(report["table"] + [f"failed: {f}" for f in report["failed"]]))
-    print(f"load average {report['load_avg']['start']:.1f} at the start, {report['load_avg']['end']:.1f} at the end")
-    out_json.parent.mkdir(parents=True, exist_ok=True)
-    out_json.write_text(json.dumps(report, indent=1, ensure_ascii=False, default=str) + "\n")
-    print(f"wrote {out_json}")
-    if report["jobs"]:
-        why = peers.plot(report, Path(args.plot or out_json.with_suffix(".png")))
-        print(why or f"plot: {args.plot or out_json.with_suffix('.png')}")
-    return 1 if report["failed"] else 0
+    report["failed"] = [f"flat {s}: {e}" for s, e in report.get("flat", {}).get("errors", {}).items()]
+    return peers.finish(report, summary_lines, out_json, args.plot)
 
 
 if __name__ == "__main__":
