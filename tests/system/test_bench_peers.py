@@ -8,12 +8,12 @@ entry in the JSON, not a failure.
 from __future__ import annotations
 
 import importlib.util
-import json
 import subprocess
 import sys
 
 import pytest
 
+from helpers.bench import quick_report
 from helpers.paths import ROOT
 
 PEERS = ROOT / "bench" / "peers.py"
@@ -37,13 +37,7 @@ def _peers(tmp_path, *args) -> subprocess.CompletedProcess:
 def test_peers_quick_writes_json_and_plot(tmp_path):
     out = tmp_path / "peers.json"
     p = _peers(tmp_path, "--json", str(out))
-    assert p.returncode == 0, p.stderr[-2000:]
-    report = json.loads(out.read_text())
-    for key in ("schema", "created", "machine", "quick", "repeat", "load_avg", "pyramids", "inputs", "targets",
-                "jobs", "skipped", "failed", "table"):
-        assert key in report, key
-    assert report["quick"] is True and report["repeat"] == 1 and report["failed"] == []
-    assert {"start", "end"} <= set(report["load_avg"])
+    report = quick_report(p, out, "inputs")
     assert {"cpu", "cores_usable", "versions", "versions_peers"} <= set(report["machine"])
     assert {"libvips", "numba", "maketx", "oiiotool"} <= set(report["machine"]["versions_peers"])
     jobs = {j["id"]: j for j in report["jobs"]}

@@ -16,13 +16,16 @@ def hidden(folder):
     return sorted(n for n in os.listdir(folder) if n.startswith("."))
 
 
-def build(st):
-    """What a Deep Zoom writer puts under its staging paths: a tile folder and a descriptor."""
+def built(tmp_path) -> Staging:
+    """The staging of ``pic_files`` and ``pic.dzi`` in ``tmp_path``, holding what a Deep Zoom writer puts there: a
+    tile folder and a descriptor."""
+    st = Staging([str(tmp_path / "pic_files"), str(tmp_path / "pic.dzi")])
     os.makedirs(os.path.join(st.staged[0], "0"))
     with open(os.path.join(st.staged[0], "0", "0_0.jpeg"), "w") as f:
         f.write("new tile")
     with open(st.staged[1], "w") as f:
         f.write("new descriptor")
+    return st
 
 
 def previous(tmp_path):
@@ -44,8 +47,7 @@ def test_staged_paths_are_hidden_beside_the_first_output(tmp_path):
 
 def test_commit_replaces_the_previous_output_and_leaves_nothing_hidden(tmp_path):
     previous(tmp_path)
-    st = Staging([str(tmp_path / "pic_files"), str(tmp_path / "pic.dzi")])
-    build(st)
+    st = built(tmp_path)
     st.commit()
     assert (tmp_path / "pic.dzi").read_text() == "new descriptor"
     assert os.listdir(tmp_path / "pic_files" / "0") == ["0_0.jpeg"]  # the old tile set is gone, not merged
@@ -61,16 +63,14 @@ def test_commit_moves_the_descriptor_last(tmp_path, monkeypatch):
         real(src, dst)
 
     monkeypatch.setattr(staging_module.os, "replace", record)
-    st = Staging([str(tmp_path / "pic_files"), str(tmp_path / "pic.dzi")])
-    build(st)
+    st = built(tmp_path)
     st.commit()
     assert moves == ["pic_files", "pic.dzi"]
 
 
 def test_discard_keeps_the_previous_output(tmp_path):
     previous(tmp_path)
-    st = Staging([str(tmp_path / "pic_files"), str(tmp_path / "pic.dzi")])
-    build(st)
+    st = built(tmp_path)
     st.discard()
     assert (tmp_path / "pic.dzi").read_text() == "old descriptor"
     assert sorted(os.listdir(tmp_path / "pic_files" / "0")) == ["0_0.jpeg", "1_0.jpeg"] and not hidden(tmp_path)
@@ -88,8 +88,7 @@ def test_a_commit_failing_part_way_puts_the_previous_output_back(tmp_path, monke
         real(src, dst)
 
     monkeypatch.setattr(staging_module.os, "replace", fail_on_the_descriptor)
-    st = Staging([str(tmp_path / "pic_files"), str(tmp_path / "pic.dzi")])
-    build(st)
+    st = built(tmp_path)
     with pytest.raises(OutputError, match=r"^cannot write .*pic_files: No space left on device$"):
         st.commit()
     st.discard()
