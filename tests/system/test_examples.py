@@ -260,23 +260,6 @@ def run_shell(line: str, stage: Path, env: dict[str, str] | None = None, timeout
     return r
 
 
-def layouts_missing() -> list[str]:
-    """The modules of ``pyramid tiles``' layouts not in this checkout (issue 27 is built in parts, one branch each;
-    once every part is merged there are none, and the examples below run)."""
-    import importlib.util
-
-    from pyramid_cli.imageio import tilesets
-
-    modules = {spec.split(":")[0] for spec in tilesets.LAYOUTS.values()}
-    return sorted(m for m in modules if importlib.util.find_spec(f"{tilesets.__name__}.{m}") is None)
-
-
-def _skip_tiles_without_layouts(text: str) -> None:
-    missing = layouts_missing()
-    if missing and ("pyramid tiles" in text or "pyr.tiles" in text):
-        pytest.skip(f"pyramid tiles' layouts not in this checkout: {', '.join(missing)}")
-
-
 # --- the tests ---------------------------------------------------------------------------------------------
 
 
@@ -289,7 +272,6 @@ def test_every_command_has_examples():
 
 @pytest.mark.parametrize("command", sorted(HELP))
 def test_help_examples_run(command, stage):
-    _skip_tiles_without_layouts(f"pyramid {command}")
     for line in HELP[command]:
         if line.split(" #")[0].strip() in NOT_RUN:
             continue
@@ -311,7 +293,6 @@ def _block_id(block) -> str:
 @pytest.mark.parametrize("block", [b for b in BLOCKS if b[1] in ("sh", "bash")], ids=_block_id)
 def test_shell_blocks_run(block, stage):
     where, _, text = block
-    _skip_tiles_without_layouts(text)
     if text.startswith("#!"):
         _run_array_script(text, stage)
         return
@@ -384,7 +365,6 @@ def test_makefile_blocks_run(block, stage):
 
 @pytest.mark.parametrize("block", [b for b in BLOCKS if b[1] == "python"], ids=_block_id)
 def test_python_blocks_run(block, stage):
-    _skip_tiles_without_layouts(block[2])
     code = PRELUDE + block[2]
     r = subprocess.run([sys.executable, "-c", code], cwd=stage, env=_environment(stage), capture_output=True,
                        text=True, timeout=300)
