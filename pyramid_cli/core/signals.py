@@ -12,7 +12,10 @@ Python cannot raise out of a finaliser: an :class:`Interrupted` raised while a `
 weak-reference callback or a ctypes callback runs (llvmlite frees its LLVM objects in
 ``__del__``) would be printed as "Exception ignored" and lost, and the run would go on. The
 ``sys.unraisablehook`` that ``install`` sets catches exactly those, prints nothing, and sends the
-signal again a moment later, once the finaliser has returned.
+signal again a moment later, once the finaliser has returned. The signal is sent again by a helper thread
+started by ``install``, never by a thread started there and then: a finaliser can run while the interpreter
+shuts down, where Python 3.11 waits for ever for a new thread to start (a run that got SIGTERM as it ended
+hung until CI's timeout). A signal that arrives while the interpreter shuts down is ignored: the run is over.
 
 Nor should it raise inside an import: a C extension that runs Python code while it initialises (OpenImageIO's
 nanobind enums, numba) aborts the process on an exception it did not expect (SIGABRT and a "Critical
@@ -23,6 +26,11 @@ Nor should it raise into a library that keeps state across a call: an exception 
 numba's compiler in mid-compile leaves it inconsistent, and its clean-up then fails with a
 traceback of its own. Code that calls such a library runs it under :func:`deferred`, which holds
 a signal until the call returns and raises it then.
+
+A clean-up is bounded: one that has not ended :data:`STUCK_S` seconds after the signal is stuck (a thread that
+never returns, a lock never released). The process then prints one line and every thread's stack (so that the
+cause can be found) and ends with the signal's exit code, as a farm's kill after its grace period would end it,
+instead of hanging until someone looks. A second signal still ends it at once.
 
 ``install`` also ignores SIGXFSZ, so that a file size limit (``ulimit -f``) makes writes
 fail with EFBIG, reported as exit 4, instead of killing the process mid-write.
@@ -38,10 +46,13 @@ and Python's flush at exit has nothing to complain about.
 from __future__ import annotations
 
 import contextlib
+import faulthandler
 import os
+import queue
 import signal
 import sys
 import threading
+import time
 from collections.abc import Iterator
 
 HANDLED = ("SIGINT", "SIGTERM", "SIGHUP")
@@ -69,6 +80,8 @@ _depth = 0  # how many deferred() blocks the main thread is inside
 
 
 def _handler(signum, frame):  # noqa: ARG001 - the signal module's signature
+    if sys.is_finalizing():
+        return  # the interpreter is shutting down: the run is over, and nothing raised now could be handled
     if _received:
         # A second signal while the first is being handled: give up cleaning, die the default way.
         signal.signal(signum, signal.SIG_DFL)
@@ -77,11 +90,61 @@ def _handler(signum, frame):  # noqa: ARG001 - the signal module's signature
     _received.append(signum)
     if _depth:
         _held.append(signum)
+        _watch(signum)
         return
     if _importing(frame):
         _redeliver(signum)
         return
+    _watch(signum)
     raise Interrupted(signum)
+
+
+STUCK_S = 60.0  # seconds a clean-up may take after a signal (a farm's grace period is 30 s: it would be killed)
+
+# What the handler, and the hook of a signal raised in a finaliser, ask of the helper thread. Neither may start a
+# thread: the main thread may hold threading's own locks where they run (a finaliser runs inside Thread.start() as
+# well as anywhere else), and Thread.start() takes them, so the process would wait on itself for ever. A
+# SimpleQueue's put takes no lock a running put could hold (reentrant, for finalisers and handlers).
+_requests: queue.SimpleQueue = queue.SimpleQueue()
+_AGAIN, _WATCH = "again", "watch"
+_helper: threading.Thread | None = None
+
+
+def _watch(signum: int) -> None:
+    """End the process :data:`STUCK_S` seconds from now, with every thread's stack on stderr, unless it ended
+    first (the helper thread is a daemon: a clean-up that finishes never hears of it)."""
+    _requests.put((_WATCH, signum))
+
+
+def _serve() -> None:
+    """The helper thread: sends a signal again (:func:`_redeliver`), and ends a stuck clean-up (:func:`_watch`)."""
+    deadline, watched = None, 0
+    while True:
+        try:
+            wait = None if deadline is None else max(0.0, deadline - time.monotonic())
+            kind, signum = _requests.get(timeout=wait)
+        except queue.Empty:
+            _stuck(watched)
+            return
+        if kind == _AGAIN:
+            time.sleep(REDELIVER_S)
+            os.kill(os.getpid(), signum)
+        elif deadline is None:
+            deadline, watched = time.monotonic() + STUCK_S, signum
+
+
+def _stuck(signum: int) -> None:
+    """Say that the clean-up after ``signum`` is stuck, print every thread's stack, and exit 128 + ``signum``."""
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(Exception):
+            stream.flush()
+    line = (f"pyramid: the clean-up after {signal.Signals(signum).name} has not ended in {STUCK_S:g} s: stopping "
+            "it now; what each thread was doing:\n")
+    with contextlib.suppress(OSError):
+        os.write(2, line.encode())
+    with contextlib.suppress(Exception):
+        faulthandler.dump_traceback(file=2, all_threads=True)
+    os._exit(128 + signum)
 
 
 _IMPORT_MACHINERY = ("<frozen importlib._bootstrap>", "<frozen importlib._bootstrap_external>")
@@ -120,12 +183,10 @@ REDELIVER_S = 0.02  # how long after a swallowed signal it is sent again
 
 
 def _redeliver(signum: int) -> None:
-    """Send ``signum`` again in :data:`REDELIVER_S`, as a first signal (from a timer thread: the handler only
+    """Send ``signum`` again in :data:`REDELIVER_S`, as a first signal (from the helper thread: the handler only
     runs in the main thread, between its bytecodes)."""
     _received.clear()
-    timer = threading.Timer(REDELIVER_S, os.kill, (os.getpid(), signum))
-    timer.daemon = True
-    timer.start()
+    _requests.put((_AGAIN, signum))
 
 
 def _unraisable(previous):
@@ -146,10 +207,14 @@ def install() -> None:
     Call once at start-up, from the main thread (elsewhere it does nothing). Signals that the
     parent process ignores (``nohup``, ``trap '' TERM``) stay ignored.
     """
+    global _helper
     if threading.current_thread() is not threading.main_thread():
         return
     _received.clear()
     _held.clear()
+    if _helper is None:  # started here, in plain code: never from a handler or a finaliser (see _requests)
+        _helper = threading.Thread(target=_serve, name="pyramid-signals", daemon=True)
+        _helper.start()
     if not getattr(sys.unraisablehook, "pyramid_redelivers", False):
         sys.unraisablehook = _unraisable(sys.unraisablehook)
     for name in HANDLED:

@@ -42,6 +42,45 @@ def test_a_signal_during_an_import_is_raised_once_the_import_is_done(tmp_path):
     assert r.stdout.strip() == f"interrupted {int(signal.SIGTERM)} after import", r.stdout
 
 
+def test_a_signal_that_arrives_as_the_interpreter_shuts_down_lets_it_end(tmp_path):
+    """SIGTERM during the last atexit call (C code: the signal waits) is handled in the first Python code after
+    it, standard output's flush, once the interpreter is finalising: there no thread can start (Python 3.11 waits
+    for it for ever: the hang after a signal seen once in CI), so nothing there may start one; the run's work is
+    done and the process ends."""
+    import subprocess
+    import sys
+    import textwrap
+    import time
+
+    script = textwrap.dedent("""
+        import atexit, os, sys
+        from pyramid_cli.core import signals
+
+        class Out:  # a flush in Python, reached without any other Python code first (no __getattr__)
+            closed = False
+            def write(self, text):
+                return len(text)
+            def flush(self):
+                for _ in range(3):
+                    pass
+
+        sys.stdout = Out()
+        signals.install()
+        atexit.register(os.system, "sleep 1")  # registered first, called last: the signal comes during it
+        os.write(1, b"done\\n")
+    """)
+    p = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    assert p.stdout is not None and p.stdout.readline() == b"done\n"
+    time.sleep(0.3)
+    p.send_signal(signal.SIGTERM)
+    try:
+        _, err = p.communicate(timeout=30)
+    except subprocess.TimeoutExpired:
+        p.kill()
+        raise AssertionError("the interpreter hung in its shut-down after the signal") from None
+    assert p.returncode == 0, err.decode()
+
+
 def test_an_interrupted_command_ends_without_the_interpreters_teardown(tmp_path):
     """The console script, once a signal's clean-up is done, exits 143 at once: no atexit handler (nor C++
     destructor, which could abort on a busy thread) runs; a run that ends normally tears down as usual."""
@@ -70,3 +109,32 @@ def test_an_interrupted_command_ends_without_the_interpreters_teardown(tmp_path)
     assert (stopped.returncode, stopped.stdout, stopped.stderr) == (143, "", "pyramid: terminated by SIGTERM\n")
     finished = subprocess.run([sys.executable, "-c", script, "finish"], capture_output=True, text=True, timeout=60)
     assert (finished.returncode, finished.stdout) == (0, "done\nteardown\n"), finished.stderr
+
+
+def test_a_clean_up_that_never_ends_is_stopped_with_every_threads_stack(tmp_path):
+    """A clean-up stuck after SIGTERM (a thread that never returns) does not hang the run: after STUCK_S the
+    process says so, prints what each thread was doing, and exits 143; a clean-up that ends is not touched."""
+    import subprocess
+    import sys
+    import textwrap
+
+    script = textwrap.dedent("""
+        import os, signal, sys, threading, time
+        from pyramid_cli.core import signals
+        signals.STUCK_S = 0.5
+        signals.install()
+        try:
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(10)
+        except signals.Interrupted:
+            if sys.argv[1] == "stuck":
+                threading.Event().wait()   # a clean-up waiting for what never comes
+            print("cleaned up", flush=True)
+            sys.exit(7)                    # the timer is a daemon: it keeps no process alive
+    """)
+    stuck = subprocess.run([sys.executable, "-c", script, "stuck"], capture_output=True, text=True, timeout=60)
+    assert stuck.returncode == 143, stuck.stderr
+    assert "the clean-up after SIGTERM has not ended in 0.5 s" in stuck.stderr, stuck.stderr
+    assert "most recent call first" in stuck.stderr and "in <module>" in stuck.stderr, stuck.stderr
+    done = subprocess.run([sys.executable, "-c", script, "done"], capture_output=True, text=True, timeout=60)
+    assert (done.returncode, done.stdout) == (7, "cleaned up\n"), done.stderr
