@@ -22,6 +22,7 @@ from pyramid_cli.imageio.formats import (
     FORMAT_TYPES,
     NO_ALPHA_FORMATS,
     PIXEL_TYPES,
+    PNG_FILTERS,
     TILED_FORMATS,
     check_choice,
     format_from_path,
@@ -385,6 +386,8 @@ def _output_spec(info: ImageInfo, fmt: str, out_type: str, names: list[str], alp
         # The values handed over are exactly what is to be stored: stop
         # OpenImageIO from unpremultiplying them again.
         spec.attribute("oiio:UnassociatedAlpha", 1)
+    if fmt == "png":
+        spec.attribute("png:filter", PNG_FILTERS)
     if compression is not None:
         if fmt == "png" and compression.isdigit():
             spec.attribute("png:compressionLevel", int(compression))  # zlib level 0-9

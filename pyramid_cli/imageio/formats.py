@@ -57,6 +57,13 @@ COMPRESSION_LEVELS = frozenset({"zip", "zips", "dwaa", "dwab", "lzw"})
 # os.write, which reports a full disk as an error.
 ENCODE_IN_MEMORY = frozenset({"jpeg"})
 
+# The row filters libpng may choose from for each PNG row (its PNG_FILTER_NONE | SUB | UP; the ``png:filter``
+# hint of OpenImageIO's PNG writer, whose default lets libpng try all five). Measured at zlib level 6 on five
+# pictures (a 4K crop of a photograph, a blurred 4K picture, 4K noise, a zone plate, an RGBA gradient): the files
+# as small or smaller (the noise's 2.7 % larger), the writes 20-35 % faster (the photograph 5.05 -> 3.92 s, the
+# blurred picture 1.00 -> 0.75 s); libvips writes with no filter (a third of the time, files 1.7x larger).
+PNG_FILTERS = 0x08 | 0x10 | 0x20
+
 # Formats that can be tiled: a tiled input is written back tiled.
 TILED_FORMATS = ("openexr", "tiff")
 

@@ -45,3 +45,24 @@ def make_png_bytes(width: int, height: int) -> bytes:
     raw = b"".join(b"\0" + b"\x80" * width for _ in range(height))
     return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr)
             + chunk(b"IDAT", zlib.compress(raw)) + chunk(b"IEND", b""))
+
+
+def png_row_filters(path: Path) -> set[int]:
+    """The filter type byte of every row of a non-interlaced PNG (its IDAT stream inflated), read by hand."""
+    data = Path(path).read_bytes()
+    at, idat, header = 8, b"", None
+    while at < len(data):
+        (size,), kind = struct.unpack(">I", data[at:at + 4]), data[at + 4:at + 8]
+        body = data[at + 8:at + 8 + size]
+        if kind == b"IHDR":
+            header = struct.unpack(">IIBBBBB", body)
+        elif kind == b"IDAT":
+            idat += body
+        at += 12 + size
+    assert header is not None, f"{path}: no IHDR"
+    width, height, depth, colour, _, _, interlace = header
+    assert interlace == 0, f"{path}: interlaced"
+    stride = 1 + width * {0: 1, 2: 3, 4: 2, 6: 4}[colour] * depth // 8
+    raw = zlib.decompress(idat)
+    assert len(raw) == stride * height
+    return {raw[y * stride] for y in range(height)}

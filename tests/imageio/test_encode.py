@@ -12,7 +12,7 @@ import OpenImageIO as oiio
 import pytest
 
 from helpers.images import write as write_raw
-from helpers.stored import read_raw, srgb_eotf, srgb_oetf
+from helpers.stored import png_row_filters, read_raw, srgb_eotf, srgb_oetf
 from pyramid_cli import imageio as pio
 from pyramid_cli.core.errors import UsageError
 
@@ -465,3 +465,18 @@ def test_an_encoder_decides_once_and_encodes_bands_as_the_whole(out, channels, a
     assert bands.dtype == whole.dtype and np.array_equal(bands, whole)
     assert enc.spec(13, 24).nchannels == spec.nchannels and enc.spec(13, 24).format == spec.format
     assert list(enc.spec(13, 24).channelnames) == list(spec.channelnames)
+
+
+@pytest.mark.parametrize("ptype", ["uint8", "uint16"])
+def test_png_rows_are_filtered_with_none_sub_or_up(tmp_path, ptype):
+    """PNG rows are filtered with libpng's NONE, SUB or UP only (formats.PNG_FILTERS: as small files, faster
+    writes than letting libpng also try AVG and PAETH); OpenImageIO's own default uses those too."""
+    y, x = np.mgrid[0:64, 0:96]
+    px = np.dstack([(x * y % 97) / 96.0, np.sin(x / 5.0) * 0.5 + 0.5, RNG.uniform(0, 1, (64, 96))])
+    plain = tmp_path / "plain.png"  # the picture through OpenImageIO with no hint
+    write_raw(plain, px.astype(np.float32), ptype)
+    assert png_row_filters(plain) - {0, 1, 2}, "OpenImageIO's default uses AVG or PAETH here: this checks nothing"
+    ours = tmp_path / "ours.png"
+    pio.write_image(ours, pio.read_image(plain))
+    assert png_row_filters(ours) <= {0, 1, 2}
+    assert np.array_equal(read_raw(ours)[0], read_raw(plain)[0])

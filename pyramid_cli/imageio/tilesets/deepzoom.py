@@ -210,7 +210,7 @@ class _TileFolderWriter(TileSetWriter):
         t = oiio.ImageSpec(1, 1, spec.nchannels, spec.format)
         t.channelnames = spec.channelnames
         t.alpha_channel = spec.alpha_channel
-        for name in ("oiio:ColorSpace", "oiio:UnassociatedAlpha"):
+        for name in ("oiio:ColorSpace", "oiio:UnassociatedAlpha", "png:filter"):
             if spec.getattribute(name) is not None:
                 t.attribute(name, spec.getattribute(name))
         if self.fmt == "jpeg":

@@ -14,6 +14,7 @@ import pytest
 
 import pyramid_cli as pyr
 from helpers.disks import mounted
+from helpers.stored import png_row_filters
 from pyramid_cli.core.errors import OutputError, UsageError
 from pyramid_cli.imageio.read import read_image
 from pyramid_cli.imageio.tilesets import TileOptions, writer_class
@@ -143,6 +144,8 @@ def test_deep_zoom_options_as_dzsave(sources, tmp_path):
     write(DeepZoomWriter, tmp_path / "ours" / "pic.dzi", img, levels, tile_size=8, overlap=3, suffix="png")
     vips_image(px).dzsave(str(tmp_path / "vips" / "pic"), tile_size=8, overlap=3, suffix=".png")
     assert tree(tmp_path / "ours") == tree(tmp_path / "vips")
+    tiles = list((tmp_path / "ours").rglob("*.png"))
+    assert tiles and set().union(*map(png_row_filters, tiles)) <= {0, 1, 2}  # formats.PNG_FILTERS, as every PNG
 
 
 @pytest.mark.parametrize("suffix, within", [("webp", 12), ("tif", 0)])
