@@ -201,20 +201,25 @@ def _unraisable(previous):
     return hook
 
 
+def _start_helper() -> None:
+    global _helper
+    _helper = threading.Thread(target=_serve, name="pyramid-signals", daemon=True)
+    _helper.start()
+
+
 def install() -> None:
     """Handle SIGINT, SIGTERM and SIGHUP by raising :class:`Interrupted`; ignore SIGXFSZ.
 
     Call once at start-up, from the main thread (elsewhere it does nothing). Signals that the
     parent process ignores (``nohup``, ``trap '' TERM``) stay ignored.
     """
-    global _helper
     if threading.current_thread() is not threading.main_thread():
         return
     _received.clear()
     _held.clear()
     if _helper is None:  # started here, in plain code: never from a handler or a finaliser (see _requests)
-        _helper = threading.Thread(target=_serve, name="pyramid-signals", daemon=True)
-        _helper.start()
+        _start_helper()
+        os.register_at_fork(after_in_child=_start_helper)  # a forked child has no thread but the one that forked
     if not getattr(sys.unraisablehook, "pyramid_redelivers", False):
         sys.unraisablehook = _unraisable(sys.unraisablehook)
     for name in HANDLED:

@@ -138,3 +138,35 @@ def test_a_clean_up_that_never_ends_is_stopped_with_every_threads_stack(tmp_path
     assert "most recent call first" in stuck.stderr and "in <module>" in stuck.stderr, stuck.stderr
     done = subprocess.run([sys.executable, "-c", script, "done"], capture_output=True, text=True, timeout=60)
     assert (done.returncode, done.stdout) == (7, "cleaned up\n"), done.stderr
+
+
+def test_a_forked_child_sends_a_signal_again_too(tmp_path):
+    """The helper thread that sends a signal again is started anew in a forked child (fork copies only the
+    thread that forked): a child whose signal comes inside an import is still stopped once the import is done."""
+    import subprocess
+    import sys
+    import textwrap
+
+    (tmp_path / "slow_module.py").write_text(textwrap.dedent("""
+        import os, signal, time
+        os.kill(os.getpid(), signal.SIGTERM)
+        end = time.monotonic() + 0.3
+        while time.monotonic() < end:
+            pass
+    """))
+    script = textwrap.dedent("""
+        import os, sys, time
+        from pyramid_cli.core import signals
+        signals.install()
+        pid = os.fork()
+        if pid == 0:
+            try:
+                import slow_module  # noqa: F401
+                time.sleep(10)
+                os._exit(1)
+            except signals.Interrupted:
+                os._exit(0)
+        print(os.waitpid(pid, 0)[1] >> 8)
+    """)
+    r = subprocess.run([sys.executable, "-c", script], cwd=tmp_path, capture_output=True, text=True, timeout=60)
+    assert (r.returncode, r.stdout.strip()) == (0, "0"), r.stderr
