@@ -31,6 +31,25 @@ def test_console_script_and_help_do_not_import_heavy_modules():
     assert out.stdout.strip().splitlines()[-1] == "HEAVY="
 
 
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="counts threads in /proc")
+@pytest.mark.parametrize("chosen", [None, "2"])
+def test_the_console_script_starts_no_blas_threads_unless_asked(chosen):
+    """numpy's OpenBLAS threads (one per core, spinning after import) are not started for a run, which makes no
+    BLAS call; a user's OPENBLAS_NUM_THREADS is kept."""
+    code = ("import os, sys\nfrom pyramid_cli.cli import group\nsys.argv = ['pyramid', '--version']\n"
+            "try:\n    group.run()\nexcept SystemExit:\n    pass\nimport numpy  # noqa: F401\n"
+            "print(os.environ['OPENBLAS_NUM_THREADS'], len(os.listdir('/proc/self/task')))")
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    if chosen:
+        env["OPENBLAS_NUM_THREADS"] = chosen
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
+    assert out.returncode == 0, out.stderr
+    value, threads = out.stdout.split()[-2:]
+    assert value == (chosen or "1")
+    if not chosen:
+        assert int(threads) == 2, threads  # the main thread and core.signals' helper
+
+
 @pytest.mark.parametrize("args", [["explain", "box4 *v g"], ["plan", "box4 *v g", "--size", "64x64"],
                                   ["farm-template", "--frames", "1-9", "--", "blur", "/sh/a.####.exr",
                                    "-o", "/sh/b.####.exr"]],
