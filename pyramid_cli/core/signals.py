@@ -14,8 +14,8 @@ weak-reference callback or a ctypes callback runs (llvmlite frees its LLVM objec
 ``sys.unraisablehook`` that ``install`` sets catches exactly those, prints nothing, and sends the
 signal again a moment later, once the finaliser has returned. The signal is sent again by a helper thread
 started by ``install``, never by a thread started there and then: a finaliser can run while the interpreter
-shuts down, where Python 3.11 waits for ever for a new thread to start (a run that got SIGTERM as it ended
-hung until CI's timeout). A signal that arrives while the interpreter shuts down is ignored: the run is over.
+shuts down, where Python 3.11 waits for ever for a new thread to start (a hang: see tests/core/test_signals.py).
+A signal that arrives while the interpreter shuts down is ignored: the run is over.
 
 Nor should it raise inside an import: a C extension that runs Python code while it initialises (OpenImageIO's
 nanobind enums, numba) aborts the process on an exception it did not expect (SIGABRT and a "Critical
@@ -102,9 +102,8 @@ def _handler(signum, frame):  # noqa: ARG001 - the signal module's signature
 STUCK_S = 60.0  # seconds a clean-up may take after a signal (a farm's grace period is 30 s: it would be killed)
 
 # What the handler, and the hook of a signal raised in a finaliser, ask of the helper thread. Neither may start a
-# thread: the main thread may hold threading's own locks where they run (a finaliser runs inside Thread.start() as
-# well as anywhere else), and Thread.start() takes them, so the process would wait on itself for ever. A
-# SimpleQueue's put takes no lock a running put could hold (reentrant, for finalisers and handlers).
+# thread: both can run while the interpreter shuts down, where Python 3.11's Thread.start() waits for ever for a
+# thread that can no longer run. A SimpleQueue's put never waits and is reentrant (made for finalisers).
 _requests: queue.SimpleQueue = queue.SimpleQueue()
 _AGAIN, _WATCH = "again", "watch"
 _helper: threading.Thread | None = None

@@ -45,7 +45,7 @@ def test_a_signal_during_an_import_is_raised_once_the_import_is_done(tmp_path):
 def test_a_signal_that_arrives_as_the_interpreter_shuts_down_lets_it_end(tmp_path):
     """SIGTERM during the last atexit call (C code: the signal waits) is handled in the first Python code after
     it, standard output's flush, once the interpreter is finalising: there no thread can start (Python 3.11 waits
-    for it for ever: the hang after a signal seen once in CI), so nothing there may start one; the run's work is
+    for it for ever, a hang of the kind CI met once), so nothing there may start one; the run's work is
     done and the process ends."""
     import subprocess
     import sys
