@@ -83,6 +83,10 @@ def count_nonfinite(pixels: np.ndarray) -> int:
     int
         Number of elements that are NaN, +Inf or -Inf.
     """
+    if isinstance(pixels, np.ndarray) and pixels.dtype == np.float16:
+        # exponent bits all ones: ±inf and NaN. numpy's isfinite on half takes 7x as long (a 4K RGBA band of 272
+        # rows: 5.9 ms against 0.8), and a streamed half EXR is scanned band by band as it is read
+        return int(np.count_nonzero((pixels.view(np.uint16) & 0x7C00) == 0x7C00))
     return int(np.size(pixels) - np.count_nonzero(np.isfinite(pixels)))
 
 

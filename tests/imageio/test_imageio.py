@@ -31,6 +31,16 @@ def test_count_nonfinite():
     assert pio.count_nonfinite(np.zeros((3, 3), np.float32)) == 0
 
 
+def test_count_nonfinite_of_half_values_agrees_with_isfinite():
+    """Every float16 bit pattern (NaNs of every payload and sign, ±inf, the largest finite, subnormals), in a
+    contiguous array and in a strided view, counted as numpy's isfinite counts."""
+    every = np.arange(1 << 16, dtype=np.uint32).astype(np.uint16).view(np.float16).reshape(256, 64, 4)
+    for a in (every, every[::3, 1::2, :3], every[0, 0, :1]):
+        assert pio.count_nonfinite(a) == a.size - np.count_nonzero(np.isfinite(a))
+    assert pio.count_nonfinite(every) == 2 * 1024  # 2 signs × (inf + 1023 NaN payloads)
+    assert pio.count_nonfinite(np.float16([65504.0, -65504.0, 6e-8])) == 0
+
+
 def test_srgb_helpers_match_formula():
     v = np.linspace(0, 1, 1001)
     np.testing.assert_allclose(pio.srgb_to_linear(v), srgb_eotf(v), rtol=1e-12)
