@@ -3,6 +3,8 @@ console script's entry point. The commands are added to it by :mod:`pyramid_cli.
 
 from __future__ import annotations
 
+import os
+
 import click
 
 from pyramid_cli.core.errors import EXIT_CODES, PyramidError
@@ -62,8 +64,6 @@ def run() -> None:
     removed, outputs closed, the one line said): libraries' C++ destructors at exit (OpenImageIO's and
     OpenEXR's thread pools) could find a thread still busy and abort the process ("terminate called without
     an active exception", SIGABRT instead of exit 143)."""
-    import os
-
     # No BLAS call is made, but numpy's OpenBLAS starts a thread per core at import that spins for a while: 0.05 to
     # 0.16 CPU seconds of a run (measured, fresh processes interleaved). Only where the user has not chosen.
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")

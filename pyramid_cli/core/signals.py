@@ -133,10 +133,8 @@ def _serve() -> None:
 
 
 def _stuck(signum: int) -> None:
-    """Say that the clean-up after ``signum`` is stuck, print every thread's stack, and exit 128 + ``signum``."""
-    for stream in (sys.stdout, sys.stderr):
-        with contextlib.suppress(Exception):
-            stream.flush()
+    """Say that the clean-up after ``signum`` is stuck, print every thread's stack, and exit 128 + ``signum``.
+    Straight to descriptor 2: the stuck thread may hold a stream's lock, and a flush here would wait for it."""
     line = (f"pyramid: the clean-up after {signal.Signals(signum).name} has not ended in {STUCK_S:g} s: stopping "
             "it now; what each thread was doing:\n")
     with contextlib.suppress(OSError):

@@ -11,6 +11,21 @@ def test_a_keyboard_interrupt_exits_130_and_says_interrupted():
     assert set(signals.HANDLED) == {"SIGINT", "SIGTERM", "SIGHUP"}
 
 
+def _slow_module(folder) -> None:
+    """``folder/slow_module.py``: a module that sends its process SIGTERM, then runs bytecodes for 0.3 s (a handler
+    that raised there would stop the import)."""
+    import textwrap
+
+    (folder / "slow_module.py").write_text(textwrap.dedent("""
+        import os, signal, time
+        os.kill(os.getpid(), signal.SIGTERM)
+        end = time.monotonic() + 0.3
+        while time.monotonic() < end:
+            pass
+        DONE = True
+    """))
+
+
 def test_a_signal_during_an_import_is_raised_once_the_import_is_done(tmp_path):
     """SIGTERM while a module body runs (an extension's init runs Python code: OpenImageIO's nanobind enums
     abort on an exception there) waits for the import to finish, then stops the run as exit 143 would."""
@@ -18,14 +33,7 @@ def test_a_signal_during_an_import_is_raised_once_the_import_is_done(tmp_path):
     import sys
     import textwrap
 
-    (tmp_path / "slow_module.py").write_text(textwrap.dedent("""
-        import os, signal, time
-        os.kill(os.getpid(), signal.SIGTERM)
-        end = time.monotonic() + 0.3
-        while time.monotonic() < end:   # bytecodes run here: a handler that raised would stop the import
-            pass
-        DONE = True
-    """))
+    _slow_module(tmp_path)
     script = textwrap.dedent("""
         import sys, time
         from pyramid_cli.core import signals
@@ -147,13 +155,7 @@ def test_a_forked_child_sends_a_signal_again_too(tmp_path):
     import sys
     import textwrap
 
-    (tmp_path / "slow_module.py").write_text(textwrap.dedent("""
-        import os, signal, time
-        os.kill(os.getpid(), signal.SIGTERM)
-        end = time.monotonic() + 0.3
-        while time.monotonic() < end:
-            pass
-    """))
+    _slow_module(tmp_path)
     script = textwrap.dedent("""
         import os, sys, time
         from pyramid_cli.core import signals
