@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor, wait
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -96,22 +96,62 @@ def _fold(index: np.ndarray, n: int, border: str) -> np.ndarray:
     return fold(index + 1, n, Border.parse(border)) - 1
 
 
+MAX_BLOCKS = 64              # a window made of more slice copies than this is gathered by one fancy index
+
+
+def _runs(index: np.ndarray) -> list[tuple[int, int, int, int]]:
+    """``index`` (folded, −1 reads zero) as runs ``(start, stop, first, step)``: ``index[start:stop]`` is
+    ``first + step·k`` with ``step`` −1, 0 or 1 (``first`` −1: zeros). A folded index is a few such runs (the
+    inside, then a clamped, mirrored or wrapped strip), each one slice of the source. A run breaks where the
+    difference of neighbours changes, leaves −1..1, or the index enters or leaves the zeros."""
+    n = len(index)
+    d = np.diff(index)
+    cut = np.zeros(n, bool)
+    cut[0] = True
+    cut[1:] = (np.abs(d) > 1) | ((index[1:] < 0) != (index[:-1] < 0))
+    cut[2:] |= d[1:] != d[:-1]
+    starts = np.flatnonzero(cut).tolist() + [n]
+    return [(a, b, int(index[a]), int(d[a]) if b - a > 1 else 0) for a, b in zip(starts, starts[1:], strict=False)]
+
+
+def _slice(first: int, step: int, length: int) -> slice:
+    """The source slice of a run (a 0-step run: its one texel, broadcast by the assignment)."""
+    if step == 0:
+        return slice(first, first + 1)
+    last = first + step * (length - 1)
+    return slice(first, last + 1) if step > 0 else slice(first, last - 1 if last > 0 else None, -1)
+
+
 @lru_cache(maxsize=256)  # a strip's index arrays are as long as its side: 256 of 4K strips are ~15 MB
 def _window_index(rows: tuple[int, int], cols: tuple[int, int], extent: tuple[int, int], border: str):
-    """The gather of :func:`_window` (``np.ix_`` of the folded indices) and the rows and columns that read zero;
-    the same few windows recur in every run of a plan, so they are computed once."""
+    """How :func:`_window` copies a window: as slice copies ``(out rows, out columns, source rows, source
+    columns)`` (None for a block that reads zero), or, when a fold bounces too often for that, one ``np.ix_``
+    gather with the rows and columns that read zero. The same few windows recur in every run of a plan, so
+    they are computed once."""
     ri = _fold(np.arange(rows[0], rows[1] + 1), extent[0], border)
     ci = _fold(np.arange(cols[0], cols[1] + 1), extent[1], border)
-    return np.ix_(np.maximum(ri, 0), np.maximum(ci, 0)), ri < 0, ci < 0
+    rr, cr = _runs(ri), _runs(ci)
+    if len(rr) * len(cr) <= MAX_BLOCKS:
+        blocks = [(slice(r0, r1), slice(c0, c1),
+                   None if rf < 0 or cf < 0 else (_slice(rf, rs, r1 - r0), _slice(cf, cs, c1 - c0)))
+                  for r0, r1, rf, rs in rr for c0, c1, cf, cs in cr]
+        return (len(ri), len(ci)), blocks, None
+    return (len(ri), len(ci)), None, (np.ix_(np.maximum(ri, 0), np.maximum(ci, 0)), ri < 0, ci < 0)
 
 
 def _window(src: np.ndarray, rows: tuple[int, int], cols: tuple[int, int], border: str) -> np.ndarray:
     """Texels ``rows[0]..rows[1]`` × ``cols[0]..cols[1]`` (inclusive, 0-based stored, possibly outside) of ``src``."""
-    index, zero_rows, zero_cols = _window_index(rows, cols, src.shape[:2], border)
-    win = src[index]
-    if border == "zero":
-        win[zero_rows] = 0
-        win[:, zero_cols] = 0
+    size, blocks, gather = _window_index(rows, cols, src.shape[:2], border)
+    if blocks is None:
+        index, zero_rows, zero_cols = gather
+        win = src[index]
+        if border == "zero":
+            win[zero_rows] = 0
+            win[:, zero_cols] = 0
+        return win
+    win = np.empty(size + src.shape[2:], src.dtype)
+    for out_rows, out_cols, read in blocks:
+        win[out_rows, out_cols] = 0 if read is None else src[read]
     return win
 
 
@@ -476,19 +516,27 @@ class CPUExecutor:
             self._window_call(kern, out, srcs, imgs, offs, (m_first, m_last + 1), cols, ps, yoff, xoff)
             return
         # the interior first: its threads take the first touch of the fresh output's pages (the kernel zeroes
-        # them on first write); a border strip first would fault every page of a column strip on one thread
-        self._call(kern, out, srcs, (i_lo, i_hi), inner, offs, yoff, xoff, parallel=True)
-        self._window_call(kern, out, srcs, imgs, offs, (m_first, i_lo), cols, ps, yoff, xoff)
-        self._window_call(kern, out, srcs, imgs, offs, (i_hi, m_last + 1), cols, ps, yoff, xoff)
+        # them on first write); a border strip first would fault every page of a column strip on one thread.
+        # The strips' windows are gathered here while the pool computes the interior, then queued behind it.
         left = [(lo, a) for (lo, _), (a, _) in zip(cols, inner, strict=True)]
         right = [(b, hi) for (_, hi), (_, b) in zip(cols, inner, strict=True)]
-        self._window_call(kern, out, srcs, imgs, offs, (i_lo, i_hi), left, ps, yoff, xoff)
-        self._window_call(kern, out, srcs, imgs, offs, (i_lo, i_hi), right, ps, yoff, xoff)
+        pending = self._call(kern, out, srcs, (i_lo, i_hi), inner, offs, yoff, xoff, parallel=True)
+        try:
+            for rows, strip in (((m_first, i_lo), cols), ((i_hi, m_last + 1), cols), ((i_lo, i_hi), left),
+                                ((i_lo, i_hi), right)):
+                pending += self._window_call(kern, out, srcs, imgs, offs, rows, strip, ps, yoff, xoff,
+                                             parallel=bool(pending))
+        finally:
+            wait(pending)  # nothing still writes ``out`` when this returns, whatever was raised
+        for f in pending:
+            f.result()
 
-    def _window_call(self, kern: Kernel, out, srcs, imgs, offs, rows: tuple[int, int], cols, ps, yoff, xoff):
-        """Groups ``rows`` × ``cols`` through windows of each source gathered with its border mode."""
+    def _window_call(self, kern: Kernel, out, srcs, imgs, offs, rows: tuple[int, int], cols, ps, yoff, xoff,
+                     parallel: bool = False) -> list[Future]:
+        """Groups ``rows`` × ``cols`` through windows of each source gathered with its border mode; on the pool
+        where ``parallel`` (its future returned), else here."""
         if rows[0] >= rows[1] or all(lo >= hi for lo, hi in cols):
-            return
+            return []
         sr, sc = ps.stride
         col_used = [(lo, hi) for lo, hi in cols if lo < hi]
         n_lo, n_hi = min(lo for lo, _ in col_used), max(hi for _, hi in col_used) - 1
@@ -498,9 +546,12 @@ class CPUExecutor:
             c0, c1 = sc * n_lo + dc0 + co, sc * n_hi + dc1 + co
             wins.append(_window(a, (r0, r1), (c0, c1), im.border))
             woffs.append((ro - r0, co - c0))
-        self._call(kern, out, wins, rows, cols, woffs, yoff, xoff, parallel=False)
+        return self._call(kern, out, wins, rows, cols, woffs, yoff, xoff, parallel=parallel, split=False)
 
-    def _call(self, kern: Kernel, out, srcs, rows, cols, offs, yoff, xoff, parallel: bool) -> None:
+    def _call(self, kern: Kernel, out, srcs, rows, cols, offs, yoff, xoff, parallel: bool,
+              split: bool = True) -> list[Future]:
+        """The kernel over output groups ``rows`` × ``cols``: here, or where ``parallel`` and the work is large
+        enough, on the pool (in bands of rows where ``split``), returning the futures for the caller to wait on."""
         half = sum(1 << k for k, a in enumerate(srcs) if a.dtype == np.uint16)  # float32 runs only
         none = _NO_FLOAT[out.dtype]
         extra = [self._half_lut() if half else _NO_FLOAT_1D[out.dtype], half, out.shape[2]]
@@ -510,16 +561,14 @@ class CPUExecutor:
         tail = [yoff, xoff] + [v for lo_hi in cols for v in lo_hi] + [v for o in offs for v in o]
         m0, m1 = rows
         floats = (m1 - m0) * kern.shape.period[0] * out.shape[1]  # out is (rows, columns·C) here
-        if not parallel or self.threads == 1 or floats < SMALL:
+        if not parallel or self.threads == 1 or (split and floats < SMALL):
             kern.fn(out, *srcs, *extra, m0, m1, *tail)
-            return
-        n = min(m1 - m0, self.threads * 2)
+            return []
+        n = min(m1 - m0, self.threads * 2) if split else 1
         bounds = [m0 + (m1 - m0) * i // n for i in range(n + 1)]
         pool = self._workers()
-        futures = [pool.submit(kern.fn, out, *srcs, *extra, a, b, *tail)
-                   for a, b in zip(bounds, bounds[1:], strict=False) if a < b]
-        for f in futures:
-            f.result()
+        return [pool.submit(kern.fn, out, *srcs, *extra, a, b, *tail)
+                for a, b in zip(bounds, bounds[1:], strict=False) if a < b]
 
     def _workers(self) -> ThreadPoolExecutor:
         if self._pool is None:

@@ -65,6 +65,48 @@ def test_threads_split_rows_without_changing_a_bit(threads):
     assert many.threads == threads
 
 
+@pytest.mark.parametrize("border", BORDERS)
+def test_a_window_is_the_folded_gather_of_its_texels(border):
+    """``_window`` copies slices of the source (each run of a folded index is one); it equals the plain gather of
+    the folded indices for every border, window and extent, a fold that bounces too often for slices included."""
+    from pyramid_cli.exec.cpu import executor
+
+    rng = np.random.default_rng(3)
+    blocks = gathers = 0
+    for extent in [(1, 1), (1, 7), (5, 1), (3, 4), (9, 13)]:
+        src = rng.standard_normal(extent + (2,)).astype(np.float32)
+        for r0 in range(-12, extent[0] + 3, 3):
+            for r1 in (r0, r0 + 1, r0 + 5, r0 + 30):
+                for c0 in range(-9, extent[1] + 3, 4):
+                    for c1 in (c0, c0 + 2, c0 + 17, c0 + 200):
+                        ri = executor._fold(np.arange(r0, r1 + 1), extent[0], border)
+                        ci = executor._fold(np.arange(c0, c1 + 1), extent[1], border)
+                        want = src[np.ix_(np.maximum(ri, 0), np.maximum(ci, 0))]
+                        want[ri < 0] = 0
+                        want[:, ci < 0] = 0
+                        np.testing.assert_array_equal(executor._window(src, (r0, r1), (c0, c1), border), want)
+                        sliced = executor._window_index((r0, r1), (c0, c1), extent, border)[1] is not None
+                        blocks += sliced
+                        gathers += not sliced
+    assert blocks > 0
+    assert (gathers > 0) == (border in ("mirror", "wrap"))  # a 200-column window over 4 to 13 columns bounces
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("border", BORDERS)
+def test_border_strips_run_beside_the_interior_on_the_pool(border):
+    """Over cpu.SMALL output floats the strips are gathered while the pool computes the interior, and run on
+    the pool too: the same bits as one thread, and the plan's numbers, at every border."""
+    size = (601, 517)
+    image = random_image(size, 4, 9)
+    with cpu.CPUExecutor(threads=1) as one, cpu.CPUExecutor(threads=2) as two:
+        for text in ["doosabin *^ (box4 *v g)", "fourpoint"]:
+            p = plan(parse(text), size, cpu.CPUExecutor.strategy, border)
+            got = two.run(p, image)
+            np.testing.assert_array_equal(got, one.run(p, image))
+            np.testing.assert_allclose(got, emulate.run(p, image), rtol=0, atol=1e-5, err_msg=f"{text} {border}")
+
+
 def test_blur_levels_collapse_and_mip(ex):
     size = (45, 70)
     image = random_image(size, 3, 12)
