@@ -10,6 +10,7 @@ waits on them stay visible as ``acquire``. Native threads (numba's workers, Open
 threads: their time shows in the Python call that waits for them.
 """
 
+import atexit
 import cProfile
 import pstats
 import runpy
@@ -27,8 +28,22 @@ def _start(frame, event, arg):  # a new thread's first profile event: give the t
     p.enable()
 
 
+def dump() -> None:
+    """Merge and write the stats, once: from atexit, since ``pyramid``'s console script ends the process right
+    after its atexit handlers (``core.signals.end``), or after a run that raised SystemExit as usual."""
+    if not profiles or profiles[0] is not main:
+        main.disable()
+        threading.setprofile(None)
+        profiles.insert(0, main)
+        stats = pstats.Stats(main)
+        for p in profiles[1:]:
+            stats.add(p)
+        stats.dump_stats(out)
+
+
 threading.setprofile(_start)
 main = cProfile.Profile()
+atexit.register(dump)
 sys.argv = [module, *sys.argv[3:]]
 code = 0
 main.enable()
@@ -37,10 +52,5 @@ try:
 except SystemExit as e:
     code = e.code
 finally:
-    main.disable()
-    threading.setprofile(None)
-stats = pstats.Stats(main)
-for p in profiles:
-    stats.add(p)
-stats.dump_stats(out)
+    dump()
 sys.exit(code)

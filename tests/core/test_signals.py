@@ -2,6 +2,8 @@
 
 import signal
 
+import pytest
+
 from pyramid_cli.core import signals
 
 
@@ -172,3 +174,48 @@ def test_a_forked_child_sends_a_signal_again_too(tmp_path):
     """)
     r = subprocess.run([sys.executable, "-c", script], cwd=tmp_path, capture_output=True, text=True, timeout=60)
     assert (r.returncode, r.stdout.strip()) == (0, "0"), r.stderr
+
+
+@pytest.mark.parametrize("status", [0, 3])
+def test_a_finished_run_ends_after_its_threads_and_atexit_handlers_without_the_teardown(status):
+    """``end`` after a run: the threads that are not daemons are joined and the atexit handlers run (in that
+    order, as Python's exit does), buffered output reaches a pipe, the status is the run's; the interpreter's
+    teardown (here a finaliser of a module global, which a plain exit runs) is skipped."""
+    import subprocess
+    import sys
+    import textwrap
+
+    script = textwrap.dedent("""
+        import atexit, sys, threading, time
+        from pyramid_cli.cli import group
+
+        class Global:
+            def __del__(self):
+                sys.stderr.write("teardown\\n")
+
+        kept = Global()
+        atexit.register(lambda: print("atexit", flush=False))
+
+        def late():
+            time.sleep(0.5)
+            print("thread", flush=False)
+
+        STATUS = int(sys.argv[2])
+
+        @group.main.command("finish")
+        def finish():
+            threading.Thread(target=late).start()
+            print("x" * 100000, flush=False)  # more than a pipe's buffer: flushed on the way out
+            sys.exit(STATUS)
+
+        sys.argv = ["pyramid", "finish"]
+        group.run()
+    """)
+    ended = subprocess.run([sys.executable, "-c", script, "finish", str(status)], capture_output=True, text=True,
+                           timeout=60)
+    assert ended.returncode == status, ended.stderr
+    assert ended.stdout.splitlines() == ["x" * 100000, "thread", "atexit"]
+    assert "teardown" not in ended.stderr
+    plain = subprocess.run([sys.executable, "-c", script.replace("group.run()", "group.main()"), "finish",
+                            str(status)], capture_output=True, text=True, timeout=60)
+    assert plain.returncode == status and "teardown" in plain.stderr  # the finaliser runs at a plain exit
