@@ -155,6 +155,12 @@ def _window(src: np.ndarray, rows: tuple[int, int], cols: tuple[int, int], borde
     return win
 
 
+def _calls(fn: Callable[..., None], calls: list[list]) -> None:
+    """``fn`` on each argument list in turn (the border strips of a pass, one task on the pool)."""
+    for args in calls:
+        fn(*args)
+
+
 _TABLES: dict[int, tuple[np.ndarray, np.ndarray]] = {}
 
 
@@ -515,28 +521,38 @@ class CPUExecutor:
         if i_lo >= i_hi or c_lo >= c_hi or out.size <= TINY:  # one window: fewer calls beat fewer copies
             self._window_call(kern, out, srcs, imgs, offs, (m_first, m_last + 1), cols, ps, yoff, xoff)
             return
-        # the interior first: its threads take the first touch of the fresh output's pages (the kernel zeroes
-        # them on first write); a border strip first would fault every page of a column strip on one thread.
-        # The strips' windows are gathered here while the pool computes the interior, then queued behind it.
+        # the interior first, on the pool: its threads take the first touch of the fresh output's pages (the
+        # kernel zeroes them on first write); a border strip first would fault every page of a column strip on one
+        # thread. The strips' windows are gathered here meanwhile, and the strips computed in one more task behind
+        # the interior's: computed here, they took a core from the interior (a warm 4K blur lost its gain); as a
+        # task each, they cost more in hand-overs than they saved (a 16K Deep Zoom's 32-row bands: 0.3 CPU-s).
         left = [(lo, a) for (lo, _), (a, _) in zip(cols, inner, strict=True)]
         right = [(b, hi) for (_, hi), (_, b) in zip(cols, inner, strict=True)]
         pending = self._call(kern, out, srcs, (i_lo, i_hi), inner, offs, yoff, xoff, parallel=True)
         try:
-            for rows, strip in (((m_first, i_lo), cols), ((i_hi, m_last + 1), cols), ((i_lo, i_hi), left),
-                                ((i_lo, i_hi), right)):
-                pending += self._window_call(kern, out, srcs, imgs, offs, rows, strip, ps, yoff, xoff,
-                                             parallel=bool(pending))
+            strips = [self._window_args(kern, out, srcs, imgs, offs, rows, strip, ps, yoff, xoff)
+                      for rows, strip in (((m_first, i_lo), cols), ((i_hi, m_last + 1), cols), ((i_lo, i_hi), left),
+                                          ((i_lo, i_hi), right))]
+            strips = [a for a in strips if a is not None]
+            if pending:
+                pending.append(self._workers().submit(_calls, kern.fn, strips))
+            else:
+                _calls(kern.fn, strips)
         finally:
             wait(pending)  # nothing still writes ``out`` when this returns, whatever was raised
         for f in pending:
             f.result()
 
-    def _window_call(self, kern: Kernel, out, srcs, imgs, offs, rows: tuple[int, int], cols, ps, yoff, xoff,
-                     parallel: bool = False) -> list[Future]:
-        """Groups ``rows`` × ``cols`` through windows of each source gathered with its border mode; on the pool
-        where ``parallel`` (its future returned), else here."""
+    def _window_call(self, kern: Kernel, out, srcs, imgs, offs, rows: tuple[int, int], cols, ps, yoff, xoff):
+        """Groups ``rows`` × ``cols`` through windows of each source gathered with its border mode."""
+        args = self._window_args(kern, out, srcs, imgs, offs, rows, cols, ps, yoff, xoff)
+        if args is not None:
+            kern.fn(*args)
+
+    def _window_args(self, kern: Kernel, out, srcs, imgs, offs, rows: tuple[int, int], cols, ps, yoff, xoff):
+        """The kernel's arguments for :meth:`_window_call` (the windows gathered), or None for no groups."""
         if rows[0] >= rows[1] or all(lo >= hi for lo, hi in cols):
-            return []
+            return None
         sr, sc = ps.stride
         col_used = [(lo, hi) for lo, hi in cols if lo < hi]
         n_lo, n_hi = min(lo for lo, _ in col_used), max(hi for _, hi in col_used) - 1
@@ -546,12 +562,11 @@ class CPUExecutor:
             c0, c1 = sc * n_lo + dc0 + co, sc * n_hi + dc1 + co
             wins.append(_window(a, (r0, r1), (c0, c1), im.border))
             woffs.append((ro - r0, co - c0))
-        return self._call(kern, out, wins, rows, cols, woffs, yoff, xoff, parallel=parallel, split=False)
+        head, tail = self._args(out, wins, cols, woffs, yoff, xoff)
+        return [*head, rows[0], rows[1], *tail]
 
-    def _call(self, kern: Kernel, out, srcs, rows, cols, offs, yoff, xoff, parallel: bool,
-              split: bool = True) -> list[Future]:
-        """The kernel over output groups ``rows`` × ``cols``: here, or where ``parallel`` and the work is large
-        enough, on the pool (in bands of rows where ``split``), returning the futures for the caller to wait on."""
+    def _args(self, out, srcs, cols, offs, yoff, xoff) -> tuple[list, list]:
+        """A kernel's arguments (see :func:`kernel_source`) before and after the output groups ``m0, m1``."""
         half = sum(1 << k for k, a in enumerate(srcs) if a.dtype == np.uint16)  # float32 runs only
         none = _NO_FLOAT[out.dtype]
         extra = [self._half_lut() if half else _NO_FLOAT_1D[out.dtype], half, out.shape[2]]
@@ -559,16 +574,21 @@ class CPUExecutor:
         flat = [a.reshape(a.shape[0], -1) for a in srcs]
         srcs = [v for a in flat for v in ((none, a) if a.dtype == np.uint16 else (a, _NO_U16))]
         tail = [yoff, xoff] + [v for lo_hi in cols for v in lo_hi] + [v for o in offs for v in o]
+        return [out, *srcs, *extra], tail
+
+    def _call(self, kern: Kernel, out, srcs, rows, cols, offs, yoff, xoff, parallel: bool) -> list[Future]:
+        """The kernel over output groups ``rows`` × ``cols``: here, or where ``parallel`` and the work is large
+        enough, in bands of rows on the pool, returning their futures for the caller to wait on."""
+        head, tail = self._args(out, srcs, cols, offs, yoff, xoff)
         m0, m1 = rows
-        floats = (m1 - m0) * kern.shape.period[0] * out.shape[1]  # out is (rows, columns·C) here
-        if not parallel or self.threads == 1 or (split and floats < SMALL):
-            kern.fn(out, *srcs, *extra, m0, m1, *tail)
+        floats = (m1 - m0) * kern.shape.period[0] * head[0].shape[1]  # head[0]: out as (rows, columns·C)
+        if not parallel or self.threads == 1 or floats < SMALL:
+            kern.fn(*head, m0, m1, *tail)
             return []
-        n = min(m1 - m0, self.threads * 2) if split else 1
+        n = min(m1 - m0, self.threads * 2)
         bounds = [m0 + (m1 - m0) * i // n for i in range(n + 1)]
         pool = self._workers()
-        return [pool.submit(kern.fn, out, *srcs, *extra, a, b, *tail)
-                for a, b in zip(bounds, bounds[1:], strict=False) if a < b]
+        return [pool.submit(kern.fn, *head, a, b, *tail) for a, b in zip(bounds, bounds[1:], strict=False) if a < b]
 
     def _workers(self) -> ThreadPoolExecutor:
         if self._pool is None:

@@ -94,9 +94,9 @@ def test_a_window_is_the_folded_gather_of_its_texels(border):
 
 @pytest.mark.slow
 @pytest.mark.parametrize("border", BORDERS)
-def test_border_strips_run_beside_the_interior_on_the_pool(border):
-    """Over cpu.SMALL output floats the strips are gathered while the pool computes the interior, and run on
-    the pool too: the same bits as one thread, and the plan's numbers, at every border."""
+def test_border_strips_run_beside_the_interior(border):
+    """Over cpu.SMALL output floats the strips are gathered while the pool computes the interior, then computed
+    in one task behind it: the same bits as one thread, and the plan's numbers, at every border."""
     size = (601, 517)
     image = random_image(size, 4, 9)
     with cpu.CPUExecutor(threads=1) as one, cpu.CPUExecutor(threads=2) as two:
