@@ -64,6 +64,34 @@ ENCODE_IN_MEMORY = frozenset({"jpeg"})
 # blurred picture 1.00 -> 0.75 s); libvips writes with no filter (a third of the time, files 1.7x larger).
 PNG_FILTERS = 0x08 | 0x10 | 0x20
 
+PNG_TAIL = 4096   # bytes at a PNG's end searched for its IEND chunk before its chunks are walked
+
+
+def png_ends(path: str | os.PathLike[str]) -> bool:
+    """Whether the PNG file ``path`` holds its closing IEND chunk, i.e. was not cut short.
+
+    libpng reports a PNG that ends early on standard error itself ("libpng error: IDAT: Read error …"),
+    from OpenImageIO's reader, before the read fails; a reader that checks first says it in one line. IEND is
+    the last chunk: it is searched for in the file's last :data:`PNG_TAIL` bytes, and only where it is not there
+    (a file cut short, or one with more than that after its IEND) are the chunks walked from the start
+    (a length and a type each, then the data and a CRC skipped). An IEND without its CRC, or a file too short
+    for all that, says False."""
+    with open(path, "rb") as f:
+        size = f.seek(0, os.SEEK_END)
+        f.seek(max(0, size - PNG_TAIL))
+        tail = f.read()
+        if 0 <= tail.rfind(b"IEND") <= len(tail) - 8:  # the type, then its CRC
+            return True
+        at = 8  # the signature
+        while at + 12 <= size:
+            f.seek(at)
+            head = f.read(8)
+            if head[4:] == b"IEND":
+                return True
+            at += 12 + int.from_bytes(head[:4], "big")
+        return False
+
+
 # Formats that can be tiled: a tiled input is written back tiled.
 TILED_FORMATS = ("openexr", "tiff")
 

@@ -22,6 +22,7 @@ import numpy as np
 import OpenImageIO as oiio
 
 from pyramid_cli.core.errors import InputError
+from pyramid_cli.imageio.formats import png_ends
 from pyramid_cli.imageio.write import write_spec
 
 __all__ = ["RawLevel", "count_levels", "image_extensions", "read_level", "write_display_png", "write_float"]
@@ -66,6 +67,9 @@ def _open(path: str) -> oiio.ImageInput:
         raise InputError(f"cannot read {path}: {_one_line(str(exc), 'open failed')}") from None
     if inp is None:
         raise InputError(f"cannot read {path}: {_one_line(oiio.geterror(), 'not an image OpenImageIO can read')}")
+    if inp.format_name() == "png" and not png_ends(path):
+        inp.close()
+        raise InputError(f"cannot read {path}: the PNG ends before its last chunk (IEND): truncated file?")
     return inp
 
 

@@ -40,3 +40,22 @@ def test_check_choice_and_one_line():
     assert formats.one_line("\n  first\nsecond\n", "none") == "first"
     assert formats.one_line(" \n", "none") == "none"
     assert formats.oiio_version() == oiio.__version__
+
+
+def test_a_png_ends_with_its_iend_chunk_or_was_cut_short(tmp_path):
+    """``png_ends``: a whole PNG ends; one cut anywhere after its signature does not; one with more than
+    PNG_TAIL bytes after its IEND still ends (its chunks are walked)."""
+    import numpy as np
+
+    path = tmp_path / "a.png"
+    pixels = np.random.default_rng(0).integers(0, 256, (300, 400, 3), dtype=np.uint8)
+    out = oiio.ImageOutput.create(str(path))
+    assert out.open(str(path), oiio.ImageSpec(400, 300, 3, "uint8")) and out.write_image(pixels) and out.close()
+    whole = path.read_bytes()
+    assert len(whole) > 4 * formats.PNG_TAIL  # several IDAT chunks, so the cuts below fall inside them
+    assert formats.png_ends(path)
+    for cut in (9, 40, len(whole) // 3, len(whole) - 13, len(whole) - 1):
+        path.write_bytes(whole[:cut])
+        assert not formats.png_ends(path), cut
+    path.write_bytes(whole + b"\0" * (2 * formats.PNG_TAIL))
+    assert formats.png_ends(path)

@@ -62,6 +62,23 @@ def test_unreadable_inputs_exit_3_with_one_line(files, tmp_path, cmd, name, why)
     assert not any(p.name.startswith("out") for p in tmp_path.iterdir())
 
 
+@pytest.mark.parametrize("args, code", [(["blur", "--levels", "2", "IN", "OUT.png"], 3),
+                                        (["diff", "IN", "IN"], 4)], ids=["blur", "diff"])
+def test_a_png_cut_short_is_one_line_on_the_real_standard_error(tmp_path, args, code):
+    """libpng prints its own line to descriptor 2 when it reads a PNG that ends early; the file is refused
+    before it is decoded, so the run's standard error (a fresh process's, not click's capture) is one line."""
+    from helpers.cli import CLI
+
+    png = tmp_path / "cut.png"
+    write(png, (np.random.default_rng(3).random((256, 256, 3)) * 255).astype(np.uint8), "uint8")
+    png.write_bytes(png.read_bytes()[:-2000])
+    argv = [a.replace("IN", str(png)).replace("OUT", str(tmp_path / "out")) for a in args]
+    r = subprocess.run(CLI + argv, capture_output=True, text=True, timeout=120)
+    assert r.returncode == code, r.stderr
+    assert r.stderr.splitlines() == [r.stderr.strip()] and "cut.png" in r.stderr and "IEND" in r.stderr, r.stderr
+    assert not (tmp_path / "out.png").exists()
+
+
 @pytest.mark.parametrize("cmd", ["apply", "blur", "levels", "mipmap"])
 def test_nan_fail_exits_5_and_names_the_pixel(files, tmp_path, cmd):
     r = run(cmd, files / "nan.exr", tmp_path, "--nan", "fail")
