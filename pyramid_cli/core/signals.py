@@ -292,7 +292,7 @@ def end(code: object) -> None:
         try:
             shutdown()   # what Python's exit does first: join the threads that are not daemons
             exitfuncs()
-        except KeyboardInterrupt as e:  # a signal while finishing: its status, the run's files being written
+        except KeyboardInterrupt as e:  # a signal while finishing (every file already written): its status
             status = exit_code(e)
     for stream in (sys.stdout, sys.stderr):
         try:

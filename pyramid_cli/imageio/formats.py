@@ -13,7 +13,7 @@ from collections.abc import Iterable
 import OpenImageIO as oiio
 
 from pyramid_cli.core import options
-from pyramid_cli.core.errors import UsageError
+from pyramid_cli.core.errors import InputError, UsageError
 
 PIXEL_TYPES = options.PIXEL_TYPES
 ALPHA_MODES = options.STORED_ALPHA
@@ -90,6 +90,14 @@ def png_ends(path: str | os.PathLike[str]) -> bool:
                 return True
             at += 12 + int.from_bytes(head[:4], "big")
         return False
+
+
+def cut_png(fmt: str, path: str | os.PathLike[str], shown: str) -> InputError | None:
+    """The error that refuses an input of format ``fmt`` at ``path`` (named ``shown``) when it is a PNG that was
+    cut short (:func:`png_ends`), before anything decodes it; else None."""
+    if fmt != "png" or png_ends(path):
+        return None
+    return InputError(f"cannot read {shown}: the PNG ends before its last chunk (IEND): truncated file?")
 
 
 # Formats that can be tiled: a tiled input is written back tiled.

@@ -22,7 +22,7 @@ import numpy as np
 import OpenImageIO as oiio
 
 from pyramid_cli.core.errors import InputError
-from pyramid_cli.imageio.formats import png_ends
+from pyramid_cli.imageio.formats import cut_png
 from pyramid_cli.imageio.write import write_spec
 
 __all__ = ["RawLevel", "count_levels", "image_extensions", "read_level", "write_display_png", "write_float"]
@@ -67,9 +67,10 @@ def _open(path: str) -> oiio.ImageInput:
         raise InputError(f"cannot read {path}: {_one_line(str(exc), 'open failed')}") from None
     if inp is None:
         raise InputError(f"cannot read {path}: {_one_line(oiio.geterror(), 'not an image OpenImageIO can read')}")
-    if inp.format_name() == "png" and not png_ends(path):
+    cut = cut_png(str(inp.format_name()), path, path)
+    if cut is not None:
         inp.close()
-        raise InputError(f"cannot read {path}: the PNG ends before its last chunk (IEND): truncated file?")
+        raise cut
     return inp
 
 

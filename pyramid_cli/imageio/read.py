@@ -30,9 +30,9 @@ from pyramid_cli.imageio.colour import (
 from pyramid_cli.imageio.formats import (
     ALPHA_MODES,
     check_choice,
+    cut_png,
     one_line,
     pixel_type_name,
-    png_ends,
 )
 from pyramid_cli.imageio.image import ALPHA_NAMES, Image, ImageInfo, default_channel_names
 from pyramid_cli.imageio.ocio import check_names, convert, input_space, kind, working_space
@@ -412,8 +412,9 @@ def open_input(name: str, subimage: int | None, p: str):
             raise InputError(f"cannot read {p}: it has no part {subimage}")
         spec = inp.spec()
         fmt = str(inp.format_name())
-        if fmt == "png" and not png_ends(name):
-            raise InputError(f"cannot read {p}: the PNG ends before its last chunk (IEND): truncated file?")
+        cut = cut_png(fmt, name, p)
+        if cut is not None:
+            raise cut
         if spec.deep:
             raise InputError(f"cannot read {p}: deep images are not supported")
         if spec.width <= 0 or spec.height <= 0 or spec.nchannels <= 0:
