@@ -22,6 +22,11 @@ import pytest
 
 from pyramid_cli.core.errors import BackendError
 
+# No ahead-of-time kernel builders behind the tests' runs (a process each, seconds of compiling, after every run
+# that loads a new kernel through numba), and none of a machine's built modules in their way: the tests of
+# pyramid_cli.exec.cpu.aot turn them on where they test them (tests/exec/cpu/test_aot.py).
+os.environ["PYRAMID_AOT"] = "0"
+
 
 @pytest.fixture(scope="session")
 def gl_executor():

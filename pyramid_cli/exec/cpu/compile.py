@@ -20,6 +20,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from pyramid_cli.core import cache, signals
+from pyramid_cli.core.errors import BackendError
+from pyramid_cli.exec.cpu import aot
 
 if TYPE_CHECKING:
     from numba.core.dispatcher import Dispatcher
@@ -29,13 +31,26 @@ CACHE_ENV = "PYRAMID_CACHE_DIR"
 
 
 def available() -> tuple[bool, str]:
-    """Can the CPU executor run here? ``(True, "numba X.Y")`` or ``(False, reason with the fix)``."""
+    """Can the CPU executor run here? ``(True, "numba X.Y")`` or ``(False, reason with the fix)`` (imports numba)."""
     try:
         import numba
     except Exception as e:  # noqa: BLE001 - ImportError, or a broken llvmlite
-        reason = " ".join(str(e).split()) or type(e).__name__
-        return False, f"numba cannot be imported ({reason}); {INSTALL_HINT}"
+        return False, _not_imported(e)
     return True, f"numba {numba.__version__}"
+
+
+def installed() -> tuple[bool, str]:
+    """:func:`available` without importing numba (found on the path, or imported already): ahead-of-time kernels
+    (:mod:`pyramid_cli.exec.cpu.aot`) run without it, and a numba that fails to import is reported where a kernel
+    first needs it (:func:`load`)."""
+    if "numba" in sys.modules or importlib.util.find_spec("numba") is not None:
+        return True, "numba"
+    return False, f"numba is not installed; {INSTALL_HINT}"
+
+
+def _not_imported(e: BaseException) -> str:
+    reason = " ".join(str(e).split()) or type(e).__name__
+    return f"numba cannot be imported ({reason}); {INSTALL_HINT}"
 
 
 def cache_dir() -> Path:
@@ -51,7 +66,8 @@ def cache_dir() -> Path:
 
 
 _LOCK = threading.Lock()
-_MODULES: dict[str, Dispatcher] = {}   # file digest → compiled dispatcher, shared by executors of a process
+_MODULES: dict[str, Dispatcher | Callable[..., None]] = {}   # file digest → its kernel, shared by executors
+_SOURCES: dict[str, str] = {}   # file digest → source path, of the kernels loaded as numba dispatchers
 BLAS_PROBE = "scipy.linalg.cython_blas"
 
 
@@ -106,7 +122,8 @@ def _skip_blas_probe() -> None:
             del sys.modules[BLAS_PROBE]
 
 
-def _write_source(folder: Path, digest: str, source: str) -> Path:
+def write_source(folder: Path, digest: str, source: str) -> Path:
+    """``source`` as ``k_<digest>.py`` in ``folder``, written once, atomically; its path."""
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / f"k_{digest}.py"
     if not path.exists() or path.read_text(encoding="utf-8") != source:
@@ -124,26 +141,45 @@ def fallback_cache() -> Path:
     return Path(tempfile.gettempdir()) / f"bilinear-pyramid-cpu-{uid}"
 
 
-def load(source: str, folder: Path) -> Dispatcher:
-    """The ``kernel`` of ``source``, written once to ``folder`` (atomically) and imported from there."""
+def load(source: str, folder: Path) -> Dispatcher | Callable[..., None]:
+    """The ``kernel`` of ``source``: its ahead-of-time module where one is built for this machine
+    (:func:`pyramid_cli.exec.cpu.aot.load`: numba is not imported), else the source written once to ``folder``
+    (atomically) and imported from there as a numba dispatcher (:func:`jit_kernels` lists those). A numba that
+    cannot be imported is a BackendError naming the fix."""
     digest = source_digest(source)
     with _LOCK:
         hit = _MODULES.get(digest)
         if hit is not None:
             return hit
+        fn = aot.load(folder, digest)
+        if fn is not None:
+            _MODULES[digest] = fn
+            return fn
         try:
-            path = _write_source(folder, digest, source)
+            path = write_source(folder, digest, source)
         except OSError:  # a read-only or broken cache folder: compile from a private one
-            path = _write_source(fallback_cache(), digest, source)
+            path = write_source(fallback_cache(), digest, source)
         name = f"_pyramid_cpu_k_{digest}"
         spec = importlib.util.spec_from_file_location(name, path)
         if spec is None or spec.loader is None:
             raise ImportError(f"cannot import the kernel source {path}", path=str(path))
         module = importlib.util.module_from_spec(spec)
+        try:
+            import numba  # noqa: F401 - the kernel's own import, reported here as the others are
+        except Exception as e:  # noqa: BLE001 - ImportError, or a broken llvmlite
+            raise BackendError(_not_imported(e)) from None
         sys.modules[name] = module
         spec.loader.exec_module(module)
         _MODULES[digest] = module.kernel
+        _SOURCES[digest] = str(path)
         return module.kernel
+
+
+def jit_kernels() -> dict[str, str]:
+    """The kernels this process runs through numba: digest → the path of its source (what
+    :func:`pyramid_cli.exec.cpu.aot.spawn` builds ahead of time for the next process)."""
+    with _LOCK:
+        return dict(_SOURCES)
 
 
 def source_digest(source: str) -> str:
@@ -154,7 +190,7 @@ def source_digest(source: str) -> str:
 def loaded(digest: str) -> bool:
     """Whether this process has compiled (or loaded) the kernel of ``digest`` already."""
     fn = _MODULES.get(digest)
-    return fn is not None and bool(fn.signatures)
+    return fn is not None and bool(getattr(fn, "signatures", True))  # an ahead-of-time kernel is always compiled
 
 
 def on_disk(folder: Path, digest: str) -> bool:
@@ -169,6 +205,8 @@ def ensure_compiled(fn, sig: str, compile_: Callable[[object, str], None] = comp
     A signal waits for the compile to end (:func:`signals.deferred`): raised inside numba's
     compiler it would leave it broken, and its clean-up would print tracebacks.
     """
+    if not hasattr(fn, "signatures"):  # an ahead-of-time kernel: machine code already
+        return None
     with _LOCK, signals.deferred():
         if fn.signatures:
             return None
@@ -219,4 +257,5 @@ def light_cache_load(fn) -> Iterator[None]:
 
 
 __all__ = ["BLAS_PROBE", "CACHE_ENV", "INSTALL_HINT", "available", "cache_dir", "compile_plain", "compile_vectorised",
-           "ensure_compiled", "fallback_cache", "light_cache_load", "load", "loaded", "on_disk", "source_digest"]
+           "ensure_compiled", "fallback_cache", "installed", "jit_kernels", "light_cache_load", "load", "loaded",
+           "on_disk", "source_digest", "write_source"]

@@ -30,6 +30,7 @@ compiled or loaded only when a float64 run first needs them: a float32 run loads
 from __future__ import annotations
 
 import os
+import sys
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor, wait
 from dataclasses import dataclass
@@ -40,6 +41,7 @@ import numpy as np
 
 from pyramid_cli.core.border import Border, fold
 from pyramid_cli.core.errors import BackendError
+from pyramid_cli.exec.cpu import aot
 from pyramid_cli.exec.cpu.codegen import (
     POINTWISE_CODES,
     kernel_source,
@@ -51,15 +53,17 @@ from pyramid_cli.exec.cpu.codegen import (
     signature,
 )
 from pyramid_cli.exec.cpu.compile import (
-    available,
     cache_dir,
     compile_plain,
     compile_vectorised,
     ensure_compiled,
+    installed,
+    jit_kernels,
     load,
     loaded,
     on_disk,
     source_digest,
+    write_source,
 )
 from pyramid_cli.exec.emulate import plan_inputs, resample_table
 from pyramid_cli.plan.model import Pass, Plan, PointwisePass, ResamplePass
@@ -217,7 +221,7 @@ class CPUExecutor:
         return 0
 
     def __init__(self, threads: int | None = None, cache: str | Path | None = None):
-        ok, why = available()
+        ok, why = installed()
         if not ok:
             raise BackendError(why)
         self.threads = max(1, int(threads)) if threads else default_threads()
@@ -229,13 +233,19 @@ class CPUExecutor:
         self._pool: ThreadPoolExecutor | None = None
         self._lut: np.ndarray | None = None
         self._table: np.ndarray | None = None  # a run's table of codes (run_outputs' ``codes``), 65536 entries
+        self._jit: dict[str, str] = {}  # digest → numba signature of the kernels run through numba (not ahead of time)
 
     # ------------------------------------------------------------ lifetime
     def close(self) -> None:
-        """Stop the worker threads (the executor can be used again afterwards)."""
+        """Stop the worker threads (the executor can be used again afterwards), and have the kernels that ran
+        through numba built ahead of time for the next process (:func:`pyramid_cli.exec.cpu.aot.spawn`)."""
         if self._pool is not None:
             self._pool.shutdown(wait=True)
         self._pool = None
+        if self._jit:
+            sources = jit_kernels()
+            aot.spawn(self.cache, [(d, sources[d], sig) for d, sig in self._jit.items() if d in sources])
+            self._jit.clear()
 
     def __enter__(self) -> CPUExecutor:
         return self
@@ -246,9 +256,7 @@ class CPUExecutor:
     @property
     def name(self) -> str:
         """What runs the plans, for messages: ``cpu (numba …, N threads)``."""
-        import numba
-
-        return f"cpu (numba {numba.__version__}, {self.threads} thread(s))"
+        return f"cpu (numba {numba_version()}, {self.threads} thread(s))"
 
     def kernel_digests(self, plan: Plan, dtype=np.float32) -> set[str]:
         """The distinct compiled kernels ``plan`` runs on, by the digest of their source: what a first run in a
@@ -262,16 +270,15 @@ class CPUExecutor:
         return digests
 
     def uncached(self, plan: Plan, dtype=np.float32) -> int:
-        """How many of ``plan``'s kernels are neither loaded in this process nor compiled on disk yet
-        (what a first run on a machine compiles: about a second each). ``dtype``: float64 counts the
+        """How many of ``plan``'s kernels are neither loaded in this process nor compiled on disk yet (numba's cache or
+        ahead of time: what a first run on a machine compiles, about a second each). ``dtype``: float64 counts the
         float64 kernels of a float64 run; float32 and float16 (the inputs' storage) the float32 ones."""
-        return sum(1 for d in self.kernel_digests(plan, dtype) if not loaded(d) and not on_disk(self.cache, d))
+        return sum(1 for d in self.kernel_digests(plan, dtype)
+                   if not loaded(d) and not on_disk(self.cache, d) and not aot.ready(self.cache, d))
 
     def info(self) -> dict:
         """What runs the plans: numba's version, threads and the cache folder."""
-        import numba
-
-        return {"renderer": f"numba {numba.__version__} ({self.threads} thread(s))", "threads": self.threads,
+        return {"renderer": f"numba {numba_version()} ({self.threads} thread(s))", "threads": self.threads,
                 "cache": str(self.cache)}
 
     # ------------------------------------------------------------ kernels
@@ -291,8 +298,11 @@ class CPUExecutor:
         self._by_pass[(id(ps), t)] = (ps, k)  # the pass is held, so its id is not reused while the entry lives
         return k
 
-    def _ready(self, fn, sig: str, compile_=compile_plain) -> None:
-        """Compile ``fn`` for ``sig`` once (or load it from the disk cache), counting which it was."""
+    def _ready(self, fn, sig: str, digest: str, compile_=compile_plain) -> None:
+        """Compile ``fn`` for ``sig`` once (or load it from the disk cache), counting which it was; a kernel run
+        through numba is noted for its ahead-of-time build (:meth:`close`)."""
+        if hasattr(fn, "signatures"):
+            self._jit[digest] = sig
         done = ensure_compiled(fn, sig, compile_)
         if done == "loaded":
             self.cache_loads += 1
@@ -302,7 +312,7 @@ class CPUExecutor:
     def _build(self, s: PassShape, t: str = "float32") -> Kernel:
         source = _pass_source(s, t)
         fn = load(source, self.cache)
-        self._ready(fn, signature(s.n_sources, s.period[1], t), compile_vectorised)
+        self._ready(fn, signature(s.n_sources, s.period[1], t), source_digest(source), compile_vectorised)
         terms = {ph: phase_terms(taps) for ph, taps in s.phases}
         extents = []
         for k in range(s.n_sources):
@@ -334,7 +344,7 @@ class CPUExecutor:
         k = self._kernels.get(key)
         if k is None:
             fn = load(resample_source(key[1]), self.cache)
-            self._ready(fn, resample_signature(key[1]))
+            self._ready(fn, resample_signature(key[1]), _shared_digest("resample", key[1]))
             k = self._kernels[key] = fn
         return k
 
@@ -471,7 +481,7 @@ class CPUExecutor:
         fn = self._kernels.get(key)
         if fn is None:
             fn = load(pointwise_source(key[1]), self.cache)
-            self._ready(fn, pointwise_signature(key[1]))
+            self._ready(fn, pointwise_signature(key[1]), _shared_digest("pointwise", key[1]))
             self._kernels[key] = fn
         return fn
 
@@ -611,6 +621,48 @@ _NO_U16 = np.zeros((1, 1), np.uint16)
 _NO_FLOAT_1D = {np.dtype(t): np.zeros(1, t) for t in ("float32", "float64")}
 
 
+def build_ahead(plan: Plan, cache: str | Path | None = None) -> bool:
+    """Have the float32 kernels of ``plan`` (float16 inputs run on them too) built ahead of time for later processes
+    where they are not yet (:func:`pyramid_cli.exec.cpu.aot.spawn`), without importing numba here: ``auto`` ran
+    this job on GL, partly because the CPU executor would first have imported numba; next time it weighs the
+    CPU executor without that. Returns whether a builder was started."""
+    folder = Path(cache) if cache is not None else cache_dir()
+    if aot.folder(folder) is None:
+        return False
+    kernels: dict[str, tuple[str, str]] = {}
+    for ps in plan.passes:
+        if isinstance(ps, ResamplePass):
+            source, sig = resample_source(), resample_signature()
+        elif isinstance(ps, PointwisePass):
+            source, sig = pointwise_source(), pointwise_signature()
+        else:
+            s = shape(ps)
+            source, sig = _pass_source(s, "float32"), signature(s.n_sources, s.period[1])
+        digest = source_digest(source)
+        if digest not in kernels and not aot.ready(folder, digest):
+            kernels[digest] = (source, sig)
+    try:
+        todo = [(d, str(write_source(folder, d, src)), sig) for d, (src, sig) in kernels.items()]
+    except OSError:
+        return False
+    return aot.spawn(folder, todo)
+
+
+@lru_cache(maxsize=1)
+def numba_version() -> str:
+    """numba's version, from its installed metadata where it is not imported (ahead-of-time kernels run without
+    it)."""
+    mod = sys.modules.get("numba")
+    if mod is not None:
+        return mod.__version__
+    from importlib import metadata
+
+    try:
+        return metadata.version("numba")
+    except metadata.PackageNotFoundError:
+        return "?"
+
+
 def _work(dtype) -> str:
     """The kernels' working type of a run or a storage ``dtype``: float64 for float64, else float32 (float16
     sources run on the float32 kernels)."""
@@ -642,4 +694,5 @@ def kernel_digest(ps: Pass | ResamplePass | PointwisePass, dtype=np.float32) -> 
     return source_digest(_pass_source(shape(ps), t))
 
 
-__all__ = ["CPUExecutor", "Kernel", "OUT_DTYPES", "SMALL", "TINY", "default_threads", "kernel_digest"]
+__all__ = ["CPUExecutor", "Kernel", "OUT_DTYPES", "SMALL", "TINY", "build_ahead", "default_threads", "kernel_digest",
+           "numba_version"]

@@ -37,8 +37,20 @@ def test_cache_dir_follows_the_conventions(monkeypatch, tmp_path):
     assert cpu.cache_dir() == tmp_path / "home" / ".cache" / "bilinear-pyramid" / "cpu"
 
 
-def test_without_numba_is_a_backend_error_naming_the_fix(monkeypatch):
+def test_without_numba_is_a_backend_error_naming_the_fix(monkeypatch, tmp_path):
     import builtins
+    import importlib.util
+
+    from pyramid_cli.exec.cpu import compile as cpu_compile
+
+    real_find = importlib.util.find_spec
+    monkeypatch.delitem(sys.modules, "numba", raising=False)  # put back by undo() below, before numba is used
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "numba" else real_find(name, *a))
+    ok, why = cpu_compile.installed()
+    assert not ok and "numba is not installed" in why and "pip install numba" in why
+    with pytest.raises(BackendError, match="pip install numba"):
+        cpu.CPUExecutor()
+    monkeypatch.undo()
 
     real = builtins.__import__
 
@@ -50,8 +62,18 @@ def test_without_numba_is_a_backend_error_naming_the_fix(monkeypatch):
     monkeypatch.setattr(builtins, "__import__", no_numba)
     ok, why = cpu.available()
     assert not ok and "pip install numba" in why and "\n" not in why
-    with pytest.raises(BackendError, match="pip install numba"):
-        cpu.CPUExecutor()
+    # installed but not importable: said where a kernel first needs numba (a source no process has loaded)
+    source = pyramids_source_nobody_loaded()
+    with pytest.raises(BackendError, match=r"numba cannot be imported \(No module named 'numba'\); install numba"):
+        cpu_compile.load(source, tmp_path)
+
+
+def pyramids_source_nobody_loaded() -> str:
+    """A kernel text of its own (a comment makes its digest new), so no process has it loaded."""
+    import uuid
+
+    plan = pyramids.blur_plan((9, 7), 1)
+    return cpu.kernel_source(generate.shape(plan.passes[0])) + f"# {uuid.uuid4()}\n"
 
 
 def test_importing_the_planner_does_not_import_numba():
