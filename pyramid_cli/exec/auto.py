@@ -21,14 +21,17 @@ from pyramid_cli.plan.shapes import shape
 
 
 def cpu_kernels(plan: Plan) -> tuple[int, int]:
-    """(kernels loaded from the disk cache, kernels compiled) before the CPU executor can run ``plan``
+    """(kernels loaded from numba's disk cache, kernels compiled) before the CPU executor can run ``plan``
     (:func:`~pyramid_cli.exec.cpu.executor.kernel_digest` of each pass). Kernels this process has loaded
-    already count as neither."""
+    already, and those built ahead of time (:mod:`pyramid_cli.exec.cpu.aot`: imported in a fraction of a
+    millisecond, without numba), count as neither."""
+    from pyramid_cli.exec.cpu import aot
     from pyramid_cli.exec.cpu.compile import cache_dir, loaded, on_disk
     from pyramid_cli.exec.cpu.executor import kernel_digest
 
-    todo = [d for d in {kernel_digest(ps) for ps in plan.passes} if not loaded(d)]
-    compiles = sum(not on_disk(cache_dir(), d) for d in todo)
+    folder = cache_dir()
+    todo = [d for d in {kernel_digest(ps) for ps in plan.passes} if not loaded(d) and not aot.ready(folder, d)]
+    compiles = sum(not on_disk(folder, d) for d in todo)
     return len(todo) - compiles, compiles
 
 
@@ -50,8 +53,10 @@ def estimates(cpu_plan: Plan | None, gl_plan: Plan | None, channels: int, *, job
             loads, compiles = cpu_kernels(cpu_plan)
         except Exception:  # noqa: BLE001 - an estimate only: assume every kernel is loaded from the cache
             loads, compiles = len(cpu_plan.passes), 0
+        # numba is imported only for kernels not built ahead of time
+        imported = "numba" in sys.modules or loads + compiles == 0
         out["cpu"] = backend_cost.cpu_estimate(costs.cpu, cpu_plan, channels, jobs=jobs, threads=threads, loads=loads,
-                                               compiles=compiles, imported="numba" in sys.modules)
+                                               compiles=compiles, imported=imported)
     if gl_plan is not None:
         out["gl"] = backend_cost.gl_estimate(costs.gl, costs.passes, gl_plan, channels, jobs=jobs,
                                              programs=gl_programs(gl_plan), opened=gl_opened,

@@ -247,6 +247,7 @@ class Session:
         self._why = ""
         self.ran = ""          # the executor that ran the last job
         self.estimates: dict = {}  # auto: each backend's Estimate of the job it decided on
+        self._ahead: Plan | None = None  # auto chose GL for this CPU plan: its kernels are built ahead at close()
         self._decided = False
         if backend != "auto":
             self._choose_named()
@@ -343,6 +344,7 @@ class Session:
         self.estimates = found
         if chosen == "gl":
             self._use_gl(gl)
+            self._ahead = cpu_plan  # its kernels built ahead of time once this session closes (close())
         else:
             self._use_cpu()
         self._why = auto.line(found, {"gl": f"gl ({renderer})"}, chosen)
@@ -537,6 +539,14 @@ class Session:
     def close(self) -> None:
         for ex in {id(e): e for e in (self._executor, self._cpu) if e is not None}.values():
             ex.close()
+        if self._ahead is not None:  # auto ran GL: the CPU executor's kernels built for the next process to weigh
+            from pyramid_cli.exec.cpu.executor import build_ahead
+
+            plan, self._ahead = self._ahead, None
+            try:
+                build_ahead(plan)
+            except Exception:  # noqa: BLE001, S110 - a speed-up for later runs: never this run's failure
+                pass
 
     def __enter__(self) -> Session:
         return self

@@ -76,6 +76,23 @@ def test_auto_picks_the_backend_the_model_says_finishes_first(contexts, monkeypa
     assert contexts == []  # deciding opened no context
 
 
+def test_auto_on_gl_has_the_cpu_kernels_built_ahead_when_the_session_closes(contexts, monkeypatch):
+    """Next time, the CPU executor is weighed without numba's import: its kernels are built ahead of time."""
+    from pyramid_cli.exec.cpu import executor
+
+    asked = []
+    monkeypatch.setattr(executor, "build_ahead", lambda plan: asked.append(plan))
+    costs_say(monkeypatch, cpu=2.0, gl=1.0)
+    with Session("auto") as s:
+        s.decide(Blur(levels=5), [(1080, 1920, 4)])
+        assert s.on_gl and asked == []  # not while the run runs
+    assert asked == [Blur(levels=5).plan([(1080, 1920)], "fused")]  # the CPU plan (fused), not GL's
+    costs_say(monkeypatch, cpu=1.0, gl=2.0)
+    with Session("auto") as s:
+        s.decide(Blur(levels=5), [(1080, 1920, 4)])
+    assert len(asked) == 1  # the CPU executor ran: it builds what it ran through numba itself
+
+
 def test_auto_decides_once_at_the_first_job_and_never_on_the_reference(contexts, monkeypatch):
     costs_say(monkeypatch, cpu=1.0, gl=2.0)
     with Session("auto") as s:
