@@ -51,7 +51,7 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
-from run import ROOT, SCRIPTS, cmd_time_peak_rss, interleaved, log, machine_info  # noqa: E402
+from run import ROOT, SCRIPTS, cmd_time_peak_rss, interleaved, log, machine_info, wait_for_kernel_builds  # noqa: E402
 
 BIN = Path(sys.executable).parent
 SIZES = {"4k": (2160, 3840), "1080p": (1080, 1920), "tile": (512, 512)}
@@ -293,6 +293,8 @@ def measure_job(job: Job, pyrs: list[Pyramid], out: Path, args, targets: dict | 
     for _ in range(args.warmup):  # dropped: the kernel cache, the page cache
         for c in cons.values():
             c(keep=False)
+    if args.warmup:
+        wait_for_kernel_builds()  # kernels the warm-up ran through numba are built ahead of time first
     interleaved({n: (lambda c=c: c()) for n, c in cons.items()}, reps=args.repeat, warmup=0)
     loads.append(os.getloadavg()[0])
     res = {"id": job.id, "what": job.what, "peer": job.peer, "load_avg": loads,
