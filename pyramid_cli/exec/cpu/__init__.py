@@ -1,9 +1,10 @@
 """The compiled CPU executor: plans as generated numba kernels.
 
 :mod:`.codegen` writes a pass shape as the Python source of a numba kernel,
-:mod:`.compile` compiles it once per machine (numba's disk cache beside the source), and
+:mod:`.compile` compiles it once per machine (numba's disk cache beside the source),
+:mod:`.aot` builds it ahead of time for later processes, which then load it without numba, and
 :mod:`.executor` runs plans with it (:class:`CPUExecutor`). numba is imported only in this
-package, and only when a kernel is compiled or :func:`available` is asked.
+package, and only when a kernel runs through numba, is compiled, or :func:`available` is asked.
 """
 
 from __future__ import annotations
