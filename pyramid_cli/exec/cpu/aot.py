@@ -10,7 +10,8 @@ same LLVM passes with the SLP vectoriser on, no fast-math), so the pixels are th
 
 The modules live under ``aot/<machine key>/`` in the CPU cache folder (:func:`folder`): the key is the
 processor's model and instruction-set flags (the code is compiled for this processor: a home folder shared by
-the nodes of a farm keeps one set per kind of node) and the Python ABI is in each module's file name. A module
+the nodes of a farm keeps one set per kind of node) and numpy's version, and the Python ABI is in each module's
+file name. A module
 is written under a temporary name and renamed, so a process sees a whole module or none; one that cannot be
 imported is left alone and the kernel runs through numba as before. Building needs a C compiler and Python's
 headers (numba's builder compiles its runtime beside the kernel); where they are missing the builder leaves
@@ -59,13 +60,16 @@ def _cpu_text() -> str:
 
 
 def machine_key(cpu: str | None = None) -> str | None:
-    """The folder name of this machine's modules: a digest of the processor (model and instruction-set flags) and
-    the architecture; None where the processor cannot be read (then no modules are used)."""
+    """The folder name of this machine's modules: a digest of the processor (model and instruction-set flags), the
+    architecture and numpy's version (the modules convert arrays through numpy's C API; Python's ABI is in each
+    module's file name); None where the processor cannot be read (then no modules are used)."""
     if cpu is None:
         return _this_machine()
     if not cpu:
         return None
-    return hashlib.sha256(f"{platform.machine()}\n{cpu}".encode()).hexdigest()[:16]
+    import numpy
+
+    return hashlib.sha256(f"{platform.machine()}\nnumpy {numpy.__version__}\n{cpu}".encode()).hexdigest()[:16]
 
 
 @functools.cache

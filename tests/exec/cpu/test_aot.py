@@ -129,13 +129,16 @@ def test_the_cli_runs_without_numba_once_the_modules_are_built(built, tmp_path):
     assert results["1"][1] == results["0"][1]
 
 
-def test_the_machine_key_is_the_processor():
+def test_the_machine_key_is_the_processor_and_numpy(monkeypatch):
     intel = "vendor_id\t: GenuineIntel\nmodel name\t: Xeon\nflags\t\t: fpu sse2 avx2"
+    key = aot.machine_key(intel)
     assert aot.machine_key(intel) == aot.machine_key(intel)
     assert aot.machine_key(intel) != aot.machine_key(intel + " avx512f")  # a node with other instructions
     assert aot.machine_key(intel.replace("Xeon", "Core")) != aot.machine_key(intel)
     assert aot.machine_key("") is None
     assert aot.machine_key() is not None  # Linux: /proc/cpuinfo is read
+    monkeypatch.setattr(np, "__version__", "1.26.4")  # another environment's numpy, sharing the home folder
+    assert aot.machine_key(intel) != key
 
 
 def test_turned_off_nothing_is_loaded_or_built(monkeypatch, tmp_path):
