@@ -58,7 +58,7 @@ def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: R
     def read_job(job):
         # refused before any work
         io.check_write_options(job.output, wo.pixel_type, wo.compression, wo.tocolorspace, ro.colorconfig)
-        image = read_input(job.input, ro, reporter, keep_half=not mip_tile, hash_source=bool(mip_tile))
+        image = read_input(job.input, ro, reporter, keep_half=True, hash_source=bool(mip_tile))  # no float32 copy
         if mip_tile and getattr(work, "constant_detect", False):
             from pyramid_cli.workflows.mip import shrink_constant
 
@@ -74,6 +74,8 @@ def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: R
     announced: list[bool] = []
 
     def compute(job_image):
+        from pyramid_cli.imageio.formats import format_from_path
+
         job, image = job_image
         if mip_tile and getattr(work, "fill", False):  # mipmap --fill: pull-push before the MIP chain (issue 17)
             from pyramid_cli.run.methods_files import fill_texture
@@ -82,7 +84,10 @@ def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: R
         if not announced:
             announced.append(True)
             announce_compiles(session, work, [image.pixels], reporter)
-        half = (not mip_tile and image.pixels.dtype == np.float16
+        # half results where the output stores them as half: a MIP file only as OpenEXR's own MIP levels (a TIFF
+        # texture's levels are written as float from the float results)
+        half = (image.pixels.dtype == np.float16
+                and (not mip_tile or format_from_path(job.output) == "openexr")
                 and io.stores_half_unchanged(job.output, image.spec, pixel_type=wo.pixel_type))
         outs = session.run(work, [image.pixels], np.float16 if half else np.float32)
         output = io.describe_output(job.output, image.spec, **wo.for_inputs([]))

@@ -70,7 +70,7 @@ def process(paths: list[str], template: str | None, work: Work, session: Session
     job_list, many = batch.select_jobs(paths, template, frames=frames, shard=shard, keep_going=keep_going,
                                        reporter=reporter)
     if isinstance(session, Session) and cluster is None and job_list:  # auto decides for all; numba loads meanwhile
-        first = _header(job_list[0].input, keep_half=not mip_tile)
+        first = _header(job_list[0].input)
         if first is not None:
             session.prepare_async(work, [first[0]], count=len(job_list), dtype=first[1])
     if (not many and len(job_list) == 1 and cluster is None and frames is None
@@ -110,12 +110,13 @@ def process(paths: list[str], template: str | None, work: Work, session: Session
     return report
 
 
-def _header(path: str, keep_half: bool):
-    """(shape, dtype the pixels will arrive as) from ``path``'s header, or None (the read reports why)."""
+def _header(path: str):
+    """(shape, dtype the pixels will arrive as: half files as half, MIP maps included) from ``path``'s header, or
+    None (the read reports why)."""
     if io.read_shape(path) is None:  # not a regular, readable picture (a FIFO would block the stream)
         return None
     try:
-        with io.open_stream(path, keep_half=keep_half) as st:
+        with io.open_stream(path, keep_half=True) as st:
             return st.shape, st.dtype
     except Exception:  # noqa: BLE001 - an optimisation only: the read reports every error
         return None

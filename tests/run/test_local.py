@@ -45,3 +45,32 @@ def test_texture_channels_makes_a_grey_texture_one_channel(tmp_path):
     assert mono.pixels.shape == (4, 5, 1) and len(mono.spec.channel_names) == 1
     np.testing.assert_array_equal(mono.pixels[..., 0], grey[..., 0])
     assert said == ["pyramid: grey.exr: 3 channel(s) → 1 (Y): monochrome"]
+
+
+@pytest.mark.parametrize("ext, levels_as", [("exr", np.float16), ("tx", np.float32)])
+def test_a_half_texture_is_read_half_and_its_levels_made_half_where_the_file_keeps_half(tmp_path, session,
+                                                                                        monkeypatch, ext,
+                                                                                        levels_as):
+    """A whole MIP map of a half EXR: no float32 copy of the input (kept as read, the kernels read half); OpenEXR
+    levels come out half as the writer would round them, a TIFF texture's float as it stores them. The file is
+    the same as the streamed run's (tests/run/test_stream_mip.py compares those for half inputs too)."""
+    src = tmp_path / "in.exr"
+    px = np.random.default_rng(4).random((40, 56, 4)).astype(np.float16)
+    pyr.write_image(src, px, pixel_type="half")
+    seen = []
+    real = Session.run
+
+    def spy(self, work, images, dtype=np.float32):
+        outs = real(self, work, images, dtype)
+        seen.append((np.asarray(images[0] if isinstance(images, list) else images).dtype, [o.dtype for o in outs]))
+        return outs
+
+    monkeypatch.setattr(Session, "run", spy)
+    job = batch.Job(str(src), str(tmp_path / f"out.{ext}"))
+    run_jobs([job], TextureLevels(), session, read=ReadOptions(), write=WriteOptions(), reporter=Reporter(),
+             mip_tile=16)
+    ((given, made),) = seen
+    assert given == np.float16 and made[0] == np.float16  # level 0: the input as read
+    assert set(made[1:]) == {np.dtype(levels_as)} and len(made) > 3
+    got = io.read_image(job.output)
+    np.testing.assert_array_equal(got.pixels, px.astype(np.float32))
