@@ -99,8 +99,13 @@ class Budget:
         if lim.size is None:  # not hard: the machine's available memory
             return (f"{head}: a quarter of the {format_size(lim.left)} available on this machine ({lim.where}), "
                     f"at least {format_size(FLOOR)}")
-        return (f"{head}: {HARD_FRACTION:.0%} of the {format_size(lim.left)} left under the {lim.kind} limit of "
-                f"{format_size(lim.size)} ({lim.where}) after {format_size(RESERVE[lim.kind])} kept back")
+        under = (f"the {format_size(lim.left)} left under the {lim.kind} limit of {format_size(lim.size)} "
+                 f"({lim.where})")
+        reserve = f"{format_size(RESERVE[lim.kind])} kept back for the process itself"
+        usable = lim.left - RESERVE[lim.kind]
+        if usable <= 0:
+            return f"{head}: {under} is no more than the {reserve}"
+        return f"{head}: {HARD_FRACTION:.0%} of {format_size(usable)}: {under}, less {reserve}"
 
     def refusal(self, err: DataError) -> DataError:
         """``err``, a job refused for not fitting this budget, naming what set the budget when a limit did (a

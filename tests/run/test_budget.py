@@ -80,6 +80,15 @@ def test_cgroup_v2_limit_sets_the_budget(root):
     assert "left under the cgroup v2 limit of 700.0 MiB" in said and "/sys/fs/cgroup/job/memory.max" in said
 
 
+def test_a_limit_with_nothing_left_beyond_the_reserve_says_so(root):
+    v2(root, "/job", {"job": (150 * MIB, 52 * MIB)})
+    b = budget.default_budget(str(root))
+    assert b.size == 0
+    assert b.describe() == ("memory budget 0 B: the 98.0 MiB left under the cgroup v2 limit of 150.0 MiB "
+                            "(/sys/fs/cgroup/job/memory.max) is no more than the 128.0 MiB kept back for the "
+                            "process itself")
+
+
 def test_cgroup_v2_max_is_no_limit(root):
     v2(root, "/job", {"job": ("max", 200 * MIB)})
     assert budget.cgroup_v2(str(root)) is None
@@ -112,8 +121,10 @@ def test_cgroup_v1_limit_sets_the_budget(root):
     b = budget.default_budget(str(root))
     assert b.source == "cgroup v1" and b.limit.left == 517 * MIB
     assert b.limit.where == base.replace(str(root), "") + "/memory.limit_in_bytes"
-    assert b.describe().startswith(f"memory budget {budget.format_size(b.size)}: 60% of the 517.0 MiB left under "
-                                   "the cgroup v1 limit of 700.0 MiB (/sys/fs/cgroup/memory/process_api/abc/")
+    assert b.describe().startswith(f"memory budget {budget.format_size(b.size)}: 60% of 389.0 MiB: the 517.0 MiB "
+                                   "left under the cgroup v1 limit of 700.0 MiB "
+                                   "(/sys/fs/cgroup/memory/process_api/abc/")
+    assert b.describe().endswith("), less 128.0 MiB kept back for the process itself")
 
 
 def test_cgroup_v1_huge_value_is_no_limit(root):
@@ -232,7 +243,8 @@ def test_a_run_says_its_budget_and_is_refused_when_nothing_fits(root, tmp_path, 
     src = write(tmp_path / "in.exr", noise(64, 2048), "half")
     r = invoke("blur", "--levels", "5", "--backend", "cpu", "-v", src, tmp_path / "out.exr")
     assert r.exit_code == 5, r.output
-    assert "memory budget 614.4 KiB: 60% of the 129.0 MiB left under the cgroup v2 limit of 129.0 MiB" in r.output
+    assert ("memory budget 614.4 KiB: 60% of 1.0 MiB: the 129.0 MiB left under the cgroup v2 limit of 129.0 MiB"
+            in r.output and "less 128.0 MiB kept back for the process itself" in r.output)
     assert "/sys/fs/cgroup/job/memory.max" in r.output and "over the budget of 614.4 KiB" in r.output
     assert not (tmp_path / "out.exr").exists()
     for command in (["blur", "--levels", "5"], ["mipmap"]):  # without -v, the refusal's one line names the limit
