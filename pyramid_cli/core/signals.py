@@ -100,6 +100,11 @@ def _handler(signum, frame):  # noqa: ARG001 - the signal module's signature
     raise Interrupted(signum)
 
 
+def interrupted() -> bool:
+    """Whether SIGINT, SIGTERM or SIGHUP has arrived (the run is being cleaned up, or was)."""
+    return bool(_received)
+
+
 STUCK_S = 60.0  # seconds a clean-up may take after a signal (a farm's grace period is 30 s: it would be killed)
 
 # What the handler, and the hook of a signal raised in a finaliser, ask of the helper thread. Neither may start a

@@ -34,6 +34,8 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+from pyramid_cli.core import signals
+
 ENV = "PYRAMID_AOT"
 UNAVAILABLE = "unavailable"   # the builder's reason it cannot build here (a C compiler or Python's headers missing)
 RETRY_S = 24 * 3600           # a machine that could not build is tried again after this
@@ -151,9 +153,11 @@ def spawn(cache: Path, kernels: list[tuple[str, str, str]]) -> bool:
     """Start a builder for ``kernels`` — (digest, source path, numba signature) of kernels that ran through numba
     and have no module yet — in a process of its own that outlives this one, at low priority, its output
     discarded. Returns whether one was started (False: nothing to build, turned off, a machine that cannot build,
-    or an interpreter that is not a ``python`` executable)."""
+    a run interrupted by a signal, or an interpreter that is not a ``python`` executable)."""
     where = folder(cache)
-    if where is None or not kernels or not os.path.basename(sys.executable).startswith("python"):
+    if where is None or not kernels or signals.interrupted():  # an interrupted run leaves nothing running behind
+        return False
+    if not os.path.basename(sys.executable).startswith("python"):
         return False  # inside an application's own interpreter (a DCC's), sys.executable is the application
     try:
         where.mkdir(parents=True, exist_ok=True)

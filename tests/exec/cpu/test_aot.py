@@ -214,6 +214,16 @@ def test_a_source_that_is_not_its_kernel_is_not_built(monkeypatch, tmp_path):
     assert not list(where.iterdir())
 
 
+def test_an_interrupted_run_starts_no_builder(monkeypatch, tmp_path):
+    from pyramid_cli.core import signals
+
+    monkeypatch.setenv(aot.ENV, "1")
+    monkeypatch.setattr(signals, "_received", [15])  # SIGTERM arrived: the run is cleaning up
+    assert signals.interrupted()
+    assert not aot.spawn(tmp_path, [("0" * 24, "k.py", "void()")])
+    assert not list((tmp_path / "aot").rglob("*.lock"))
+
+
 def test_no_builder_is_started_from_an_applications_own_interpreter(monkeypatch, tmp_path):
     monkeypatch.setenv(aot.ENV, "1")
     monkeypatch.setattr(aot.sys, "executable", "/opt/dcc/bin/maya")  # a DCC's embedded Python
