@@ -201,6 +201,11 @@ class LoadingCPU:
         if self._ready is not None:
             self._ready.close()
 
+    @property
+    def building(self) -> int:
+        """Kernels the executor handed to a builder process as it closed (0 when it was never made)."""
+        return self._ready.building if self._ready is not None else 0
+
     def __getattr__(self, name: str):  # anything else the executor has (compiles, cache_loads, info, …)
         if name.startswith("__") or name in ("_ready", "_error", "_thread"):
             raise AttributeError(name)
@@ -537,16 +542,21 @@ class Session:
             pass
 
     def close(self) -> None:
-        for ex in {id(e): e for e in (self._executor, self._cpu) if e is not None}.values():
+        executors = {id(e): e for e in (self._executor, self._cpu) if e is not None}.values()
+        for ex in executors:
             ex.close()
+        building = sum(getattr(ex, "building", 0) for ex in executors)
         if self._ahead is not None:  # auto ran GL: the CPU executor's kernels built for the next process to weigh
             from pyramid_cli.exec.cpu.executor import build_ahead
 
             plan, self._ahead = self._ahead, None
             try:
-                build_ahead(plan)
+                building += build_ahead(plan)
             except Exception:  # noqa: BLE001, S110 - a speed-up for later runs: never this run's failure
                 pass
+        if building and self._note is not None:  # nothing runs behind the user's back unsaid (-v)
+            self._note(f"{building} CPU kernel(s) now build ahead of time in a process of its own, once per machine, "
+                       "so that later runs load them without numba (PYRAMID_AOT=0 turns this off)")
 
     def __enter__(self) -> Session:
         return self

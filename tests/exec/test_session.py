@@ -80,13 +80,14 @@ def test_auto_on_gl_has_the_cpu_kernels_built_ahead_when_the_session_closes(cont
     """Next time, the CPU executor is weighed without numba's import: its kernels are built ahead of time."""
     from pyramid_cli.exec.cpu import executor
 
-    asked = []
-    monkeypatch.setattr(executor, "build_ahead", lambda plan: asked.append(plan))
+    asked, said = [], []
+    monkeypatch.setattr(executor, "build_ahead", lambda plan: asked.append(plan) or 2)
     costs_say(monkeypatch, cpu=2.0, gl=1.0)
-    with Session("auto") as s:
+    with Session("auto", note=said.append) as s:
         s.decide(Blur(levels=5), [(1080, 1920, 4)])
         assert s.on_gl and asked == []  # not while the run runs
     assert asked == [Blur(levels=5).plan([(1080, 1920)], "fused")]  # the CPU plan (fused), not GL's
+    assert said[-1].startswith("2 CPU kernel(s) now build ahead of time in a process of its own")  # -v says so
     costs_say(monkeypatch, cpu=1.0, gl=2.0)
     with Session("auto") as s:
         s.decide(Blur(levels=5), [(1080, 1920, 4)])

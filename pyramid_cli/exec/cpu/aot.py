@@ -149,25 +149,25 @@ def blocked(where: Path) -> bool:
 _BUILDER = "import sys; sys.path.insert(0, {root!r}); from pyramid_cli.exec.cpu.aot import main; sys.exit(main())"
 
 
-def spawn(cache: Path, kernels: list[tuple[str, str, str]]) -> bool:
+def spawn(cache: Path, kernels: list[tuple[str, str, str]]) -> int:
     """Start a builder for ``kernels`` — (digest, source path, numba signature) of kernels that ran through numba
     and have no module yet — in a process of its own that outlives this one, at low priority, its output
-    discarded. Returns whether one was started (False: nothing to build, turned off, a machine that cannot build,
-    a run interrupted by a signal, or an interpreter that is not a ``python`` executable)."""
+    discarded. Returns how many kernels it was given (0: none started, for nothing to build, turned off, a machine
+    that cannot build, a run interrupted by a signal, or an interpreter that is not a ``python`` executable)."""
     where = folder(cache)
     if where is None or not kernels or signals.interrupted():  # an interrupted run leaves nothing running behind
-        return False
+        return 0
     if not os.path.basename(sys.executable).startswith("python"):
-        return False  # inside an application's own interpreter (a DCC's), sys.executable is the application
+        return 0  # inside an application's own interpreter (a DCC's), sys.executable is the application
     try:
         where.mkdir(parents=True, exist_ok=True)
     except OSError:
-        return False
+        return 0
     if blocked(where):
-        return False
+        return 0
     todo = [k for k in kernels if not module_path(where, k[0]).exists() and _lock(where, k[0])]
     if not todo:
-        return False
+        return 0
     try:
         proc = subprocess.Popen([sys.executable, "-c", _BUILDER.format(root=str(Path(__file__).parents[3]))],
                                 stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
@@ -178,8 +178,8 @@ def spawn(cache: Path, kernels: list[tuple[str, str, str]]) -> bool:
     except OSError:
         for digest, _, _ in todo:
             (where / f"k_{digest}.lock").unlink(missing_ok=True)
-        return False
-    return True
+        return 0
+    return len(todo)
 
 
 def build(where: Path, digest: str, source_path: str, sig: str) -> None:

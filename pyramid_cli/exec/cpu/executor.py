@@ -234,6 +234,7 @@ class CPUExecutor:
         self._lut: np.ndarray | None = None
         self._table: np.ndarray | None = None  # a run's table of codes (run_outputs' ``codes``), 65536 entries
         self._jit: dict[str, str] = {}  # digest → numba signature of the kernels run through numba (not ahead of time)
+        self.building = 0  # kernels handed to a builder process at close() (:mod:`pyramid_cli.exec.cpu.aot`)
 
     # ------------------------------------------------------------ lifetime
     def close(self) -> None:
@@ -244,7 +245,8 @@ class CPUExecutor:
         self._pool = None
         if self._jit:
             sources = jit_kernels()
-            aot.spawn(self.cache, [(d, sources[d], sig) for d, sig in self._jit.items() if d in sources])
+            todo = [(d, sources[d], sig) for d, sig in self._jit.items() if d in sources]
+            self.building += aot.spawn(self.cache, todo)
             self._jit.clear()
 
     def __enter__(self) -> CPUExecutor:
@@ -621,14 +623,14 @@ _NO_U16 = np.zeros((1, 1), np.uint16)
 _NO_FLOAT_1D = {np.dtype(t): np.zeros(1, t) for t in ("float32", "float64")}
 
 
-def build_ahead(plan: Plan, cache: str | Path | None = None) -> bool:
+def build_ahead(plan: Plan, cache: str | Path | None = None) -> int:
     """Have the float32 kernels of ``plan`` (float16 inputs run on them too) built ahead of time for later processes
     where they are not yet (:func:`pyramid_cli.exec.cpu.aot.spawn`), without importing numba here: ``auto`` ran
     this job on GL, partly because the CPU executor would first have imported numba; next time it weighs the
-    CPU executor without that. Returns whether a builder was started."""
+    CPU executor without that. Returns how many kernels a builder was started for (0: none)."""
     folder = Path(cache) if cache is not None else cache_dir()
     if aot.folder(folder) is None:
-        return False
+        return 0
     kernels: dict[str, tuple[str, str]] = {}
     for ps in plan.passes:
         if isinstance(ps, ResamplePass):
@@ -644,7 +646,7 @@ def build_ahead(plan: Plan, cache: str | Path | None = None) -> bool:
     try:
         todo = [(d, str(write_source(folder, d, src)), sig) for d, (src, sig) in kernels.items()]
     except OSError:
-        return False
+        return 0
     return aot.spawn(folder, todo)
 
 
