@@ -20,6 +20,7 @@ from pyramid_cli.imageio.formats import (
     COMPRESSION_LEVELS,
     COMPRESSIONS,
     FORMAT_TYPES,
+    HALF_AS_FLOAT,
     NO_ALPHA_FORMATS,
     PIXEL_TYPES,
     PNG_FILTERS,
@@ -447,7 +448,7 @@ def stores_half_unchanged(path: str | os.PathLike[str], info: ImageInfo, *, pixe
     same file as a result: the GL read-back does that and moves half the bytes.
     """
     fmt = format_from_path(os.fspath(path))
-    if not fmt:
+    if not fmt or fmt in HALF_AS_FLOAT:  # a TIFF holds the float32 result: rounding it to half first changes it
         return False
     out_type, encoding, memory_premultiplied, mode = _write_rules(os.fspath(path), info, info.alpha_channel,
                                                                   pixel_type, colorspace, alpha)

@@ -36,6 +36,10 @@ FORMAT_TYPES: dict[str, tuple[str, ...]] = {
     "pnm": ("uint8", "uint16", "float"),
 }
 
+# Formats whose OpenImageIO writer stores a half request as 32-bit float: TIFF writes half only under its
+# "tiff:half" hint, which pyramid does not give (most TIFF readers do not take half).
+HALF_AS_FLOAT = ("tiff",)
+
 # Formats that can store premultiplied (associated) alpha; all others store
 # straight alpha only.
 ASSOCIATED_CAPABLE = ("openexr", "tiff")

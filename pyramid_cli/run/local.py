@@ -74,8 +74,6 @@ def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: R
     announced: list[bool] = []
 
     def compute(job_image):
-        from pyramid_cli.imageio.formats import format_from_path
-
         job, image = job_image
         if mip_tile and getattr(work, "fill", False):  # mipmap --fill: pull-push before the MIP chain (issue 17)
             from pyramid_cli.run.methods_files import fill_texture
@@ -84,10 +82,7 @@ def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: R
         if not announced:
             announced.append(True)
             announce_compiles(session, work, [image.pixels], reporter)
-        # half results where the output stores them as half: a MIP file only as OpenEXR's own MIP levels (a TIFF
-        # texture's levels are written as float from the float results)
         half = (image.pixels.dtype == np.float16
-                and (not mip_tile or format_from_path(job.output) == "openexr")
                 and io.stores_half_unchanged(job.output, image.spec, pixel_type=wo.pixel_type))
         outs = session.run(work, [image.pixels], np.float16 if half else np.float32)
         output = io.describe_output(job.output, image.spec, **wo.for_inputs([]))

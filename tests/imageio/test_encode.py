@@ -435,6 +435,26 @@ def test_stores_half_unchanged_rules(tmp_path):
     assert not pio.stores_half_unchanged("o.exr", half, alpha="straight")
     assert not pio.stores_half_unchanged("o.hdr", half)            # float-only format without half
     assert not pio.stores_half_unchanged("o.unknown", half)
+    assert not pio.stores_half_unchanged("o.tif", half)            # OpenImageIO writes float (no tiff:half)
+    assert not pio.stores_half_unchanged("o.tx", half)
+
+
+@pytest.mark.parametrize("name", ["o.exr", "o.tif"])
+def test_a_half_result_is_rounded_before_writing_only_where_the_file_is_the_same(tmp_path, name):
+    """What stores_half_unchanged promises: where it says yes, the float32 result and the result rounded to half
+    write the same pixels; where they would not, it says no (a TIFF stores the float32 values)."""
+    src = tmp_path / "in.exr"
+    write_raw(src, np.random.default_rng(8).random((6, 7, 3)).astype(np.float16), "half", names=["R", "G", "B"])
+    info = pio.read_image(src, keep_half=True).spec
+    result = np.random.default_rng(9).random((6, 7, 3)).astype(np.float32)
+    written = []
+    for k, px in enumerate((result, result.astype(np.float16))):
+        out = tmp_path / f"{k}{name}"
+        pio.write_image(out, pio.Image(px, info))
+        written.append(np.asarray(read_raw(out)[0], np.float32))
+    same = np.array_equal(written[0], written[1])
+    assert pio.stores_half_unchanged(tmp_path / name, info) == same
+    assert same == (name == "o.exr")
 
 
 
