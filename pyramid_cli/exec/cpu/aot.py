@@ -21,6 +21,7 @@ its reason in the folder (``unavailable``) and is not tried again for a day, and
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import hashlib
 import importlib.machinery
@@ -35,6 +36,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from pyramid_cli.core import signals
+from pyramid_cli.exec.cpu.codegen import source_digest
 
 ENV = "PYRAMID_AOT"
 UNAVAILABLE = "unavailable"   # the builder's reason it cannot build here (a C compiler or Python's headers missing)
@@ -190,7 +192,7 @@ def build(where: Path, digest: str, source_path: str, sig: str) -> None:
     import warnings
 
     text = Path(source_path).read_text(encoding="utf-8")
-    if hashlib.sha256(text.encode()).hexdigest()[:len(digest)] != digest:  # as compile.source_digest names it
+    if source_digest(text) != digest:
         raise ValueError(f"{source_path} is not the kernel {digest}")
     warnings.simplefilter("ignore")  # pycc's pending deprecation: this process prints nothing anyway
     from numba.core import compiler, config
@@ -236,12 +238,10 @@ def main() -> int:
     compile at all (no C compiler, no Python headers) is written to ``unavailable``."""
     job = json.loads(sys.stdin.buffer.read())
     where = Path(job["folder"])
-    try:
+    with contextlib.suppress(OSError):
         os.nice(19)
-        # the first process the kernel ends where memory runs out (a container's limit), never a user's run
+    with contextlib.suppress(OSError):  # the first process the kernel ends where memory runs out, never a user's run
         Path("/proc/self/oom_score_adj").write_text("1000", encoding="ascii")
-    except OSError:
-        pass
     _sweep(where)
     built, failed = 0, ""
     for digest, source_path, sig in job["kernels"]:

@@ -25,6 +25,7 @@ This module only writes text: numba is imported by the generated sources, compil
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass
 from fractions import Fraction
 from math import floor
@@ -37,6 +38,12 @@ from pyramid_cli.plan.shapes import PassShape
 KERNEL_VERSION = 4           # bump when the generated text changes meaning: new files, new cache entries
 VARIANTS = (4, 1, None)   # channel counts with an unrolled copy of the strided loops (None: any C)
 WORK_TYPES = ("float32", "float64")   # the working types a kernel is generated for (numba's and numpy's names)
+
+
+def source_digest(source: str) -> str:
+    """The name a kernel source is cached under (numba's cache and the ahead-of-time modules): the first 24 hex
+    digits of its SHA-256."""
+    return hashlib.sha256(source.encode()).hexdigest()[:24]
 
 
 def work_type(dtype=np.float32) -> str:
@@ -454,4 +461,4 @@ def pointwise_signature(dtype=np.float32) -> str:
 __all__ = ["KERNEL_VERSION", "POINTWISE_CODES", "POINTWISE_EXPR", "POINTWISE_SIGNATURE", "RESAMPLE_SIGNATURE",
            "RESAMPLE_SOURCE", "VARIANTS", "WORK_TYPES", "Term", "factor", "kernel_source", "phase_terms",
            "pointwise_signature", "pointwise_source", "resample_signature", "resample_source", "signature",
-           "work_type"]
+           "source_digest", "work_type"]

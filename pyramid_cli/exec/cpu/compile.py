@@ -9,7 +9,6 @@ generated modules), so importing the executor does not load it.
 
 from __future__ import annotations
 
-import hashlib
 import importlib.util
 import os
 import sys
@@ -22,6 +21,7 @@ from typing import TYPE_CHECKING
 from pyramid_cli.core import cache, signals
 from pyramid_cli.core.errors import BackendError
 from pyramid_cli.exec.cpu import aot
+from pyramid_cli.exec.cpu.codegen import source_digest
 
 if TYPE_CHECKING:
     from numba.core.dispatcher import Dispatcher
@@ -180,11 +180,6 @@ def jit_kernels() -> dict[str, str]:
     :func:`pyramid_cli.exec.cpu.aot.spawn` builds ahead of time for the next process)."""
     with _LOCK:
         return dict(_SOURCES)
-
-
-def source_digest(source: str) -> str:
-    """The name a kernel source is cached under: the first 24 hex digits of its SHA-256."""
-    return hashlib.sha256(source.encode()).hexdigest()[:24]
 
 
 def loaded(digest: str) -> bool:

@@ -345,8 +345,9 @@ class CPUExecutor:
         key = ("resample", _work(dtype))
         k = self._kernels.get(key)
         if k is None:
-            fn = load(resample_source(key[1]), self.cache)
-            self._ready(fn, resample_signature(key[1]), _shared_digest("resample", key[1]))
+            source = resample_source(key[1])
+            fn = load(source, self.cache)
+            self._ready(fn, resample_signature(key[1]), source_digest(source))
             k = self._kernels[key] = fn
         return k
 
@@ -482,8 +483,9 @@ class CPUExecutor:
         key = ("pointwise", _work(dtype))
         fn = self._kernels.get(key)
         if fn is None:
-            fn = load(pointwise_source(key[1]), self.cache)
-            self._ready(fn, pointwise_signature(key[1]), _shared_digest("pointwise", key[1]))
+            source = pointwise_source(key[1])
+            fn = load(source, self.cache)
+            self._ready(fn, pointwise_signature(key[1]), source_digest(source))
             self._kernels[key] = fn
         return fn
 
@@ -633,13 +635,7 @@ def build_ahead(plan: Plan, cache: str | Path | None = None) -> int:
         return 0
     kernels: dict[str, tuple[str, str]] = {}
     for ps in plan.passes:
-        if isinstance(ps, ResamplePass):
-            source, sig = resample_source(), resample_signature()
-        elif isinstance(ps, PointwisePass):
-            source, sig = pointwise_source(), pointwise_signature()
-        else:
-            s = shape(ps)
-            source, sig = _pass_source(s, "float32"), signature(s.n_sources, s.period[1])
+        source, sig = _kernel_text(ps, "float32")
         digest = source_digest(source)
         if digest not in kernels and not aot.ready(folder, digest):
             kernels[digest] = (source, sig)
@@ -678,22 +674,25 @@ def _pass_source(s: PassShape, t: str) -> str:
     return kernel_source(s, t)
 
 
-@lru_cache(maxsize=8)
-def _shared_digest(kind: str, t: str) -> str:
-    """The digest of the resampling or the pointwise kernel at working type ``t`` (made when first asked)."""
-    return source_digest(resample_source(t) if kind == "resample" else pointwise_source(t))
+def _kernel_text(ps: Pass | ResamplePass | PointwisePass, t: str) -> tuple[str, str]:
+    """The source and the numba signature of the kernel a pass runs on at working type ``t``: its shape's, or the
+    one every resampling (pointwise) pass shares."""
+    if isinstance(ps, ResamplePass):
+        return resample_source(t), resample_signature(t)
+    if isinstance(ps, PointwisePass):
+        return pointwise_source(t), pointwise_signature(t)
+    s = shape(ps)
+    return _pass_source(s, t), signature(s.n_sources, s.period[1], t)
+
+
+_digest = lru_cache(maxsize=256)(source_digest)  # auto's estimate asks for every pass of every job
 
 
 def kernel_digest(ps: Pass | ResamplePass | PointwisePass, dtype=np.float32) -> str:
     """The digest of the source of the kernel a pass runs on: one per pass shape (float32 and float16 sources
     alike), one for every resampling pass, one for every pointwise pass; the float64 kernel's where ``dtype``
     is float64. Pure Python: numba is not imported."""
-    t = _work(dtype)
-    if isinstance(ps, ResamplePass):
-        return _shared_digest("resample", t)
-    if isinstance(ps, PointwisePass):
-        return _shared_digest("pointwise", t)
-    return source_digest(_pass_source(shape(ps), t))
+    return _digest(_kernel_text(ps, _work(dtype))[0])
 
 
 __all__ = ["CPUExecutor", "Kernel", "OUT_DTYPES", "SMALL", "TINY", "build_ahead", "default_threads", "kernel_digest",
