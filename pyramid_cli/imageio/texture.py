@@ -235,6 +235,9 @@ class MipBandWriter(BandWriter):
         try:
             self._out = None
             checked(out, out.close(), "close")
+            # OpenImageIO's OpenEXR writer flushes the file's last bytes when it is destroyed, not at close: a
+            # small MIP-mapped EXR read back empty here while it was still held
+            del out
             verify(self.tmp, self.fmt, [(spec, None)] * len(self.shapes), "mipmap")
         except WriteFailed as exc:
             raise OutputError(f"cannot write {self.path}: {str(exc).replace(self.tmp, self.path)}"
