@@ -30,6 +30,7 @@ from pyramid_cli.imageio.read import (
     apply_nan_policy,
     check_input_file,
     decode_stored,
+    decoding,
     describe_spec,
     open_input,
     readable_name,
@@ -129,7 +130,11 @@ class ImageStream:
 
     def read(self, y0: int, y1: int) -> np.ndarray:
         """Decoded rows ``y0 .. y1 − 1`` (0 is the top row), (rows, columns, channels)."""
-        data = self._stored(y0, y1)
+        return self.decode(self._stored(y0, y1), y0)
+
+    def decode(self, data: np.ndarray, y0: int = 0) -> np.ndarray:
+        """Rows as stored (:meth:`read_stored`; ``y0``: the first one's row, for messages) decoded as
+        :meth:`read` decodes them. The result may share memory with ``data``: neither is changed after."""
         if self.on_stored is not None:
             self.on_stored(data)
         if self._read_type == "half":
@@ -140,6 +145,28 @@ class ImageStream:
         self.nonfinite += apply_nan_policy(px, self.nan, self.info, self.path, y0,
                                             floats=self._read_type not in ("uint8", "uint16"))
         return px
+
+
+    def keeps_stored(self, encoder: Encoder) -> bool:
+        """Whether ``encoder`` stores every row this stream decodes as the values it was decoded from, bit for bit:
+        then a file that holds the input unchanged (a MIP map's level 0) may be written from :meth:`read_stored`
+        without decoding and encoding it again.
+
+        Checked by running every value of the stored type (8-bit, 16-bit or half) through :meth:`decode` and
+        ``encoder`` once. That proves it for every picture only where each channel is decoded and encoded on its
+        own: so never with alpha that is (un)premultiplied on the way, a colour conversion that may mix channels
+        (OCIO), dithering (it depends on the pixel's place) or NaN replaced by zero."""
+        dtype, info = self.stored_dtype, self.info
+        alpha = info.alpha_channel >= 0 and info.alpha_mode != "none"
+        as_stored = decoding(info) == "none" and info.alpha_mode != "straight" and not encoder.converts
+        if (dtype not in (np.uint8, np.uint16, np.float16) or encoder.dither or alpha and not as_stored
+                or "ocio" in (decoding(info), encoder.how) or self.nan == "zero" and dtype == np.float16):
+            return False
+        bits = np.arange(1 << (8 * dtype.itemsize), dtype=np.uint8 if dtype == np.uint8 else np.uint16)
+        probe = np.repeat(bits.view(dtype)[None, :, None], self.shape[2], axis=2)
+        back = encoder.values(decode_stored(probe.copy(), info))
+        return back.dtype == dtype and back.shape == probe.shape and np.array_equal(back.view(bits.dtype),
+                                                                                   probe.view(bits.dtype))
 
 
 def open_stream(path: str | os.PathLike[str], **options) -> ImageStream:
@@ -176,18 +203,26 @@ class BandWriter:
         """Linear pixels of rows ``y0 ..`` (in order: ``y0`` is the first row not handed over yet), encoded as
         :func:`~pyramid_cli.imageio.write.write_image` encodes the whole picture (rows are grouped so that
         dithering and tiles line up)."""
+        self._take(y0, pixels, stored=False)
+
+    def write_stored(self, y0: int, values: np.ndarray) -> None:
+        """Rows ``y0 ..`` as the file stores them, written as they are (in order, as :meth:`write`; never mixed
+        with it): what :meth:`write` would store for pixels whose stored values are ``values`` already
+        (:meth:`ImageStream.keeps_stored`)."""
+        self._take(y0, values, stored=True)
+
+    def _take(self, y0: int, rows: np.ndarray, stored: bool) -> None:
         if y0 != self.next:
             raise ValueError(f"rows are written in order: row {self.next} expected, not {y0}")
-        if not len(pixels):
+        if not len(rows):
             return
-        self.next += len(pixels)
-        self._pending.append(pixels)
+        self.next += len(rows)
+        self._pending.append(rows)
         try:
             if self._out is None:
-                self._encoder = Encoder(self.path, self.info, pixels.shape[2] if pixels.ndim == 3 else 1,
-                                        **self.options)
-                self._open(self._encoder.spec(pixels.shape[1], 1))
-            self._flush(final=self.next >= self.height)
+                self._encoder = Encoder(self.path, self.info, rows.shape[2] if rows.ndim == 3 else 1, **self.options)
+                self._open(self._encoder.spec(rows.shape[1], 1))
+            self._flush(final=self.next >= self.height, stored=stored)
         except WriteFailed as exc:
             raise OutputError(f"cannot write {self.path}: {str(exc).replace(self.tmp, self.path)}"
                               f"{diagnosis(self.tmp)}") from None
@@ -207,7 +242,7 @@ class BandWriter:
     def _header(self, spec: oiio.ImageSpec) -> None:
         """What a subclass adds to the file's header before it opens (nothing here)."""
 
-    def _flush(self, final: bool) -> None:
+    def _flush(self, final: bool, stored: bool = False) -> None:
         s, out = self.spec, self._out
         assert s is not None and out is not None, "the first rows opened the file"
         tiled = s.tile_width > 0 and s.tile_height > 0
@@ -219,7 +254,7 @@ class BandWriter:
         pixels = np.concatenate(self._pending) if len(self._pending) > 1 else self._pending[0]
         self._pending = [pixels[whole:]] if whole < rows else []
         assert self._encoder is not None, "the first rows made the encoder"
-        data = self._encoder.values(pixels[:whole])
+        data = pixels[:whole] if stored else self._encoder.values(pixels[:whole])
         start = self.written
         if tiled:
             for a in range(0, whole, quantum):

@@ -181,7 +181,7 @@ def decode_stored(px: np.ndarray, info: ImageInfo) -> np.ndarray:
     colour = colour_mask(px.shape[2], alpha_channel, info.channel_names)
     has_alpha = alpha_channel >= 0 and alpha_mode != "none"
     # "srgb": the exact sRGB tables; "ocio": the config converts to the linear space filtered in
-    how = _decoding(info)
+    how = decoding(info)
     if px.dtype in (np.uint8, np.uint16):
         if how != "ocio":
             return decode_integer(px, how == "srgb", colour, alpha_channel if has_alpha else -1,
@@ -213,13 +213,13 @@ def code_table(info: ImageInfo, dtype, channels: int) -> np.ndarray | None:
     dtype = np.dtype(dtype)
     if dtype not in (np.uint8, np.uint16) or info.alpha_channel >= 0 and info.alpha_mode != "none":
         return None
-    how = _decoding(info)
+    how = decoding(info)
     if how == "ocio" or not all(colour_mask(channels, info.alpha_channel, info.channel_names)):
         return None
     return integer_table(dtype.name, how == "srgb")
 
 
-def _decoding(info: ImageInfo) -> str:
+def decoding(info: ImageInfo) -> str:
     """How stored values become linear: ``"none"``, ``"srgb"`` (the exact tables) or ``"ocio"``."""
     if info.colorspace == info.linear_space:
         return "none"

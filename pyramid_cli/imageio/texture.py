@@ -192,8 +192,9 @@ class MipBandWriter(BandWriter):
         _mark_mip_level(spec, self.fmt, self.tile, self.round_up, self.options.get("compression"))
         _mip_metadata(spec, None, self.meta, self.arbitrary, self.colors)
 
-    def append_level(self, rows) -> None:
-        """The next level (1, 2, …): ``rows(r0, r1)`` gives its linear pixels, a row of tiles at a time."""
+    def append_level(self, rows, stored: bool = False) -> None:
+        """The next level (1, 2, …): ``rows(r0, r1)`` gives its linear pixels, a row of tiles at a time (``stored``:
+        the values the file stores, as :meth:`encoder` gives them)."""
         if self.written != self.height:
             raise ValueError(f"level 0: {self.written} of {self.height} rows written")
         self.levels = max(self.levels, 1) + 1
@@ -208,7 +209,7 @@ class MipBandWriter(BandWriter):
                 px = rows(r0, r1)
                 if enc is None:
                     enc = Encoder(self.path, self.info, px.shape[2] if px.ndim == 3 else 1, **self.options)
-                data = enc.values(px)
+                data = px if stored else enc.values(px)
                 if spec is None:
                     spec = enc.spec(px.shape[1], r1 - r0)
                     spec.height = spec.full_height = h
@@ -224,6 +225,10 @@ class MipBandWriter(BandWriter):
         except WriteFailed as exc:
             raise OutputError(f"cannot write {self.path}: {str(exc).replace(self.tmp, self.path)}"
                               f"{diagnosis(self.tmp)}") from None
+
+    def encoder(self, channels: int) -> Encoder:
+        """How the levels of ``channels`` channels are stored (:meth:`append_level` with ``stored``)."""
+        return Encoder(self.path, self.info, channels, **self.options)
 
     def finish(self) -> None:
         """Close the file and check it reads back with every level (OutputError naming the user's path)."""

@@ -75,12 +75,13 @@ def process(paths: list[str], template: str | None, work: Work, session: Session
             session.prepare_async(work, [first[0]], count=len(job_list), dtype=first[1])
     if (not many and len(job_list) == 1 and cluster is None and frames is None
             and not (skip_existing and batch.is_fresh(job_list[0]))):
+        from pyramid_cli.run.mip_whole import run_whole
         from pyramid_cli.run.stream import run_job
         from pyramid_cli.run.stream_mip import run_mip
 
         if mip_tile:
             if run_mip(job_list[0], work, session, memory=memory, tile=mip_tile, read=ro, write=wo,
-                       reporter=reporter):
+                       reporter=reporter, whole=run_whole):
                 return batch.Report(done=list(job_list))
         elif run_job(job_list[0], work, session, memory=memory, read=ro, write=wo, reporter=reporter):
             return batch.Report(done=list(job_list))

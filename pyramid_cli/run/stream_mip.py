@@ -70,7 +70,8 @@ def _level0_stats(st, stats, step: int, out_path: str, options: dict):
     return stats
 
 
-def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, write=None, reporter=None) -> bool:
+def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, write=None, reporter=None,
+            whole=None) -> bool:
     """``pyramid mipmap`` of one input streamed when its whole run would not fit the budget (``memory``, else
     :func:`pyramid_cli.run.budget.default_budget`); False when it runs whole as before.
 
@@ -85,6 +86,9 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
     the options that need the whole picture (``--resize``, ``--fill``, ``--nchannels``, ``--monochrome-detect``)
     and plans that do not tile (:func:`pyramid_cli.exec.tiles.tileable`), when ``memory`` is given (without it they
     run whole).
+
+    When it runs whole, ``whole`` (:func:`pyramid_cli.run.mip_whole.run_whole`) is given the open input and the
+    plan, and may write the file itself (True); False leaves it to the caller.
     """
     from pyramid_cli import imageio as io
     from pyramid_cli.exec import tiles
@@ -128,8 +132,9 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
             raise given.refusal(exc) from None
         reporter.detail(f"{in_path}: {choice.describe()}")
         band = choice.band
-        if band is None:  # runs whole (not Choice.streams)
-            return False
+        if band is None:  # runs whole (not Choice.streams): by ``whole`` where it says it can
+            return bool(whole) and whole(job, work, session, st, plan, tile=tile, read=ro, write=wo,
+                                         reporter=reporter)
         if not tiles.tileable(plan):
             if memory is not None:
                 raise UsageError(f"--memory: the MIP levels of a {w}×{h} picture cannot stream (a pass of its plan "

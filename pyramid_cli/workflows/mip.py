@@ -163,7 +163,7 @@ def sha1_state(data: np.ndarray, block: int = SHA1_BLOCK, threads: int = 2):
         return hashlib.sha1(np.ascontiguousarray(stored_floats(data)).tobytes())
 
     def digest(y: int) -> bytes:
-        return hashlib.sha1(np.ascontiguousarray(stored_floats(data[y:y + block])).data).hexdigest().upper().encode()
+        return block_digest(data[y:y + block])
 
     starts = range(0, data.shape[0], block)
     if threads > 1 and len(starts) > 1:
@@ -173,6 +173,17 @@ def sha1_state(data: np.ndarray, block: int = SHA1_BLOCK, threads: int = 2):
             digests = list(pool.map(digest, starts))
     else:
         digests = [digest(y) for y in starts]
+    return sha1_of_blocks(digests)
+
+
+def block_digest(rows: np.ndarray) -> bytes:
+    """The upper-case hex SHA-1 of one block of rows as stored (:func:`sha1_state` of a picture of more than one
+    block hashes these, in order: :func:`sha1_of_blocks`)."""
+    return hashlib.sha1(np.ascontiguousarray(stored_floats(rows)).data).hexdigest().upper().encode()
+
+
+def sha1_of_blocks(digests) -> hashlib._Hash:
+    """:func:`sha1_state` of a picture of more than one block, from its blocks' :func:`block_digest` in order."""
     return hashlib.sha1(b"".join(digests))
 
 

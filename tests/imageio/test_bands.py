@@ -80,6 +80,58 @@ def test_code_table_decodes_every_stored_row_as_read_does(tmp_path, pixel_type, 
         np.testing.assert_array_equal(t[codes], decoded)
 
 
+def _stream_and_encoder(path, out: str, nan: str = "keep", **options):
+    stream = bands.open_stream(path, keep_half=True, nan=nan)
+    return stream, pio.Encoder(out, stream.info, stream.shape[2], check_path=False, **options)
+
+
+@pytest.mark.parametrize("name, pixel_type, channels, out, options, nan, kept", [
+    ("in.png", "uint8", 3, "o.tx", {}, "keep", True),                        # sRGB codes by table and back
+    ("in.png", "uint8", 1, "o.png", {}, "keep", True),
+    ("in.tif", "uint16", 3, "o.tif", {}, "keep", True),
+    ("in.exr", "half", 4, "o.exr", {}, "keep", True),                        # premultiplied alpha, untouched
+    ("in.exr", "half", 3, "o.exr", {}, "zero", False),                       # NaN would become 0
+    ("in.png", "uint8", 4, "o.tx", {}, "keep", False),                       # straight alpha premultiplied
+    ("in.png", "uint8", 3, "o.tx", {"dither": True}, "keep", False),
+    ("in.png", "uint8", 3, "o.tx", {"pixel_type": "uint16"}, "keep", False),  # other codes
+    ("in.png", "uint8", 3, "o.exr", {}, "keep", False),                      # stored as half
+    ("in.exr", "half", 3, "o.exr", {"colorspace": "ACEScg"}, "keep", False),  # OCIO converts (a matrix)
+    ("in.exr", "float", 3, "o.exr", {}, "keep", False),                      # too many values to try
+])
+def test_keeps_stored_says_when_the_encoder_gives_back_what_was_read(tmp_path, name, pixel_type, channels, out,
+                                                                      options, nan, kept):
+    """Where it says so, every pixel of a picture (not only the values it tried) comes back as stored."""
+    rng = np.random.default_rng(7)
+    if pixel_type in ("uint8", "uint16"):
+        px = rng.integers(0, np.iinfo(pixel_type).max + 1, (37, 29, channels)).astype(pixel_type)
+    else:
+        px = rng.standard_normal((37, 29, channels)).astype(np.float32) * 4
+    path = write_raw(tmp_path / name, px, pixel_type)
+    stream, enc = _stream_and_encoder(path, str(tmp_path / out), nan, **options)
+    with stream:
+        assert stream.keeps_stored(enc) == kept
+        stored = stream.read_stored(0, 37)
+        back = enc.values(stream.decode(stored.copy()))
+    if kept:
+        assert back.dtype == stored.dtype and np.array_equal(back, stored)
+
+
+def test_rows_written_as_stored_make_the_file_written_from_pixels(tmp_path):
+    px = np.random.default_rng(8).integers(0, 256, (40, 33, 3)).astype(np.uint8)
+    path = write_raw(tmp_path / "in.png", px, "uint8")
+    stream, enc = _stream_and_encoder(path, str(tmp_path / "x.tif"))
+    with stream:
+        stored, decoded = stream.read_stored(0, 40), stream.read(0, 40)
+        info = stream.info
+    for name, rows in (("a.tif", decoded), ("b.tif", stored)):
+        with bands.stream_writer(tmp_path / name, info, px.shape) as writer:
+            for y in range(0, 40, 16):
+                (writer.write if name == "a.tif" else writer.write_stored)(y, rows[y:y + 16])
+    a, b = pio.read_image(tmp_path / "a.tif"), pio.read_image(tmp_path / "b.tif")
+    np.testing.assert_array_equal(a.pixels, b.pixels)
+    assert a.spec.pixel_type == b.spec.pixel_type == "uint8"
+
+
 @pytest.mark.parametrize("shape, tile", [((300, 16, 4), 64), ((16, 16, 3), 0)])
 def test_a_small_exr_written_band_by_band_is_whole_when_checked(tmp_path, shape, tile):
     """OpenImageIO's OpenEXR writer writes the file's last bytes when it is let go, not at close: the check after
