@@ -3,8 +3,10 @@
 A MIP file's level 0 is the input itself (:attr:`~pyramid_cli.jobs.work.Work.keeps_input`). Where the output
 stores every value of the input as the input stores it (an 8-bit sRGB PNG made into an 8-bit ``.tx``, a half
 EXR into a half EXR: :meth:`~pyramid_cli.imageio.ImageStream.keeps_stored`), level 0 needs neither decoding
-nor encoding: its rows as read are written on a thread of their own while the plan runs on the decoded picture,
-then the coarser levels follow. The file is the one :func:`pyramid_cli.run.local.run_jobs` writes (the same
+nor encoding: its rows as read are written on a thread of their own while the plan runs, then the coarser levels
+follow. 8/16-bit codes are not decoded at all: the CPU executor reads them through their table, band by band on
+the scheduler, and each band of each coarser level is encoded as it is made (so a 4K 8-bit picture's .tx holds
+its codes and the coarser levels' codes, no floats but a band's). The file is the one :func:`pyramid_cli.run.local.run_jobs` writes (the same
 header, the same stored values); only the order of the work changes.
 
 Measured on the shipped bench's 4K inputs (fresh processes interleaved; ``bench/peers.py``): see
@@ -37,6 +39,7 @@ def run_whole(job, work, session, st, plan, *, tile: int, read, write, reporter)
     from pyramid_cli import imageio as io
     from pyramid_cli.run.report import nonfinite_kept
     from pyramid_cli.run.stream_mip import mip_metadata
+    from pyramid_cli.run.tiles import executor_codes
     from pyramid_cli.workflows.mip import SHA1_BLOCK, PixelStats, block_digest, sha1_of_blocks, sha1_state
 
     in_path, out_path = job.input, job.output
@@ -56,10 +59,12 @@ def run_whole(job, work, session, st, plan, *, tile: int, read, write, reporter)
             digests.append(helper.submit(block_digest, band))
             stats.add_encoded(band)  # level 0 is stored as read
         state = sha1_of_blocks(d.result() for d in digests) if len(digests) > 1 else sha1_state(stored)
-        # decoded whole: a band at a time into one array was slower (each band's copy faults in fresh pages)
-        pixels = st.decode(stored)
         if stats.constant() is not None and getattr(work, "constant_detect", False):
             return False  # shrinks to one tile: run_jobs does that
+        # 8/16-bit codes are read by the CPU executor through their table: no float copy of level 0. Otherwise
+        # decoded whole (a band at a time into one array was slower: each band's copy faults in fresh pages)
+        table = executor_codes(st, session.executor)
+        pixels = stored if table is not None else st.decode(stored)
         if st.nonfinite and read.nan == "keep":
             reporter.warn(nonfinite_kept(in_path, st.nonfinite))
         half = pixels.dtype == np.float16 and io.stores_half_unchanged(out_path, st.info,
@@ -71,9 +76,14 @@ def run_whole(job, work, session, st, plan, *, tile: int, read, write, reporter)
                                   colors=(stats.average(), stats.constant()), **options) as writer:
             written = helper.submit(_level0, writer, stored, stop)
             try:
-                outs = session.run(work, [pixels], np.float16 if half else np.float32)
                 enc = writer.encoder(c)
-                levels = [enc.values(level) for level in outs[1:]]  # outs[0] is the input
+                if table is not None:
+                    levels = _levels_from_codes(session.executor, plan, stored, table, enc.values)
+                    session.ran = session.name
+                else:
+                    outs = session.run(work, [pixels], np.float16 if half else np.float32)
+                    levels = [enc.values(level) for level in outs[1:]]  # outs[0] is the input
+                    del outs
                 failed = written.exception()
             except BaseException:  # a failure or a signal: level 0 stops at its next band
                 stop.set()
@@ -81,13 +91,39 @@ def run_whole(job, work, session, st, plan, *, tile: int, read, write, reporter)
                 raise
             if failed is not None:
                 raise failed
-            del outs, pixels, stored
+            del pixels, stored
             for level in levels:
                 writer.append_level(lambda r0, r1, level=level: level[r0:r1], stored=True)
     output = io.describe_output(out_path, st.info, **write.for_inputs([]))
     reporter.detail(f"{io.describe_rules(st.info)}; {output}; executor {session.ran}; level 0 written as read")
     reporter.result(wrote_line(out_path, w, h, len(shapes), session.ran))
     return True
+
+
+def _levels_from_codes(executor, plan, stored: np.ndarray, table: np.ndarray, encode) -> list[np.ndarray]:
+    """``plan``'s outputs as ``encode`` stores them, made from the codes ``stored`` read through ``table`` by the
+    CPU executor: in bands of rows on the scheduler where the plan tiles, each band encoded as it is made (neither
+    a float copy of the codes nor float levels are held: a 4K PNG's .tx took 175 MiB with float levels, 199 MiB
+    run whole), else whole. Encoding is pixel by pixel here (no dither): a band encodes as the whole level does."""
+    from pyramid_cli.exec import tiles
+    from pyramid_cli.run.stream import speed_band
+
+    band = speed_band(plan, executor)
+    if band is None:
+        return [encode(level) for level in executor.run_outputs(plan, [stored], np.float32, codes=table)]
+    outs: dict[int, np.ndarray] = {}
+
+    def source(k, rows, cols):
+        return stored[rows[0]:rows[1], cols[0]:cols[1]]
+
+    def sink(k, r, c0, px):
+        values = encode(px)
+        if k not in outs:
+            outs[k] = np.empty(plan.images[k].size + values.shape[2:], values.dtype)
+        outs[k][r:r + len(px), c0:c0 + px.shape[1]] = values
+
+    tiles.Scheduler(executor, plan, source, sink, band=band, codes=table).run()
+    return [outs[k] for k in plan.outputs]
 
 
 def _level0(writer, stored: np.ndarray, stop: threading.Event) -> None:

@@ -238,7 +238,7 @@ def _make_levels(source, where: str, writer, sizes, options: TileOptions, settin
     held = writer_memory(sizes, c, options, stored_bytes)
     reporter.detail(f"{where}: {given.describe()}; the tile writer holds about {format_size(held)}")
     stored = stored_rows(source, writer, options)
-    table = _codes(source, executor) if stored is not None else None
+    table = executor_codes(source, executor) if stored is not None else None
     in_bytes = source.stored_dtype.itemsize if table is not None else source.dtype.itemsize
     kw = {"in_bytes": in_bytes, "out_bytes": 4, "keeps_input": True, **costs(executor)}
     least = estimate(plan, c, MIN_BAND, **kw) + held
@@ -329,7 +329,7 @@ def stored_rows(source, writer, options: TileOptions) -> StoredRows | None:
     return StoredRows()
 
 
-def _codes(source, executor) -> np.ndarray | None:
+def executor_codes(source, executor) -> np.ndarray | None:
     """The table through which the CPU executor reads ``source``'s stored codes itself (no float copy of level 0;
     :func:`pyramid_cli.imageio.read.code_table`), or None (another executor, or rows not decoded code by code)."""
     from pyramid_cli.imageio.read import code_table

@@ -11,6 +11,7 @@ import pytest
 
 from helpers.images import noise, write
 from helpers.mipfiles import assert_same_file, levels
+from pyramid_cli.exec.cpu import CPUExecutor
 from pyramid_cli.exec.session import Session
 from pyramid_cli.jobs.texture import TextureLevels
 from pyramid_cli.run import batch, mip_whole
@@ -60,6 +61,22 @@ def test_the_file_is_the_whole_runs(tmp_path, session, name, out, pixels, pixel_
     assert_same_file(tmp_path / out, tmp_path / f"old_{out}")
     assert any(AS_READ in m for m in said) == as_read, said
     assert sorted(os.listdir(tmp_path)) == sorted([name, out, f"old_{out}"])  # no temporary left
+
+
+@pytest.mark.parametrize("pixels, kw", [
+    (rgb8(300, 37), {}), (rgb8(97, 131), {"border": "mirror", "rounding": "up"}),
+    (rgb8(64, 200, 1), {"border": "zero"}),
+    ((noise(70, 130, 3, seed=2) * 65535).astype(np.uint16), {}),
+])
+def test_the_levels_made_from_codes_in_bands_are_the_whole_runs(tmp_path, session, small_pictures_stream, pixels, kw):
+    """8/16-bit codes read by the executor through their table, band by band on the scheduler (here in bands of a
+    few rows), each band of every level encoded as it is made: the same file."""
+    src = tmp_path / ("in.png" if pixels.dtype == np.uint8 else "in.tif")
+    write(src, pixels, pixels.dtype.name)
+    said = new(session, src, tmp_path / "t.tx", **kw)
+    old(session, src, tmp_path / "o.tx", **kw)
+    assert_same_file(tmp_path / "t.tx", tmp_path / "o.tx")
+    assert any(AS_READ in m for m in said), said
 
 
 @pytest.mark.parametrize("options, as_read", [
@@ -120,10 +137,9 @@ def test_a_failure_of_the_work_stops_level_0_and_leaves_nothing(tmp_path, monkey
         raise RuntimeError("the plan failed")
 
     monkeypatch.setattr(mip_whole, "_level0", level0)
-    with Session("cpu") as session:
-        monkeypatch.setattr(session, "run", fail)
-        with pytest.raises(RuntimeError, match="the plan failed"):
-            new(session, src, tmp_path / "t.tx")
+    monkeypatch.setattr(CPUExecutor, "run_outputs", fail)
+    with Session("cpu") as session, pytest.raises(RuntimeError, match="the plan failed"):
+        new(session, src, tmp_path / "t.tx")
     assert bands and bands[0] < 2000  # stopped before the last row
     assert sorted(os.listdir(tmp_path)) == ["in.png"]
 
