@@ -1,16 +1,15 @@
-"""``pyramid mipmap`` of one input held whole, its level 0 written as stored while the coarser levels are computed.
+"""``pyramid mipmap`` of one 8/16-bit input held whole, level 0 written as stored while the coarser levels are made.
 
 A MIP file's level 0 is the input itself (:attr:`~pyramid_cli.jobs.work.Work.keeps_input`). Where the output
-stores every value of the input as the input stores it (an 8-bit sRGB PNG made into an 8-bit ``.tx``, a half
-EXR into a half EXR: :meth:`~pyramid_cli.imageio.ImageStream.keeps_stored`), level 0 needs neither decoding
-nor encoding: its rows as read are written on a thread of their own while the plan runs, then the coarser levels
-follow. 8/16-bit codes are not decoded at all: the CPU executor reads them through their table, band by band on
-the scheduler, and each band of each coarser level is encoded as it is made (so a 4K 8-bit picture's .tx holds
-its codes and the coarser levels' codes, no floats but a band's). The file is the one :func:`pyramid_cli.run.local.run_jobs` writes (the same
+stores every code of the input as the input stores it (an 8-bit sRGB PNG made into an 8-bit ``.tx``:
+:meth:`~pyramid_cli.imageio.ImageStream.keeps_stored`), level 0 needs neither decoding nor encoding: its rows as
+read are written on a thread of their own while the plan runs, then the coarser levels follow. The codes are not
+decoded at all: the CPU executor reads them through their table, band by band on the scheduler, and each band of
+each coarser level is encoded as it is made (so a 4K 8-bit picture's .tx holds its codes and the coarser levels'
+codes, no floats but a band's). The file is the one :func:`pyramid_cli.run.local.run_jobs` writes (the same
 header, the same stored values); only the order of the work changes.
 
-Measured on the shipped bench's 4K inputs (fresh processes interleaved; ``bench/peers.py``): see
-``docs/performance.md``.
+Measured on the bench's 4K inputs (fresh processes interleaved; ``bench/peers.py``): see ``docs/performance.md``.
 """
 
 from __future__ import annotations
@@ -28,16 +27,17 @@ WRITE_ROWS = 256  # level 0's rows written between looks at whether the work fai
 
 def run_whole(job, work, session, st, plan, *, tile: int, read, write, reporter) -> bool:
     """Write ``job``'s MIP map from the open :class:`~pyramid_cli.imageio.ImageStream` ``st`` with level 0
-    as stored, beside the work (see the module); False, having read nothing, when the output would not store
-    level 0 unchanged (``--constant-color-detect`` on a constant picture: read, then False).
+    as stored, beside the work (see the module); False, having read nothing, when the input's rows are not 8/16-bit
+    codes the CPU executor reads through their table (:func:`pyramid_cli.run.tiles.executor_codes`) or the output
+    would not store them unchanged (``--constant-color-detect`` on a constant picture: read, then False).
 
     The input is read :data:`~pyramid_cli.workflows.mip.SHA1_BLOCK` rows at a time; each band is hashed for level
-    0's header on two helper threads while the next one is read (:func:`~pyramid_cli.workflows.mip.block_digest`),
-    summed for its average colour (:class:`~pyramid_cli.workflows.mip.PixelStats`) and decoded into the picture
-    the plan runs on. Level 0 is then written on a helper thread while the plan runs and the coarser levels are
-    encoded, and they are written after it."""
+    0's header on two helper threads while the next one is read (:func:`~pyramid_cli.workflows.mip.block_digest`)
+    and summed for its average colour (:class:`~pyramid_cli.workflows.mip.PixelStats`). Level 0 is then written on
+    a helper thread while the plan runs on the codes and the coarser levels are encoded, and they are written after
+    it. (A half EXR measured no faster so, 1.45–1.63 s against 1.42–1.51 s in the same rounds: OpenEXR already reads
+    and compresses on both cores, so the overlap only added threads; it runs as before.)"""
     from pyramid_cli import imageio as io
-    from pyramid_cli.run.report import nonfinite_kept
     from pyramid_cli.run.stream_mip import mip_metadata
     from pyramid_cli.run.tiles import executor_codes
     from pyramid_cli.workflows.mip import SHA1_BLOCK, PixelStats, block_digest, sha1_of_blocks, sha1_state
@@ -46,7 +46,8 @@ def run_whole(job, work, session, st, plan, *, tile: int, read, write, reporter)
     h, w, c = st.shape
     options = write.for_inputs([in_path])
     io.check_write_options(out_path, write.pixel_type, write.compression, write.tocolorspace, read.colorconfig)
-    if not st.keeps_stored(io.Encoder(out_path, st.info, c, check_path=False, **options)):
+    table = executor_codes(st, session.executor)
+    if table is None or not st.keeps_stored(io.Encoder(out_path, st.info, c, check_path=False, **options)):
         return False
     stats = PixelStats(h)
     stored = np.empty((h, w, c), dtype=st.stored_dtype)
@@ -61,29 +62,15 @@ def run_whole(job, work, session, st, plan, *, tile: int, read, write, reporter)
         state = sha1_of_blocks(d.result() for d in digests) if len(digests) > 1 else sha1_state(stored)
         if stats.constant() is not None and getattr(work, "constant_detect", False):
             return False  # shrinks to one tile: run_jobs does that
-        # 8/16-bit codes are read by the CPU executor through their table: no float copy of level 0. Otherwise
-        # decoded whole (a band at a time into one array was slower: each band's copy faults in fresh pages)
-        table = executor_codes(st, session.executor)
-        pixels = stored if table is not None else st.decode(stored)
-        if st.nonfinite and read.nan == "keep":
-            reporter.warn(nonfinite_kept(in_path, st.nonfinite))
-        half = pixels.dtype == np.float16 and io.stores_half_unchanged(out_path, st.info,
-                                                                        pixel_type=write.pixel_type)
-        announce_compiles(session, work, [pixels], reporter)
+        announce_compiles(session, work, [stored], reporter)
         shapes = [(h, w, c)] + [plan.images[k].size + (c,) for k in plan.outputs]
         meta = mip_metadata(work, in_path, state)
         with io.mip_stream_writer(out_path, st.info, shapes, tile=tile, meta=meta,
                                   colors=(stats.average(), stats.constant()), **options) as writer:
             written = helper.submit(_level0, writer, stored, stop)
             try:
-                enc = writer.encoder(c)
-                if table is not None:
-                    levels = _levels_from_codes(session.executor, plan, stored, table, enc.values)
-                    session.ran = session.name
-                else:
-                    outs = session.run(work, [pixels], np.float16 if half else np.float32)
-                    levels = [enc.values(level) for level in outs[1:]]  # outs[0] is the input
-                    del outs
+                levels = _levels_from_codes(session.executor, plan, stored, table, writer.encoder(c).values)
+                session.ran = session.name
                 failed = written.exception()
             except BaseException:  # a failure or a signal: level 0 stops at its next band
                 stop.set()
@@ -91,7 +78,7 @@ def run_whole(job, work, session, st, plan, *, tile: int, read, write, reporter)
                 raise
             if failed is not None:
                 raise failed
-            del pixels, stored
+            del stored
             for level in levels:
                 writer.append_level(lambda r0, r1, level=level: level[r0:r1], stored=True)
     output = io.describe_output(out_path, st.info, **write.for_inputs([]))
