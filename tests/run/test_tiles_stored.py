@@ -37,14 +37,15 @@ def taken(monkeypatch):
 ])
 def test_stored_level0_writes_the_same_bytes(tmp_path, session, taken, monkeypatch, pixel_type, channels, out, kw):
     """Level 0 from the stored rows, and level 1 from them read through the decoding table by the CPU executor
-    (no float copy of the input, run_tiles._codes): the same bytes as every level encoded from decoded floats."""
+    (no float copy of the input, run_tiles.executor_codes): the same bytes as every level encoded from decoded
+    floats."""
     top = 255 if pixel_type == "uint8" else 65535
     codes = np.random.default_rng(3).integers(0, top + 1, (71, 93, channels)).astype(pixel_type)
     codes[0, :, 0] = np.arange(93)  # every small code: the linear segment of sRGB
     src = write(tmp_path / "in.png", codes, pixel_type)
     tables = []
-    real = run_tiles._codes
-    monkeypatch.setattr(run_tiles, "_codes", lambda *a: tables.append(real(*a)) or tables[-1])
+    real = run_tiles.executor_codes
+    monkeypatch.setattr(run_tiles, "executor_codes", lambda *a: tables.append(real(*a)) or tables[-1])
     tiles(src, tmp_path / "a" / out, session=session, **kw)
     assert taken == [True] and len(tables) == 1 and tables[0] is not None
     monkeypatch.setattr(run_tiles, "stored_rows", lambda *a: None)  # every level encoded from its decoded rows
