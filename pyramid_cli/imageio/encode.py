@@ -171,7 +171,7 @@ def describe_output(path: str | os.PathLike[str], info: ImageInfo, *, pixel_type
     """How ``-v`` says what an output of ``info``'s image stores: ``"output o.png: uint8, sRGB … (option)"``
     (options as :func:`~pyramid_cli.imageio.write.write_image`'s)."""
     out_path = os.fspath(path)
-    out_type = output_pixel_type(format_from_path(out_path), pixel_type or info.pixel_type)
+    out_type = stored_type(format_from_path(out_path), pixel_type, info)
     space = output_colorspace(out_path, info, out_type, colorspace)
     return f"output {out_path}: {out_type}, {describe(space, 'option' if colorspace else '', info.colorconfig)}"
 
@@ -387,6 +387,8 @@ def _output_spec(info: ImageInfo, fmt: str, out_type: str, names: list[str], alp
         # The values handed over are exactly what is to be stored: stop
         # OpenImageIO from unpremultiplying them again.
         spec.attribute("oiio:UnassociatedAlpha", 1)
+    if fmt in HALF_AS_FLOAT and out_type == "half":  # asked for (stored_type): OpenImageIO writes float otherwise
+        spec.attribute("tiff:half", 1)
     if fmt == "png":
         spec.attribute("png:filter", PNG_FILTERS)
     if compression is not None:
@@ -418,11 +420,20 @@ def _write_rules(path: str, info: ImageInfo, alpha_channel: int, pixel_type: str
                  alpha: str | None) -> tuple[str, str, bool, str]:
     """How a write stores the image: (pixel type, colour space, whether memory is premultiplied, alpha mode)."""
     fmt = format_from_path(path)
-    out_type = output_pixel_type(fmt, pixel_type or info.pixel_type)
+    out_type = stored_type(fmt, pixel_type, info)
     encoding = output_colorspace(path, info, out_type, colorspace)
     memory_premultiplied = alpha_channel >= 0 and info.alpha_mode != "none"
     mode = "none" if alpha_channel < 0 else (alpha or _output_alpha_mode(info, fmt, out_type))
     return out_type, encoding, memory_premultiplied, mode
+
+
+def stored_type(fmt: str, pixel_type: str | None, info: ImageInfo) -> str:
+    """The pixel type an output of ``info``'s image stores: ``pixel_type`` (``--type``) as the format ``fmt`` holds
+    it, else the input's; a half input is stored as float where the format takes half only when asked
+    (:data:`~pyramid_cli.imageio.formats.HALF_AS_FLOAT`: TIFF)."""
+    if pixel_type is None and fmt in HALF_AS_FLOAT and info.pixel_type == "half":
+        return "float"
+    return output_pixel_type(fmt, pixel_type or info.pixel_type)
 
 
 def _encoding(info: ImageInfo, space: str) -> str:
@@ -448,7 +459,7 @@ def stores_half_unchanged(path: str | os.PathLike[str], info: ImageInfo, *, pixe
     same file as a result: the GL read-back does that and moves half the bytes.
     """
     fmt = format_from_path(os.fspath(path))
-    if not fmt or fmt in HALF_AS_FLOAT:  # a TIFF holds the float32 result: rounding it to half first changes it
+    if not fmt or fmt in HALF_AS_FLOAT and pixel_type != "half":  # a TIFF of a half input holds float32
         return False
     out_type, encoding, memory_premultiplied, mode = _write_rules(os.fspath(path), info, info.alpha_channel,
                                                                   pixel_type, colorspace, alpha)

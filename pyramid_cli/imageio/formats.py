@@ -36,8 +36,9 @@ FORMAT_TYPES: dict[str, tuple[str, ...]] = {
     "pnm": ("uint8", "uint16", "float"),
 }
 
-# Formats whose OpenImageIO writer stores a half request as 32-bit float: TIFF writes half only under its
-# "tiff:half" hint, which pyramid does not give (most TIFF readers do not take half).
+# Formats whose OpenImageIO writer stores a half request as 32-bit float unless told: TIFF writes half only under
+# its "tiff:half" hint. Most TIFF readers do not take half, so a half input is written as float, and half only when
+# asked (--type half: the hint is given).
 HALF_AS_FLOAT = ("tiff",)
 
 # Formats that can store premultiplied (associated) alpha; all others store

@@ -500,3 +500,24 @@ def test_png_rows_are_filtered_with_none_sub_or_up(tmp_path, ptype):
     pio.write_image(ours, pio.read_image(plain))
     assert png_row_filters(ours) <= {0, 1, 2}
     assert np.array_equal(read_raw(ours)[0], read_raw(plain)[0])
+
+
+@pytest.mark.parametrize("asked", [None, "half", "float"])
+def test_a_tiff_stores_half_only_when_asked(tmp_path, asked):
+    """OpenImageIO writes a TIFF's half pixels as float unless told: a half input gives a float TIFF, and
+    ``--type half`` a half one (``tiff:half``), as -v says; the values are the input's either way."""
+    import tifffile
+
+    px = RNG.uniform(-2.0, 8.0, (9, 7, 3)).astype(np.float16)
+    src = write_raw(tmp_path / "in.exr", px, "half")
+    image = pio.read_image(src, keep_half=True)
+    out = tmp_path / "o.tif"
+    pio.write_image(out, image, pixel_type=asked)
+    stored = "half" if asked == "half" else "float"
+    assert pio.describe_output(out, image.spec, pixel_type=asked).startswith(f"output {out}: {stored},")
+    inp = oiio.ImageInput.open(str(out))
+    assert str(inp.spec().format) == stored
+    inp.close()
+    data = tifffile.imread(out)
+    assert data.dtype == (np.float16 if asked == "half" else np.float32)
+    assert np.array_equal(data.astype(np.float32), px.astype(np.float32))

@@ -161,8 +161,10 @@ class PyramidTiffWriter(TileSetWriter):
         """The spec of what the file stores (type, channels, alpha, resolution, ICC), from a one-pixel encode."""
         if self._spec is None:
             px = np.zeros((1, 1, self.channels), np.float32)
-            spec, _ = encode_image(self.encode_as, Image(px, self.info), check_path=False,
-                                   **self.options.write)
+            # the input's type unless --type says: tifffile writes half as half (OpenImageIO's TIFF writer, which
+            # a plain write goes through, stores a half input as float: encode.stored_type)
+            write = dict(self.options.write, pixel_type=self.options.write.get("pixel_type") or self.info.pixel_type)
+            spec, _ = encode_image(self.encode_as, Image(px, self.info), check_path=False, **write)
             self._spec = spec
         return self._spec
 
