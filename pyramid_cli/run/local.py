@@ -11,7 +11,7 @@ import numpy as np
 from pyramid_cli import imageio as io
 from pyramid_cli.exec.session import Session
 from pyramid_cli.jobs.work import Work
-from pyramid_cli.run import batch
+from pyramid_cli.run import batch, mip_whole
 from pyramid_cli.run.inputs import read_input
 from pyramid_cli.run.report import Reporter, announce_compiles, wrote_line
 from pyramid_cli.run.settings import ReadOptions, WriteOptions
@@ -39,6 +39,14 @@ def texture_channels(image: io.Image, work, path: str, reporter: Reporter) -> io
     return io.Image(apply_channels(px, kept, len(names)), new)
 
 
+def _level0_as_read(job, read: ReadOptions, write: WriteOptions):
+    """:func:`pyramid_cli.run.mip_whole.level0_as_read` of ``job``'s input, or None."""
+    from pyramid_cli.run.stream import open_input
+
+    with open_input(job.input, read) as st:
+        return mip_whole.level0_as_read(st, job.output, write.for_inputs([job.input]))
+
+
 def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: ReadOptions, write: WriteOptions,
              reporter: Reporter, keep_going: bool = False, skip_existing: bool = False, jobs: int = 2,
              mip_tile: int | None = None, many: bool = True) -> batch.Report:
@@ -58,6 +66,11 @@ def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: R
     def read_job(job):
         # refused before any work
         io.check_write_options(job.output, wo.pixel_type, wo.compression, wo.tocolorspace, ro.colorconfig)
+        if as_read:  # a MIP file's level 0 written as read where it can be (8/16-bit codes the output keeps)
+            level0 = _level0_as_read(job, ro, wo)
+            if level0 is not None:
+                work.check((level0.stored.shape[:2],), where=job.input)
+                return job, level0
         image = read_input(job.input, ro, reporter, keep_half=True, hash_source=bool(mip_tile))  # no float32 copy
         if mip_tile and getattr(work, "constant_detect", False):
             from pyramid_cli.workflows.mip import shrink_constant
@@ -72,9 +85,21 @@ def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: R
         return job, image
 
     announced: list[bool] = []
+    as_read = bool(mip_tile) and work.keeps_input and not any(
+        getattr(work, name, False) for name in ("fill", "nchannels", "monochrome_detect", "constant_detect"))
 
     def compute(job_image):
         job, image = job_image
+        if isinstance(image, mip_whole.Level0):
+            if not announced:
+                announced.append(True)
+                announce_compiles(session, work, [image.stored], reporter)
+            plan = session.plan(work, [image.stored.shape])
+            enc = io.Encoder(job.output, image.info, image.stored.shape[2], check_path=False,
+                             **wo.for_inputs([job.input]))
+            levels = mip_whole.make_levels(session, work, plan, image, enc.values)
+            reporter.detail(mip_whole.said(image, job.output, session, wo))
+            return image, plan, levels
         if mip_tile and getattr(work, "fill", False):  # mipmap --fill: pull-push before the MIP chain (issue 17)
             from pyramid_cli.run.methods_files import fill_texture
 
@@ -91,6 +116,13 @@ def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: R
 
     def write_job(job, images):
         options = wo.for_inputs([job.input])
+        if isinstance(images, tuple):  # level 0 as read (compute): the codes, then the levels as stored
+            level0, plan, levels = images
+            assert mip_tile, "only MIP files are written from level 0 as read"
+            with mip_whole.mip_writer(level0, job.output, work, plan, mip_tile, options) as writer:
+                mip_whole.write_levels(writer, level0, levels)
+            h, w = level0.stored.shape[:2]
+            return wrote_line(job.output, w, h, len(levels) + 1, session.ran)
         if mip_tile:
             from pyramid_cli.run.stream_mip import mip_metadata
 

@@ -17,6 +17,8 @@ from __future__ import annotations
 import threading
 from concurrent import futures
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -25,65 +27,127 @@ from pyramid_cli.run.report import announce_compiles, wrote_line
 WRITE_ROWS = 256  # level 0's rows written between looks at whether the work failed (then the write stops)
 
 
-def run_whole(job, work, session, st, plan, *, tile: int, read, write, reporter) -> bool:
-    """Write ``job``'s MIP map from the open :class:`~pyramid_cli.imageio.ImageStream` ``st`` with level 0
-    as stored, beside the work (see the module); False, having read nothing, when the input's rows are not 8/16-bit
-    codes the CPU executor reads through their table (:func:`pyramid_cli.run.tiles.executor_codes`) or the output
-    would not store them unchanged (``--constant-color-detect`` on a constant picture: read, then False).
+@dataclass
+class Level0:
+    """An input read as stored for a MIP file whose level 0 it is (:func:`level0_as_read`)."""
 
-    The input is read :data:`~pyramid_cli.workflows.mip.SHA1_BLOCK` rows at a time; each band is hashed for level
-    0's header on two helper threads while the next one is read (:func:`~pyramid_cli.workflows.mip.block_digest`)
-    and summed for its average colour (:class:`~pyramid_cli.workflows.mip.PixelStats`). Level 0 is then written on
-    a helper thread while the plan runs on the codes and the coarser levels are encoded, and they are written after
-    it. (A half EXR measured no faster so, 1.45–1.63 s against 1.42–1.51 s in the same rounds: OpenEXR already reads
-    and compresses on both cores, so the overlap only added threads; it runs as before.)"""
+    path: str
+    stored: np.ndarray        # the codes, (H, W, C)
+    info: Any                 # the input's ImageInfo
+    sha1: Any                 # the unfinished SHA-1 of the source (workflows.mip.sha1_state)
+    colors: tuple[list[float], list[float] | None]  # level 0's average and constant colour as stored
+    table: np.ndarray         # the float32 value of every code (imageio.read.code_table)
+
+
+def level0_as_read(st, out_path: str, options: dict) -> Level0 | None:
+    """The open :class:`~pyramid_cli.imageio.ImageStream` ``st`` read as stored, with level 0's header statistics,
+    when its rows are 8/16-bit codes decoded code by code (:func:`pyramid_cli.imageio.read.code_table`) that the
+    output ``out_path`` stores unchanged (:meth:`~pyramid_cli.imageio.ImageStream.keeps_stored`; ``options`` as
+    the write takes them); None, having read nothing, otherwise.
+
+    Read :data:`~pyramid_cli.workflows.mip.SHA1_BLOCK` rows at a time, each band hashed on two helper threads while
+    the next one is read (:func:`~pyramid_cli.workflows.mip.block_digest`) and summed for the average colour."""
     from pyramid_cli import imageio as io
-    from pyramid_cli.run.stream_mip import mip_metadata
-    from pyramid_cli.run.tiles import executor_codes
+    from pyramid_cli.imageio.read import code_table
     from pyramid_cli.workflows.mip import SHA1_BLOCK, PixelStats, block_digest, sha1_of_blocks, sha1_state
 
-    in_path, out_path = job.input, job.output
     h, w, c = st.shape
-    options = write.for_inputs([in_path])
-    io.check_write_options(out_path, write.pixel_type, write.compression, write.tocolorspace, read.colorconfig)
-    table = executor_codes(st, session.executor)
+    table = code_table(st.info, st.stored_dtype, c)
     if table is None or not st.keeps_stored(io.Encoder(out_path, st.info, c, check_path=False, **options)):
-        return False
+        return None
     stats = PixelStats(h)
     stored = np.empty((h, w, c), dtype=st.stored_dtype)
-    stop = threading.Event()
-    with ThreadPoolExecutor(2, thread_name_prefix="pyramid-level0") as helper:
+    with ThreadPoolExecutor(2, thread_name_prefix="pyramid-sha1") as helper:
         digests = []
         for y in range(0, h, SHA1_BLOCK):
             band = stored[y:y + SHA1_BLOCK]
             band[...] = st.read_stored(y, y + len(band))
             digests.append(helper.submit(block_digest, band))
             stats.add_encoded(band)  # level 0 is stored as read
-        state = sha1_of_blocks(d.result() for d in digests) if len(digests) > 1 else sha1_state(stored)
-        if stats.constant() is not None and getattr(work, "constant_detect", False):
-            return False  # shrinks to one tile: run_jobs does that
-        announce_compiles(session, work, [stored], reporter)
-        shapes = [(h, w, c)] + [plan.images[k].size + (c,) for k in plan.outputs]
-        meta = mip_metadata(work, in_path, state)
-        with io.mip_stream_writer(out_path, st.info, shapes, tile=tile, meta=meta,
-                                  colors=(stats.average(), stats.constant()), **options) as writer:
-            written = helper.submit(_level0, writer, stored, stop)
-            try:
-                levels = _levels_from_codes(session.executor, plan, stored, table, writer.encoder(c).values)
-                session.ran = session.name
-                failed = written.exception()
-            except BaseException:  # a failure or a signal: level 0 stops at its next band
-                stop.set()
-                futures.wait([written])  # the file is not closed under the thread
-                raise
-            if failed is not None:
-                raise failed
-            del stored
-            for level in levels:
-                writer.append_level(lambda r0, r1, level=level: level[r0:r1], stored=True)
-    output = io.describe_output(out_path, st.info, **write.for_inputs([]))
-    reporter.detail(f"{io.describe_rules(st.info)}; {output}; executor {session.ran}; level 0 written as read")
-    reporter.result(wrote_line(out_path, w, h, len(shapes), session.ran))
+        sha1 = sha1_of_blocks(d.result() for d in digests) if len(digests) > 1 else sha1_state(stored)
+    return Level0(st.path, stored, st.info, sha1, (stats.average(), stats.constant()), table)
+
+
+def make_levels(session, work, plan, level0: Level0, encode) -> list[np.ndarray]:
+    """The coarser levels of ``level0`` as ``encode`` stores them: from the codes on the CPU executor
+    (:func:`_levels_from_codes`), else decoded and run by the session."""
+    from pyramid_cli.imageio.read import decode_stored
+    from pyramid_cli.run.stream import reads_codes
+
+    if reads_codes(session.executor):
+        levels = _levels_from_codes(session.executor, plan, level0.stored, level0.table, encode)
+        session.ran = session.name
+        return levels
+    outs = session.run(work, [decode_stored(level0.stored.copy(), level0.info)], np.float32)
+    return [encode(level) for level in outs[1:]]  # outs[0] is the input
+
+
+def mip_writer(level0: Level0, out_path: str, work, plan, tile: int, options: dict):
+    """The :func:`~pyramid_cli.imageio.mip_stream_writer` of ``level0``'s MIP file, its header known."""
+    from pyramid_cli import imageio as io
+    from pyramid_cli.run.stream_mip import mip_metadata
+
+    h, w, c = level0.stored.shape
+    shapes = [(h, w, c)] + [plan.images[k].size + (c,) for k in plan.outputs]
+    return io.mip_stream_writer(out_path, level0.info, shapes, tile=tile, meta=mip_metadata(work, level0.path,
+                                level0.sha1), colors=level0.colors, **options)
+
+
+def write_levels(writer, level0: Level0, levels: list[np.ndarray], stop: threading.Event | None = None) -> None:
+    """Level 0 as read, then ``levels`` as stored, into ``writer`` (:func:`mip_writer`); level 0 stops at its
+    next band once ``stop`` is set (its coarser levels are then not written)."""
+    stored = level0.stored
+    for y in range(0, len(stored), WRITE_ROWS):
+        if stop is not None and stop.is_set():
+            return
+        writer.write_stored(y, stored[y:y + WRITE_ROWS])
+    for level in levels:
+        writer.append_level(lambda r0, r1, level=level: level[r0:r1], stored=True)
+
+
+def said(level0: Level0, out_path: str, session, write) -> str:
+    """The ``-v`` line of a MIP file written so."""
+    from pyramid_cli import imageio as io
+
+    output = io.describe_output(out_path, level0.info, **write.for_inputs([]))
+    return f"{io.describe_rules(level0.info)}; {output}; executor {session.ran}; level 0 written as read"
+
+
+def run_whole(job, work, session, st, plan, *, tile: int, read, write, reporter) -> bool:
+    """Write ``job``'s MIP map from the open :class:`~pyramid_cli.imageio.ImageStream` ``st`` with level 0
+    as read (:func:`level0_as_read`), on a helper thread while the plan runs and the coarser levels are encoded,
+    which are written after it; False, having read nothing, where level 0 cannot be written as read
+    (``--constant-color-detect`` on a constant picture: read, then False). A half EXR measured no faster so
+    (1.45–1.63 s against 1.42–1.51 s in the same rounds: OpenEXR already reads and compresses on both cores, so
+    the overlap only added threads): half inputs run as before."""
+    from pyramid_cli import imageio as io
+
+    in_path, out_path = job.input, job.output
+    h, w, c = st.shape
+    options = write.for_inputs([in_path])
+    io.check_write_options(out_path, write.pixel_type, write.compression, write.tocolorspace, read.colorconfig)
+    level0 = level0_as_read(st, out_path, options)
+    if level0 is None or level0.colors[1] is not None and getattr(work, "constant_detect", False):
+        return False  # a constant picture shrinks to one tile: run_jobs does that
+    announce_compiles(session, work, [level0.stored], reporter)
+    stop = threading.Event()
+    with mip_writer(level0, out_path, work, plan, tile, options) as writer, \
+            ThreadPoolExecutor(1, thread_name_prefix="pyramid-level0") as helper:
+        written = helper.submit(write_levels, writer, level0, [], stop)
+        try:
+            levels = make_levels(session, work, plan, level0, writer.encoder(c).values)
+            failed = written.exception()
+        except BaseException:  # a failure or a signal: level 0 stops at its next band
+            stop.set()
+            futures.wait([written])  # the file is not closed under the thread
+            raise
+        if failed is not None:
+            raise failed
+        level0.stored = level0.stored[:0]  # written: let it go
+        for level in levels:
+            writer.append_level(lambda r0, r1, level=level: level[r0:r1], stored=True)
+    reporter.detail(said(level0, out_path, session, write))
+    reporter.result(wrote_line(out_path, w, h, len(levels) + 1, session.ran))
     return True
 
 
@@ -113,11 +177,4 @@ def _levels_from_codes(executor, plan, stored: np.ndarray, table: np.ndarray, en
     return [outs[k] for k in plan.outputs]
 
 
-def _level0(writer, stored: np.ndarray, stop: threading.Event) -> None:
-    for y in range(0, len(stored), WRITE_ROWS):
-        if stop.is_set():
-            return
-        writer.write_stored(y, stored[y:y + WRITE_ROWS])
-
-
-__all__ = ["run_whole"]
+__all__ = ["Level0", "level0_as_read", "make_levels", "mip_writer", "run_whole", "said", "write_levels"]

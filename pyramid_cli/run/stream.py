@@ -290,6 +290,22 @@ def band_rows(width: int, pixels: int | None = None) -> int:
     return max(MIN_BAND, (BAND_PIXELS if pixels is None else pixels) // max(1, width) // MIN_BAND * MIN_BAND)
 
 
+def executor_codes(source, executor) -> np.ndarray | None:
+    """The table through which the CPU executor reads ``source``'s stored codes itself (no float copy of level 0;
+    :func:`pyramid_cli.imageio.read.code_table`), or None (another executor, or rows not decoded code by code)."""
+    from pyramid_cli.imageio.read import code_table
+
+    if not reads_codes(executor) or not hasattr(source, "read_stored"):
+        return None
+    return code_table(source.info, source.stored_dtype, source.shape[2])
+
+
+def reads_codes(executor) -> bool:
+    """Whether ``executor`` reads 8/16-bit codes through a table itself (``run_outputs(..., codes=)``): the CPU
+    executor's float32 runs."""
+    return getattr(executor, "backend", None) == "cpu" and executor.work_dtype == np.float32
+
+
 def executor_of(session):
     ex = session.executor
     if ex is None:

@@ -38,6 +38,7 @@ from pyramid_cli.run.stream import (
     choose,
     costs,
     estimate,
+    executor_codes,
     executor_of,
     open_input,
     run_bands,
@@ -327,17 +328,6 @@ def stored_rows(source, writer, options: TileOptions) -> StoredRows | None:
     if not writer.passes_stored(codes, lambda c: decode_stored(c, info)):
         return None
     return StoredRows()
-
-
-def executor_codes(source, executor) -> np.ndarray | None:
-    """The table through which the CPU executor reads ``source``'s stored codes itself (no float copy of level 0;
-    :func:`pyramid_cli.imageio.read.code_table`), or None (another executor, or rows not decoded code by code)."""
-    from pyramid_cli.imageio.read import code_table
-
-    if getattr(executor, "backend", None) != "cpu" or executor.work_dtype != np.float32 \
-            or not hasattr(source, "read_stored"):
-        return None
-    return code_table(source.info, source.stored_dtype, source.shape[2])
 
 
 def _prefer(plan) -> int:

@@ -37,7 +37,7 @@ def taken(monkeypatch):
 ])
 def test_stored_level0_writes_the_same_bytes(tmp_path, session, taken, monkeypatch, pixel_type, channels, out, kw):
     """Level 0 from the stored rows, and level 1 from them read through the decoding table by the CPU executor
-    (no float copy of the input, run_tiles.executor_codes): the same bytes as every level encoded from decoded
+    (no float copy of the input, run.stream.executor_codes): the same bytes as every level encoded from decoded
     floats."""
     top = 255 if pixel_type == "uint8" else 65535
     codes = np.random.default_rng(3).integers(0, top + 1, (71, 93, channels)).astype(pixel_type)
