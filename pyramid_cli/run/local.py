@@ -94,12 +94,11 @@ def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: R
             if not announced:
                 announced.append(True)
                 announce_compiles(session, work, [image.stored], reporter)
-            plan = session.plan(work, [image.stored.shape])
             enc = io.Encoder(job.output, image.info, image.stored.shape[2], check_path=False,
                              **wo.for_inputs([job.input]))
-            levels = mip_whole.make_levels(session, work, plan, image, enc.values)
+            levels = mip_whole.make_levels(session, work, image, enc.values)
             reporter.detail(mip_whole.said(image, job.output, session, wo))
-            return image, plan, levels
+            return image, levels
         if mip_tile and getattr(work, "fill", False):  # mipmap --fill: pull-push before the MIP chain (issue 17)
             from pyramid_cli.run.methods_files import fill_texture
 
@@ -117,9 +116,10 @@ def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: R
     def write_job(job, images):
         options = wo.for_inputs([job.input])
         if isinstance(images, tuple):  # level 0 as read (compute): the codes, then the levels as stored
-            level0, plan, levels = images
+            level0, levels = images
             assert mip_tile, "only MIP files are written from level 0 as read"
-            with mip_whole.mip_writer(level0, job.output, work, plan, mip_tile, options) as writer:
+            shapes = [level0.stored.shape] + [level.shape for level in levels]
+            with mip_whole.mip_writer(level0, job.output, work, shapes, mip_tile, options) as writer:
                 mip_whole.write_levels(writer, level0, levels)
             h, w = level0.stored.shape[:2]
             return wrote_line(job.output, w, h, len(levels) + 1, session.ran)

@@ -68,13 +68,15 @@ def level0_as_read(st, out_path: str, options: dict) -> Level0 | None:
     return Level0(st.path, stored, st.info, sha1, (stats.average(), stats.constant()), table)
 
 
-def make_levels(session, work, plan, level0: Level0, encode) -> list[np.ndarray]:
+def make_levels(session, work, level0: Level0, encode, plan=None) -> list[np.ndarray]:
     """The coarser levels of ``level0`` as ``encode`` stores them: from the codes on the CPU executor
-    (:func:`_levels_from_codes`), else decoded and run by the session."""
+    (:func:`_levels_from_codes`, on ``plan``, else the session's), else decoded and run by the session (GL, the
+    reference, which runs no plans)."""
     from pyramid_cli.imageio.read import decode_stored
     from pyramid_cli.run.stream import reads_codes
 
     if reads_codes(session.executor):
+        plan = plan if plan is not None else session.plan(work, [level0.stored.shape])
         levels = _levels_from_codes(session.executor, plan, level0.stored, level0.table, encode)
         session.ran = session.name
         return levels
@@ -82,13 +84,12 @@ def make_levels(session, work, plan, level0: Level0, encode) -> list[np.ndarray]
     return [encode(level) for level in outs[1:]]  # outs[0] is the input
 
 
-def mip_writer(level0: Level0, out_path: str, work, plan, tile: int, options: dict):
-    """The :func:`~pyramid_cli.imageio.mip_stream_writer` of ``level0``'s MIP file, its header known."""
+def mip_writer(level0: Level0, out_path: str, work, shapes: list[tuple[int, int, int]], tile: int, options: dict):
+    """The :func:`~pyramid_cli.imageio.mip_stream_writer` of ``level0``'s MIP file of levels ``shapes`` (rows,
+    columns, channels; level 0 first), its header known."""
     from pyramid_cli import imageio as io
     from pyramid_cli.run.stream_mip import mip_metadata
 
-    h, w, c = level0.stored.shape
-    shapes = [(h, w, c)] + [plan.images[k].size + (c,) for k in plan.outputs]
     return io.mip_stream_writer(out_path, level0.info, shapes, tile=tile, meta=mip_metadata(work, level0.path,
                                 level0.sha1), colors=level0.colors, **options)
 
@@ -131,11 +132,12 @@ def run_whole(job, work, session, st, plan, *, tile: int, read, write, reporter)
         return False  # a constant picture shrinks to one tile: run_jobs does that
     announce_compiles(session, work, [level0.stored], reporter)
     stop = threading.Event()
-    with mip_writer(level0, out_path, work, plan, tile, options) as writer, \
+    shapes = [(h, w, c)] + [plan.images[k].size + (c,) for k in plan.outputs]
+    with mip_writer(level0, out_path, work, shapes, tile, options) as writer, \
             ThreadPoolExecutor(1, thread_name_prefix="pyramid-level0") as helper:
         written = helper.submit(write_levels, writer, level0, [], stop)
         try:
-            levels = make_levels(session, work, plan, level0, writer.encoder(c).values)
+            levels = make_levels(session, work, level0, writer.encoder(c).values, plan)
             failed = written.exception()
         except BaseException:  # a failure or a signal: level 0 stops at its next band
             stop.set()
@@ -143,7 +145,6 @@ def run_whole(job, work, session, st, plan, *, tile: int, read, write, reporter)
             raise
         if failed is not None:
             raise failed
-        level0.stored = level0.stored[:0]  # written: let it go
         for level in levels:
             writer.append_level(lambda r0, r1, level=level: level[r0:r1], stored=True)
     reporter.detail(said(level0, out_path, session, write))

@@ -100,6 +100,24 @@ def test_a_batch_writes_each_level_0_as_read_where_it_can(tmp_path, session):
     assert sorted(os.listdir(tmp_path / "out")) == ["a.tx", "b.tx", "c.tx", "d.tx"]
 
 
+@pytest.mark.parametrize("many", [False, True])
+def test_the_reference_backend_writes_level_0_as_read_too(tmp_path, many):
+    """The reference runs no plans: the levels are made from the decoded codes by the float64 oracle, level 0
+    written as read, one input or a batch (this was exit 6, "the reference backend runs jobs, not plans")."""
+    src = tmp_path / "in.png"
+    write(src, rgb8(40, 29), "uint8")
+    with Session("reference") as session:
+        paths, template = ([str(src)], str(tmp_path / "{stem}_t.tx")) if many else ([str(src), str(tmp_path /
+                                                                                       "in_t.tx")], None)
+        said: list[str] = []
+        report = process(paths, template, TextureLevels(levels=None), session, mip_tile=16,
+                         reporter=Reporter(verbose=True, out=said.append, err=said.append))
+        assert report.done and not report.failed, report
+        old(session, src, tmp_path / "o.tx")
+    assert_same_file(tmp_path / "in_t.tx", tmp_path / "o.tx")
+    assert any(AS_READ in m for m in said), said
+
+
 @pytest.mark.parametrize("options, as_read", [
     (WriteOptions(dither=True), False),         # the dither pattern depends on the place
     (WriteOptions(pixel_type="uint16"), False),  # stored otherwise
