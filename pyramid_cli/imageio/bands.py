@@ -6,7 +6,7 @@ from __future__ import annotations
 import contextlib
 import math
 import os
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 
 import numpy as np
 import OpenImageIO as oiio
@@ -150,21 +150,30 @@ class ImageStream:
     def keeps_stored(self, encoder: Encoder) -> bool:
         """Whether ``encoder`` stores every row this stream decodes as the values it was decoded from, bit for bit:
         then a file that holds the input unchanged (a MIP map's level 0) may be written from :meth:`read_stored`
-        without decoding and encoding it again.
-
-        Checked by running every value of the stored type (8-bit, 16-bit or half) through :meth:`decode` and
-        ``encoder`` once. That proves it for every picture only where each channel is decoded and encoded on its
-        own: so never with alpha that is (un)premultiplied on the way, a colour conversion that may mix channels
-        (OCIO), dithering (it depends on the pixel's place) or NaN replaced by zero."""
-        dtype, info = self.stored_dtype, self.info
+        without decoding and encoding it again (:meth:`gives_back` of the encoder, where that proves it: never with
+        alpha that is (un)premultiplied on the way, a colour conversion that may mix channels (OCIO), dithering
+        (it depends on the pixel's place) or NaN replaced by zero)."""
+        info, how = self.info, decoding(self.info)
         alpha = info.alpha_channel >= 0 and info.alpha_mode != "none"
-        as_stored = decoding(info) == "none" and info.alpha_mode != "straight" and not encoder.converts
-        if (dtype not in (np.uint8, np.uint16, np.float16) or encoder.dither or alpha and not as_stored
-                or "ocio" in (decoding(info), encoder.how) or self.nan == "zero" and dtype == np.float16):
+        as_stored = how == "none" and info.alpha_mode != "straight" and not encoder.converts
+        if (encoder.dither or alpha and not as_stored or "ocio" in (how, encoder.how)
+                or self.nan == "zero" and self.stored_dtype == np.float16):
+            return False
+        return self.gives_back(encoder.values)
+
+    def gives_back(self, encode: Callable[[np.ndarray], np.ndarray]) -> bool:
+        """Whether ``encode`` (linear rows to stored values) gives back every value of this stream's stored type
+        (8-bit, 16-bit or half, in every channel) from its decoding, in type, shape and every bit: tried once on
+        all of them. That holds for every picture only where each value is decoded and encoded on its own: the
+        callers check that (:meth:`keeps_stored`, :func:`pyramid_cli.run.tiles.stored_rows`)."""
+        dtype = self.stored_dtype
+        if dtype not in (np.uint8, np.uint16, np.float16):
             return False
         bits = np.arange(1 << (8 * dtype.itemsize), dtype=np.uint8 if dtype == np.uint8 else np.uint16)
-        probe = np.repeat(bits.view(dtype)[None, :, None], self.shape[2], axis=2)
-        back = encoder.values(decode_stored(probe.copy(), info))
+        probe = np.repeat(bits.view(dtype).reshape(-1, 256, 1), self.shape[2], axis=2)
+        back = np.asarray(encode(decode_stored(probe.copy(), self.info)))
+        if back.ndim == 2:
+            back = back[..., None]
         return back.dtype == dtype and back.shape == probe.shape and np.array_equal(back.view(bits.dtype),
                                                                                    probe.view(bits.dtype))
 

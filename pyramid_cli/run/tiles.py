@@ -311,11 +311,9 @@ class StoredRows:
 def stored_rows(source, writer, options: TileOptions) -> StoredRows | None:
     """Level 0 as the input stores it, when that is what the writer would store (8/16-bit codes of sRGB or linear
     light, without alpha, dither or another colour space asked: every code of every channel encodes back to
-    itself, :meth:`~pyramid_cli.imageio.tilesets.TileSetWriter.passes_stored`): the caller may then keep the input's
-    rows as stored (``source.on_stored = kept.keep``) and hand them to the writer beside the decoded ones, which it
-    need not encode again (three quarters of all pixels, and the same bytes). None otherwise."""
-    from pyramid_cli.imageio.read import decode_stored
-
+    itself, :meth:`~pyramid_cli.imageio.ImageStream.gives_back` of the writer's ``encode``): the caller may then keep
+    the input's rows as stored (``source.on_stored = kept.keep``) and hand them to the writer beside the decoded
+    ones, which it need not encode again (three quarters of all pixels, and the same bytes). None otherwise."""
     dtype, info = getattr(source, "stored_dtype", None), source.info
     valuewise = info.colorspace == info.linear_space or (info.colorspace, info.linear_space) == ("srgb", "linear")
     if (not writer.takes_stored or not hasattr(source, "on_stored") or source.on_stored is not None
@@ -323,9 +321,7 @@ def stored_rows(source, writer, options: TileOptions) -> StoredRows | None:
             or options.write.get("dither") or options.write.get("colorspace") is not None
             or not valuewise):
         return None
-    n = np.iinfo(dtype).max + 1
-    codes = np.repeat(np.arange(n, dtype=dtype).reshape(-1, 256, 1), source.shape[2], axis=2)
-    if not writer.passes_stored(codes, lambda c: decode_stored(c, info)):
+    if writer.channels != source.shape[2] or not source.gives_back(writer.encode):
         return None
     return StoredRows()
 

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import abc
 import os
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import ClassVar
 
@@ -123,29 +122,13 @@ class TileSetWriter(abc.ABC):
             enc = self._encoders[key] = Encoder(key[1], self.info, channels, check_path=False, **self.options.write)
         return enc
 
-    def passes_stored(self, codes: np.ndarray, decode: Callable[[np.ndarray], np.ndarray]) -> bool:
-        """Does :meth:`encode` give back the stored values ``codes`` that ``decode`` turns into linear pixels?
-
-        ``codes``: every value the input's type holds, in every channel (H×W×C, the input's stored type);
-        ``decode``: how the input's rows are decoded. True when this writer takes stored rows
-        (:attr:`takes_stored`) and ``encode(decode(codes))`` equals ``codes`` in type, shape and every value: then
-        the input's own stored rows are level 0's tiles, byte for byte, and :meth:`rows` may take them
-        (``stored=``) instead of encoding level 0 again (three quarters of all pixels). Sound for a value-wise
-        coding (no alpha, no dither, no conversion that mixes channels): the caller checks that."""
-        if not self.takes_stored or codes.ndim != 3 or codes.shape[2] != self.channels:
-            return False
-        back = np.asarray(self.encode(decode(codes)))
-        if back.ndim == 2:
-            back = back[..., None]
-        return back.dtype == codes.dtype and back.shape == codes.shape and bool(np.array_equal(back, codes))
-
     def rows(self, level: int, y0: int, pixels: np.ndarray | None, stored: np.ndarray | None = None) -> None:
         """Linear, premultiplied float32 rows ``y0 ..`` of level ``level`` (0 = the input), (h, W, C), each row of
         each level exactly once and in order; ``pixels`` may be reused by the caller after the call.
 
         ``stored``: the same rows as :meth:`encode` stores them (the caller has checked that with
-        :meth:`passes_stored`), the writer's to keep; a writer that :attr:`takes_stored` stores them as they are
-        instead of encoding ``pixels`` (which may then be None), the others ignore them."""
+        :meth:`~pyramid_cli.imageio.ImageStream.gives_back`), the writer's to keep; a writer that :attr:`takes_stored`
+        stores them as they are instead of encoding ``pixels`` (which may then be None), the others ignore them."""
         if stored is not None and self.takes_stored:
             self._rows_stored(level, y0, stored)
         elif pixels is None:
