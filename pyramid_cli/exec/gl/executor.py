@@ -31,8 +31,12 @@ are RGBA32F (``precision="float"``, exact and unclamped) or RGBA16F (``"half"``,
 saturating at 65504 on llvmpipe). Inputs may be float16 arrays (half files, kept half
 by :mod:`pyramid_cli.imageio`): they are converted band by band while uploading, so no
 full-size float32 copy is made. Outputs read back as float32, or as float16 when the
-caller will store half anyway: glReadPixels converts with round-to-nearest-even, the
-rounding of numpy and OpenEXR (``test_half_read_back_rounds_like_numpy``). Rendering
+caller will store half anyway, rounded to nearest even, the rounding of numpy and OpenEXR
+(``test_half_read_back_rounds_like_numpy``). glReadPixels converts to half where the driver
+rounds so (llvmpipe: :func:`half_read_rounds_even`, probed once per context on every tie);
+elsewhere the floats are read in bands and numpy rounds them: NVIDIA's driver (580, H100)
+rounds ties away from zero and subnormals toward it (1 ulp off at about half the ties), and
+its conversion took 7× as long as reading floats. Rendering
 into RGBA16F does not round that way on llvmpipe, which is why targets stay RGBA32F.
 
 Pictures that do not fit (a texture beyond GL_MAX_TEXTURE_SIZE or of 2 GiB) run in tiles
@@ -66,7 +70,8 @@ from pyramid_cli.plan.model import Plan, ResamplePass
 from pyramid_cli.plan.shapes import PassShape, PointwiseShape, shape, sources
 
 PRECISIONS = {"float": "f4", "half": "f2"}  # intermediate and target texture formats
-READ_DTYPES = {np.dtype(np.float32): "f4", np.dtype(np.float16): "f2"}
+READ_DTYPES = (np.dtype(np.float32), np.dtype(np.float16))  # what outputs can be
+INPUT_POOL = "-input"  # the pool of inputs' textures that are never render targets (GLExecutor._input_texture)
 BAND_BYTES = 8 << 20  # upload staging: rows of RGBA32F per texture write
 MAX_TEXTURE_BYTES = 2 << 30  # llvmpipe fails to attach a texture of 2 GiB (8193², 12000×6000: docs/design.md §6)
 TILE_TEXELS = 1 << 24        # a tile's largest texture, about (256 MiB of RGBA32F), when a plan runs in tiles
@@ -81,6 +86,28 @@ def texture_size(stored: tuple[int, int]) -> tuple[int, int]:
     return _pow2(stored[0]), _pow2(stored[1])
 
 
+def half_probe() -> np.ndarray:
+    """Float32 values, (rows, 64, 4), whose float16 rounding tells a read-back's rounding apart: every tie between
+    two neighbouring finite halves of either sign (nearest even decides), the float32 neighbours of each tie,
+    three quarters of the way, and subnormal, overflowing, infinite and NaN values."""
+    h = np.arange(0x7BFF, dtype=np.uint16).view(np.float16).astype(np.float32)
+    up = np.arange(1, 0x7C00, dtype=np.uint16).view(np.float16).astype(np.float32)
+    ties = (h + up) / 2
+    values = [ties, np.nextafter(ties, np.float32(np.inf)), np.nextafter(ties, np.float32(0)), h + (up - h) * 0.75,
+              np.array([65504, 65519.99, 65520, 1e6, 2.9e-8, 3e-8, 6e-8, np.inf, np.nan, 0.0], np.float32)]
+    flat = np.concatenate(values + [-v for v in values])
+    return np.resize(flat, (-(-len(flat) // 256) * 256,)).reshape(-1, 64, 4)
+
+
+def half_read_rounds_even(values: np.ndarray, read: np.ndarray) -> bool:
+    """Whether ``read`` (float16) is ``values`` (float32) rounded as numpy and OpenEXR round: to nearest even,
+    overflow to infinity, NaN kept (its payload aside)."""
+    with np.errstate(over="ignore"):
+        want = values.astype(np.float16)
+    same = (read.view(np.uint16) == want.view(np.uint16)) | (np.isnan(read) & np.isnan(want))
+    return bool(same.all())
+
+
 def _written(stored: tuple[int, int], tex: tuple[int, int]) -> tuple[int, int]:
     """Rows and columns a pass writes: the extent plus the repeated edge where the texture has room."""
     return min(stored[0] + 1, tex[0]), min(stored[1] + 1, tex[1])
@@ -89,9 +116,9 @@ def _written(stored: tuple[int, int], tex: tuple[int, int]) -> tuple[int, int]:
 @dataclass
 class _Target:
     texture: Any
-    fbo: Any
+    fbo: Any                # None for an input's texture on a GPU (GLExecutor._input_texture)
     size: tuple[int, int]  # texture (rows, columns)
-    dtype: str
+    dtype: str              # its pool: the texture's dtype, + INPUT_POOL for those inputs' textures
 
 
 @dataclass
@@ -163,6 +190,7 @@ class GLExecutor:
         self._clock: _Clock | None = None
         self._info: dict = dict(info) if info else {}
         self._depth = 0
+        self._half_even: bool | None = None  # half_rounds_even(), once the context is asked
 
     # ------------------------------------------------------------ context
     @property
@@ -248,6 +276,7 @@ class GLExecutor:
         self._tables.clear()
         self._free.clear()
         self._buffers.clear()
+        self._half_even = None
 
     def __enter__(self) -> GLExecutor:
         return self
@@ -324,8 +353,11 @@ class GLExecutor:
         return prog
 
     # ------------------------------------------------------------ pools
-    def _acquire(self, size: tuple[int, int], dtype: str) -> _Target:
-        free = self._free.get((size, dtype))
+    def _acquire(self, size: tuple[int, int], dtype: str, target: bool = True) -> _Target:
+        """A texture of ``size`` (rows, columns) and ``dtype`` from the pool, or a new one; with a framebuffer to
+        render into unless ``target`` is False (an input's texture, pooled apart: :meth:`_input_texture`)."""
+        key = dtype if target else dtype + INPUT_POOL
+        free = self._free.get((size, key))
         if free:
             return free.pop()
         import moderngl
@@ -336,13 +368,21 @@ class GLExecutor:
             tex = ctx.texture((size[1], size[0]), 4, dtype=dtype)
             tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
             tex.repeat_x = tex.repeat_y = False  # clamp to edge: the texture's own last texel
-            return _Target(tex, ctx.framebuffer(color_attachments=[tex]), size, dtype)
+            return _Target(tex, ctx.framebuffer(color_attachments=[tex]) if target else None, size, key)
         except moderngl.Error as e:  # out of memory, an incomplete framebuffer: whatever the driver says
             if tex is not None:
                 tex.release()
             ctx.error  # noqa: B018 - reading it clears the GL error flag the failure left
             reason = " ".join(str(e).split())
             raise DataError(f"the GL cannot allocate a {size[1]}x{size[0]} RGBA {dtype} texture ({reason})") from None
+
+    def _input_texture(self, size: tuple[int, int]) -> _Target:
+        """The RGBA32F texture an input is uploaded into. On a software renderer, one of the pool's render targets
+        (a later pass reuses it: no more memory). On a GPU, one that is never rendered into, pooled apart:
+        NVIDIA's driver (580, H100) wrote a 4K picture into a texture that had been a framebuffer's attachment
+        in 67–75 ms against 24–25 ms (a half EXR's banded upload took 0.5 s), while llvmpipe took the same
+        either way."""
+        return self._acquire(size, "f4", target=self.host_textures)
 
     def _release(self, t: _Target) -> None:
         self._free.setdefault((t.size, t.dtype), []).append(t)
@@ -356,7 +396,8 @@ class GLExecutor:
                 ctx.detect_framebuffer(0).use()
                 for free in self._free.values():
                     for t in free:
-                        t.fbo.release()
+                        if t.fbo is not None:
+                            t.fbo.release()
                         t.texture.release()
         self._free.clear()
         self._buffers.clear()
@@ -456,7 +497,7 @@ class GLExecutor:
 
         Inputs are float32 or float16 arrays (others are converted to float32). Outputs have
         the inputs' channel layout, (H, W) for 2-D inputs, else (H, W, C), and ``dtype``:
-        float32, or float16 (rounded to nearest even by the read-back). Only these images
+        float32, or float16 (rounded to nearest even: by the read-back or by numpy). Only these images
         are read back, after the last pass.
         """
         dtype = np.dtype(dtype)
@@ -495,7 +536,7 @@ class GLExecutor:
         rows, cols, n = img.shape
         tex_size = texture_size((rows, cols))
         wr, wc = _written((rows, cols), tex_size)
-        t = self._acquire(tex_size, "f4")
+        t = self._input_texture(tex_size)
         if n == 4 and img.dtype == np.float32 and img.flags.c_contiguous:  # no staging copy at all
             t.texture.write(img, viewport=(0, 0, cols, rows))
             if wc > cols:
@@ -518,14 +559,39 @@ class GLExecutor:
         return t
 
     def _read_back(self, target: _Target, viewport: tuple[int, int, int, int], out: np.ndarray, slot: int) -> None:
-        """Read a viewport of ``target`` into ``out`` (rows, columns, ≤ 4 channels), converted by GL to its dtype."""
-        dtype, n = READ_DTYPES[out.dtype], out.shape[2]
-        if out.flags.c_contiguous:  # GL_RED / RG / RGB / RGBA straight into the array
-            target.fbo.read_into(out, viewport=viewport, components=n, dtype=dtype)
+        """Read a viewport of ``target`` into ``out`` (rows, columns, ≤ 4 channels), float32 or float16 rounded
+        to nearest even: by GL where :meth:`half_rounds_even`, else by numpy from float32 bands of about
+        :data:`BAND_BYTES`."""
+        n = out.shape[2]
+        gl_dtype = "f2" if out.dtype == np.float16 and self.half_rounds_even() else "f4"
+        if out.flags.c_contiguous and out.dtype == (np.float16 if gl_dtype == "f2" else np.float32):
+            target.fbo.read_into(out, viewport=viewport, components=n, dtype=gl_dtype)  # GL_RED / RG / RGB / RGBA
             return
-        buf = self._buffer(out.shape[:2] + (4,), out.dtype, slot=slot)
-        target.fbo.read_into(buf, viewport=viewport, components=4, dtype=dtype)
-        out[...] = buf[:, :, :n]
+        x, y, cols, rows = viewport
+        staged = np.float16 if gl_dtype == "f2" else np.float32
+        band = max(1, min(rows, BAND_BYTES // (4 * n * cols)))
+        buf = self._buffer((band, cols, n), staged, slot=slot)
+        for r0 in range(0, rows, band):
+            b = buf[: min(band, rows - r0)]
+            target.fbo.read_into(b, viewport=(x, y + r0, cols, len(b)), components=n, dtype=gl_dtype)
+            out[r0:r0 + len(b)] = b
+
+    def half_rounds_even(self) -> bool:
+        """Whether this context's glReadPixels rounds float → half as numpy does (:func:`half_read_rounds_even`
+        on a texture of :func:`half_probe`; asked once per context)."""
+        if self._half_even is None:
+            values = half_probe()
+            with self.current() as ctx:
+                tex = ctx.texture((values.shape[1], values.shape[0]), 4, values.tobytes(), dtype="f4")
+                fbo = ctx.framebuffer([tex])
+                try:
+                    got = np.empty(values.shape, np.float16)
+                    fbo.read_into(got, components=4, dtype="f2")
+                finally:
+                    fbo.release()
+                    tex.release()
+            self._half_even = half_read_rounds_even(values, got)
+        return self._half_even
 
     def profile(self, plan: Plan, images, dtype=np.float32, per_pass: bool = True) -> dict:
         """Run ``plan`` once, timed: upload, the passes and read-back, with ``ctx.finish()`` between.
@@ -562,7 +628,7 @@ class GLExecutor:
         dtype = PRECISIONS[self.precision]
         with self.current():
             self.programs(plan)
-            held = {k: self._acquire(texture_size(plan.images[k].stored), "f4") for k in plan.inputs}
+            held = {k: self._input_texture(texture_size(plan.images[k].stored)) for k in plan.inputs}
             for ps, done in zip(plan.passes, plan.releases(), strict=True):
                 held[ps.target] = self._acquire(texture_size(plan.images[ps.target].stored), dtype)
                 for s in done:
@@ -624,4 +690,4 @@ class GLExecutor:
             self._release(t)
 
 
-__all__ = ["GLExecutor", "texture_size"]
+__all__ = ["GLExecutor", "half_probe", "half_read_rounds_even", "texture_size"]

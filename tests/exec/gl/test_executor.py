@@ -198,6 +198,85 @@ def test_half_read_back_rounds_like_numpy(gl):
     assert same.all(), values[~same][:5]
 
 
+def _round_ties_away(values: np.ndarray) -> np.ndarray:
+    """float32 → float16 as NVIDIA's glReadPixels did (driver 580, H100): ties away from zero."""
+    rne = values.astype(np.float16)
+    away = np.nextafter(rne, np.copysign(np.float16(np.inf), rne))
+    tie = np.abs(values.astype(np.float64) - rne) == np.abs(away.astype(np.float64) - values)
+    return np.where(tie & (np.abs(rne) < np.abs(values)), away, rne)
+
+
+def test_half_probe_tells_a_driver_that_rounds_ties_away_apart():
+    """The probe's values tell nearest-even from the roundings NVIDIA's read-back used: ties away from zero,
+    subnormals toward zero. Only nearest even passes."""
+    from pyramid_cli.exec.gl.executor import half_probe, half_read_rounds_even
+
+    values = half_probe()
+    with np.errstate(over="ignore", invalid="ignore"):
+        assert half_read_rounds_even(values, values.astype(np.float16))
+        assert not half_read_rounds_even(values, _round_ties_away(values))
+        flushed = values.astype(np.float16)
+        flushed[np.abs(flushed) < np.float16(2.0 ** -14)] = 0  # subnormals flushed to zero
+        assert not half_read_rounds_even(values, flushed)
+
+
+@gl_mark
+@pytest.mark.parametrize("channels", [None, 3, 4, 6])
+def test_half_outputs_are_rounded_by_numpy_where_the_driver_does_not(gl, monkeypatch, channels):
+    """Where the read-back would not round as numpy does, float16 outputs are read as float32 and rounded by
+    numpy (no half read-back asked of GL), bit for bit the float32 outputs rounded; a 2-D image, channel
+    groups that are not contiguous and one band after another included."""
+    import moderngl
+
+    from pyramid_cli.exec.gl import executor as gl_executor
+
+    asked = []
+    read_into = moderngl.Framebuffer.read_into
+
+    def spy(self, buffer, *args, **kwargs):
+        asked.append(kwargs.get("dtype", "f1"))
+        return read_into(self, buffer, *args, **kwargs)
+
+    image = random_image((67, 45), channels, 5) * 3 - 1
+    image.flat[::7] = np.float32(2.0 ** -20)  # subnormal as half
+    _, p = planned("doosabin *^ (box4 *v g)", (67, 45))
+    want = [o.astype(np.float16) for o in gl.run_outputs(p, [image], dtype=np.float32)]
+    monkeypatch.setattr(moderngl.Framebuffer, "read_into", spy)
+    monkeypatch.setattr(gl, "_half_even", False)
+    monkeypatch.setattr(gl_executor, "BAND_BYTES", 4 * 4 * 45 * 5)  # bands of 5 rows
+    got = gl.run_outputs(p, [image], dtype=np.float16)
+    assert set(asked) == {"f4"}
+    for g, w in zip(got, want, strict=True):
+        assert g.dtype == np.float16 and g.shape == w.shape
+        np.testing.assert_array_equal(g.view(np.uint16), w.view(np.uint16))
+
+
+@gl_mark
+@pytest.mark.parametrize("dtype, channels", [(np.float32, 4), (np.float16, 4), (np.float32, 3), (np.float32, None)])
+def test_inputs_on_a_gpu_are_uploaded_into_textures_never_rendered_into(gl, dtype, channels):
+    """On a GPU (not a host-memory renderer) an input's texture has no framebuffer and is pooled apart from the
+    render targets, which never reuse it; the pixels are the shared pool's, bit for bit, run after run."""
+    from pyramid_cli.exec.gl import GLExecutor
+    from pyramid_cli.exec.gl.executor import INPUT_POOL
+
+    image = random_image((45, 70), channels, 9).astype(dtype)
+    _, p = planned("doosabin *^ (box4 *v g)", (45, 70))
+    want = gl.run(p, image)
+
+    class OnAGPU(GLExecutor):
+        host_textures = False
+
+    with OnAGPU() as fresh:
+        for _ in range(2):
+            np.testing.assert_array_equal(fresh.run(p, image), want)
+            inputs = [t for (_, pool), ts in fresh._free.items() if pool.endswith(INPUT_POOL) for t in ts]
+            assert len(inputs) == 1 and inputs[0].fbo is None
+            assert all(t.fbo is not None for (_, pool), ts in fresh._free.items() if pool == "f4" for t in ts)
+        fresh.prepare(p)
+        assert sum(len(ts) for ts in fresh._free.values()) == len(inputs) + sum(
+            len(ts) for (_, pool), ts in fresh._free.items() if pool == "f4")
+
+
 @gl_mark
 def test_prepare_compiles_and_allocates_ahead(gl):
     from pyramid_cli.exec.gl import GLExecutor
