@@ -61,7 +61,8 @@ model), :mod:`~pyramid_cli.imageio.colour` (sRGB, premultiplication, 8/16-bit co
 :mod:`~pyramid_cli.imageio.read` (decoding and input safety), :mod:`~pyramid_cli.imageio.encode` (the
 encoding rules), :mod:`~pyramid_cli.imageio.write` (the checked writer), :mod:`~pyramid_cli.imageio.atomic`
 (atomic replacement), :mod:`~pyramid_cli.imageio.texture` (MIP-mapped textures and multi-part files),
-:mod:`~pyramid_cli.imageio.bands` (a band of rows at a time), :mod:`~pyramid_cli.imageio.raw` (stored values
+:mod:`~pyramid_cli.imageio.bands` (a band of rows at a time), :mod:`~pyramid_cli.imageio.codecs` (OpenEXR's
+codec threads and their memory), :mod:`~pyramid_cli.imageio.raw` (stored values
 for ``pyramid diff``). This package re-exports their public API, each name loaded from its module on
 first use (PEP 562), so that ``pyramid diff`` of two files loads neither the band streams nor the texture
 writer, and ``import pyramid_cli.imageio.raw`` only what it needs.
@@ -80,10 +81,12 @@ if TYPE_CHECKING:  # what each name is, for readers and checkers; loaded on firs
         BandWriter,
         ImageStream,
         open_stream,
+        output_thread_bytes,
         stream_writer,
         stream_writers,
         streams_to,
     )
+    from pyramid_cli.imageio.codecs import exr_threads, limited_exr_threads
     from pyramid_cli.imageio.colour import count_nonfinite, linear_to_srgb, srgb_to_linear
     from pyramid_cli.imageio.encode import (
         Encoder,
@@ -112,8 +115,9 @@ if TYPE_CHECKING:  # what each name is, for readers and checkers; loaded on firs
 _HOMES = {
     "check_size": "pyramid_cli.core.geometry",
     "ensure_output_dir": "pyramid_cli.imageio.atomic",
-    **dict.fromkeys(["BandWriter", "ImageStream", "open_stream", "stream_writer", "stream_writers", "streams_to"],
-                    "pyramid_cli.imageio.bands"),
+    **dict.fromkeys(["BandWriter", "ImageStream", "open_stream", "output_thread_bytes", "stream_writer",
+                     "stream_writers", "streams_to"], "pyramid_cli.imageio.bands"),
+    **dict.fromkeys(["exr_threads", "limited_exr_threads"], "pyramid_cli.imageio.codecs"),
     **dict.fromkeys(["count_nonfinite", "linear_to_srgb", "srgb_to_linear"], "pyramid_cli.imageio.colour"),
     **dict.fromkeys(["Encoder", "check_write_options", "describe_output", "encoded_rows", "pixels_in",
                      "stores_half_unchanged"], "pyramid_cli.imageio.encode"),
@@ -163,12 +167,15 @@ __all__ = [
     "describe_rules",
     "encoded_rows",
     "ensure_output_dir",
+    "exr_threads",
     "info_for_array",
+    "limited_exr_threads",
     "linear_to_srgb",
     "mip_stream_writer",
     "oiio_version",
     "open_stream",
     "output_pixel_type",
+    "output_thread_bytes",
     "pixels_in",
     "read_image",
     "read_parts",

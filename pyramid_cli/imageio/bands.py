@@ -14,6 +14,7 @@ import OpenImageIO as oiio
 from pyramid_cli.core import options
 from pyramid_cli.core.errors import InputError, OutputError
 from pyramid_cli.imageio.atomic import atomic_paths
+from pyramid_cli.imageio.codecs import exr_thread_bytes
 from pyramid_cli.imageio.encode import Encoder, check_output_path, check_write_options, set_windows
 from pyramid_cli.imageio.formats import (
     ALPHA_MODES,
@@ -83,6 +84,11 @@ class ImageStream:
         self.stored_dtype = np.dtype(probe)  # of the rows on_stored is given
         self._block: tuple[int, np.ndarray] | None = None  # a row of tiles, for tiled files
         self.on_stored = None  # called with each band's rows as stored, before decoding (mipmap's SHA-1)
+
+    def codec_thread_bytes(self) -> int:
+        """Bytes each of OpenEXR's codec threads holds for this file (0 for other formats:
+        :func:`~pyramid_cli.imageio.codecs.exr_thread_bytes`)."""
+        return exr_thread_bytes(self._spec, self.info.format)
 
     def __enter__(self) -> ImageStream:
         return self
@@ -176,6 +182,15 @@ class ImageStream:
             back = back[..., None]
         return back.dtype == dtype and back.shape == probe.shape and np.array_equal(back.view(bits.dtype),
                                                                                    probe.view(bits.dtype))
+
+
+def output_thread_bytes(path: str | os.PathLike[str], info: ImageInfo, channels: int, size: tuple[int, int],
+                        **options) -> int:
+    """Bytes each of OpenEXR's codec threads holds for an output ``path`` of ``size`` (rows, columns) written
+    from ``info`` as the write ``options`` ask (0 for other formats:
+    :func:`~pyramid_cli.imageio.codecs.exr_thread_bytes`)."""
+    enc = Encoder(path, info, channels, check_path=False, **options)
+    return exr_thread_bytes(enc.spec(size[1], size[0]), enc.fmt)
 
 
 def open_stream(path: str | os.PathLike[str], **options) -> ImageStream:

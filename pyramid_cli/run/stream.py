@@ -522,10 +522,8 @@ def run_job(job, work, session, *, memory: int | None, read=None, write=None, re
     if reporter is not None:
         options = write.for_inputs([]) if hasattr(write, "for_inputs") else dict(write or {})
         reporter.detail(f"{io.describe_rules(st.info)}; {io.describe_output(job.output, st.info, **options)}")
-    with st:
-        stream_file(job.input, job.output, work, session, choice, budget=choice.budget, read=read, write=write,
-                    reporter=reporter, stream=st)
-        h, w = st.shape[:2]
+    h, w = st.shape[:2]
+    _stream_decided(job.input, [job.output], work, session, st, choice, read=read, write=write, reporter=reporter)
     if reporter is not None:
         reporter.result(f"wrote {job.output} ({w}×{h}, {session.ran}, streamed in bands of {choice.band} rows)")
     return True
@@ -543,13 +541,55 @@ def run_levels(in_path: str, paths: list[str], work, session, *, memory: int | N
     if decided is None:
         return False
     st, choice = decided
-    with st:
-        stream_file(in_path, paths, work, session, choice, budget=choice.budget, read=read, write=options,
-                    reporter=reporter, stream=st, attributes=attributes)
+    _stream_decided(in_path, paths, work, session, st, choice, read=read, write=options, reporter=reporter,
+                    attributes=attributes)
     return True
+
+
+def codec_limit(choice: Choice, st, outputs: list[tuple[str, tuple[int, int]]],
+                options: dict) -> tuple[int, int] | None:
+    """(threads, bytes each holds) for OpenEXR to code the open input ``st`` and the ``outputs`` (path, (rows,
+    columns)) with where the threads it would use hold more line buffers than ``choice``'s working set leaves of
+    its budget (:mod:`pyramid_cli.imageio.codecs`); None where they fit, or no file is an OpenEXR one."""
+    from pyramid_cli import imageio as io
+
+    c = st.shape[2]
+    per = st.codec_thread_bytes() + sum(io.output_thread_bytes(p, st.info, c, size, **options) for p, size in outputs)
+    left = choice.budget - choice.working_set
+    if per == 0 or per * io.exr_threads() <= left:
+        return None
+    return max(1, left // per), per
+
+
+def _stream_decided(in_path: str, paths: list[str], work, session, st, choice: Choice, *, read, write, reporter,
+                    attributes: dict | None = None) -> None:
+    """:func:`stream_file` of the open ``st`` as ``choice`` (:func:`_decide`) says, with OpenEXR's codec threads
+    limited to what the budget leaves them (:func:`codec_limit`; the input is opened again under the limit, which
+    OpenEXR reads when a file opens)."""
+    from pyramid_cli import imageio as io
+    from pyramid_cli.run.settings import ReadOptions, WriteOptions
+
+    ro, wo = read or ReadOptions(), write or WriteOptions()
+    options = wo.for_inputs([in_path]) if not isinstance(wo, dict) else dict(wo)
+    h, w = st.shape[:2]
+    plan = session.plan(work, [(h, w)])
+    sizes = [(h, w)] * bool(work.keeps_input) + [plan.images[k].size for k in plan.outputs]
+    with st:
+        limit = codec_limit(choice, st, list(zip(paths, sizes, strict=False)), options)
+        if limit is None:
+            stream_file(in_path, paths, work, session, choice, budget=choice.budget, read=read, write=write,
+                        reporter=reporter, stream=st, attributes=attributes)
+            return
+    if reporter is not None:
+        reporter.detail(f"{in_path}: OpenEXR codes with {limit[0]} of its {io.exr_threads()} threads: each holds "
+                        f"about {format_size(limit[1])} of line buffers, and the working set leaves "
+                        f"{format_size(choice.budget - choice.working_set)} of the memory budget")
+    with io.limited_exr_threads(limit[0]), open_input(in_path, ro) as again:
+        stream_file(in_path, paths, work, session, choice, budget=choice.budget, read=read, write=write,
+                    reporter=reporter, stream=again, attributes=attributes)
 
 
 __all__ = ["BandTimes", "Choice", "choose", "choose_mip", "estimate", "parse_size", "default_memory",
            "available_memory", "stream_file", "open_input", "format_size", "run_job", "run_levels", "costs",
-           "executor_of", "read_step", "run_bands", "speed_band", "band_rows", "warn_nonfinite", "MIN_BAND",
-           "STREAM_PIXELS", "BAND_PIXELS"]
+           "executor_of", "read_step", "codec_limit", "run_bands", "speed_band", "band_rows", "warn_nonfinite",
+           "MIN_BAND", "STREAM_PIXELS", "BAND_PIXELS"]
