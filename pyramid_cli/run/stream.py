@@ -561,6 +561,15 @@ def codec_limit(choice: Choice, st, outputs: list[tuple[str, tuple[int, int]]],
     return max(1, left // per), per
 
 
+def codec_said(in_path: str, limit: tuple[int, int], choice: Choice) -> str:
+    """The ``-v`` line of a :func:`codec_limit`."""
+    from pyramid_cli import imageio as io
+
+    return (f"{in_path}: OpenEXR codes with {limit[0]} of its {io.exr_threads()} threads: each holds about "
+            f"{format_size(limit[1])} of line buffers, and the working set leaves "
+            f"{format_size(choice.budget - choice.working_set)} of the memory budget")
+
+
 def _stream_decided(in_path: str, paths: list[str], work, session, st, choice: Choice, *, read, write, reporter,
                     attributes: dict | None = None) -> None:
     """:func:`stream_file` of the open ``st`` as ``choice`` (:func:`_decide`) says, with OpenEXR's codec threads
@@ -581,9 +590,7 @@ def _stream_decided(in_path: str, paths: list[str], work, session, st, choice: C
                         reporter=reporter, stream=st, attributes=attributes)
             return
     if reporter is not None:
-        reporter.detail(f"{in_path}: OpenEXR codes with {limit[0]} of its {io.exr_threads()} threads: each holds "
-                        f"about {format_size(limit[1])} of line buffers, and the working set leaves "
-                        f"{format_size(choice.budget - choice.working_set)} of the memory budget")
+        reporter.detail(codec_said(in_path, limit, choice))
     with io.limited_exr_threads(limit[0]), open_input(in_path, ro) as again:
         stream_file(in_path, paths, work, session, choice, budget=choice.budget, read=read, write=write,
                     reporter=reporter, stream=again, attributes=attributes)
@@ -591,5 +598,5 @@ def _stream_decided(in_path: str, paths: list[str], work, session, st, choice: C
 
 __all__ = ["BandTimes", "Choice", "choose", "choose_mip", "estimate", "parse_size", "default_memory",
            "available_memory", "stream_file", "open_input", "format_size", "run_job", "run_levels", "costs",
-           "executor_of", "read_step", "codec_limit", "run_bands", "speed_band", "band_rows", "warn_nonfinite",
-           "MIN_BAND", "STREAM_PIXELS", "BAND_PIXELS"]
+           "executor_of", "read_step", "codec_limit", "codec_said", "run_bands", "speed_band", "band_rows",
+           "warn_nonfinite", "MIN_BAND", "STREAM_PIXELS", "BAND_PIXELS"]

@@ -16,7 +16,17 @@ from pyramid_cli.core.errors import DataError, UsageError
 from pyramid_cli.imageio.spill import KeptRows
 from pyramid_cli.run.budget import resolve
 from pyramid_cli.run.overlap import overlapped
-from pyramid_cli.run.stream import MIN_BAND, choose_mip, costs, executor_of, open_input, read_step, warn_nonfinite
+from pyramid_cli.run.stream import (
+    MIN_BAND,
+    choose_mip,
+    codec_limit,
+    codec_said,
+    costs,
+    executor_of,
+    open_input,
+    read_step,
+    warn_nonfinite,
+)
 
 
 @contextlib.contextmanager
@@ -144,6 +154,11 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
         info = st.info
         options = wo.for_inputs([in_path])
         io.check_write_options(out_path, wo.pixel_type, wo.compression)  # refused before any work
+        limit = codec_limit(choice, st, [(out_path, (h, w))], options)
+        if limit is not None:  # OpenEXR's threads as the budget leaves room for: the input opened again under it
+            reporter.detail(codec_said(in_path, limit, choice))
+            stack.enter_context(io.limited_exr_threads(limit[0]))
+            st = stack.enter_context(open_input(in_path, ro))
         step = 2 * max(MIN_BAND, band)  # level 0's rows at a time outside the scheduler (multiples of 8)
         stats = PixelStats(h)
         once = bool(choice.level0)

@@ -44,9 +44,10 @@ def test_streams_and_outputs_say_what_their_threads_hold(tmp_path):
 
 def test_the_limit_holds_inside_the_block_and_is_undone_after():
     before = oiio.get_int_attribute("exr_threads")
+    pool = oiio.get_int_attribute("threads")
     with limited_exr_threads(1):
-        assert exr_threads() == 1
-    assert oiio.get_int_attribute("exr_threads") == before
+        assert exr_threads() == 1 and oiio.get_int_attribute("threads") == 1
+    assert oiio.get_int_attribute("exr_threads") == before and oiio.get_int_attribute("threads") == pool
     with limited_exr_threads(None), limited_exr_threads(exr_threads() + 5):  # no limit, or none needed
         assert oiio.get_int_attribute("exr_threads") == before
     with pytest.raises(RuntimeError), limited_exr_threads(1):
