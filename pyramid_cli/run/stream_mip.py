@@ -157,6 +157,7 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
         limit = codec_limit(choice, st, [(out_path, (h, w))], options)
         if limit is not None:  # OpenEXR's threads as the budget leaves room for: the input opened again under it
             reporter.detail(codec_said(in_path, limit, choice))
+            st.close()  # its line buffers go with it (closed again by the stack: a no-op)
             stack.enter_context(io.limited_exr_threads(limit[0]))
             st = stack.enter_context(open_input(in_path, ro))
         step = 2 * max(MIN_BAND, band)  # level 0's rows at a time outside the scheduler (multiples of 8)
