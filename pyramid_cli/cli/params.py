@@ -47,7 +47,8 @@ def io_options(f):
         click.option("--backend", type=choice(BACKENDS), default="auto", show_default=True,
                      help="; ".join(f"{name}: {BACKEND_HELP[name]}" for name in BACKENDS) + " (-v says which ran)."),
         click.option("--threads", type=click.IntRange(1, 1024), default=None, metavar="N",
-                     help="CPU executor threads (default: the cores this process may use)."),
+                     help="CPU executor threads (default: the cores this process may use: its affinity, within its "
+                          "container's CPU quota)."),
         click.option("--precision", type=choice(PRECISIONS), default="float", show_default=True,
                      help="GL intermediate textures: RGBA32F, or RGBA16F (faster, ~1e-3 relative, max 65504). "
                           "Half files travel as half either way (upload, read-back), losing nothing."),

@@ -71,8 +71,20 @@ writer, and ``import pyramid_cli.imageio.raw`` only what it needs.
 
 from __future__ import annotations
 
+import os
 from importlib import import_module
 from typing import TYPE_CHECKING
+
+from pyramid_cli.core.machine import usable_cores
+
+# OpenImageIO sizes its thread pools (OpenEXR's codec threads among them) from the host's cores when it loads,
+# which no module has done yet: it reads OPENIMAGEIO_THREADS then. A process whose affinity or cgroup CPU quota
+# (a container's --cpus) allows fewer cores gets pools of that many threads (its children, in the same cgroup,
+# inherit the setting); one the user set is kept, and elsewhere the environment is left alone.
+_cores = usable_cores()
+if _cores < (os.cpu_count() or 1):
+    os.environ.setdefault("OPENIMAGEIO_THREADS", str(_cores))
+del _cores
 
 if TYPE_CHECKING:  # what each name is, for readers and checkers; loaded on first use below
     from pyramid_cli.core.geometry import check_size

@@ -27,6 +27,7 @@ import re
 from dataclasses import dataclass
 
 from pyramid_cli.core.errors import DataError, UsageError
+from pyramid_cli.core.machine import cgroup_chain, cgroup_paths, mounts, read_file
 
 _UNITS = {"": 1, "B": 1, "K": 1 << 10, "M": 1 << 20, "G": 1 << 30, "T": 1 << 40}
 MIB = 1 << 20
@@ -121,14 +122,6 @@ class Budget:
         return doc
 
 
-def _read(root: str, path: str) -> str | None:
-    try:
-        with open(os.path.join(root, path.lstrip("/"))) as f:
-            return f.read()
-    except (OSError, UnicodeDecodeError):
-        return None
-
-
 def _number(text: str | None) -> int | None:
     """A limit file's value: None for "max", huge values and unreadable or malformed text."""
     if text is None:
@@ -151,7 +144,7 @@ def _stat(text: str | None) -> dict[str, int]:
 
 def _proc_field(root: str, name: str) -> int | None:
     """A ``kB`` field of /proc/self/status (``VmSize``, ``VmData``), in bytes."""
-    for line in (_read(root, "/proc/self/status") or "").splitlines():
+    for line in (read_file(root, "/proc/self/status") or "").splitlines():
         if line.startswith(name + ":"):
             try:
                 return int(line.split()[1]) * 1024
@@ -160,56 +153,18 @@ def _proc_field(root: str, name: str) -> int | None:
     return None
 
 
-def _mounts(root: str, fstype: str) -> list[tuple[str, str, set[str]]]:
-    """(mount root, mount point, super options) of each ``fstype`` mount in /proc/self/mountinfo."""
-    out = []
-    for line in (_read(root, "/proc/self/mountinfo") or "").splitlines():
-        head, sep, tail = line.partition(" - ")
-        fields, rest = head.split(), tail.split()
-        if not sep or len(fields) < 5 or len(rest) < 3 or rest[0] != fstype:
-            continue
-        out.append((fields[3], fields[4], set(rest[2].split(","))))
-    return out
-
-
-def _chain(mount_root: str, mount_point: str, cgroup: str) -> list[str]:
-    """The folders of ``cgroup`` and of each ancestor visible under the mount, the process's own first."""
-    rel = cgroup
-    if mount_root != "/" and (cgroup == mount_root or cgroup.startswith(mount_root.rstrip("/") + "/")):
-        rel = cgroup[len(mount_root.rstrip("/")):]
-    elif mount_root != "/":
-        rel = "/"  # a cgroup namespace or a bind mount of the process's own cgroup: the mount is its folder
-    parts = [p for p in rel.split("/") if p]
-    return [os.path.join(mount_point, *parts[:i]) for i in range(len(parts), -1, -1)]
-
-
-def _cgroups(root: str) -> dict[str, str]:
-    """The process's cgroup paths from /proc/self/cgroup: ``{"": v2 path, controller: v1 path}``."""
-    out = {}
-    for line in (_read(root, "/proc/self/cgroup") or "").splitlines():
-        parts = line.split(":", 2)
-        if len(parts) != 3:
-            continue
-        if parts[0] == "0" and parts[1] == "":
-            out[""] = parts[2]
-        for controller in parts[1].split(","):
-            if controller:
-                out[controller] = parts[2]
-    return out
-
-
 def memory_cgroups(root: str = "/") -> dict[str, str]:
     """The folders of the process's own cgroup where memory is limited: ``{"cgroup v2": folder}`` when the
     unified hierarchy is mounted, ``{"cgroup v1": folder}`` when the v1 memory controller is (either or both)."""
-    paths = _cgroups(root)
+    paths = cgroup_paths(root)
     out: dict[str, str] = {}
     if "" in paths:
-        for mount_root, point, _ in _mounts(root, "cgroup2"):
-            out.setdefault("cgroup v2", _chain(mount_root, point, paths[""])[0])
+        for mount_root, point, _ in mounts(root, "cgroup2"):
+            out.setdefault("cgroup v2", cgroup_chain(mount_root, point, paths[""])[0])
     if "memory" in paths:
-        for mount_root, point, options in _mounts(root, "cgroup"):
+        for mount_root, point, options in mounts(root, "cgroup"):
             if "memory" in options:
-                out.setdefault("cgroup v1", _chain(mount_root, point, paths["memory"])[0])
+                out.setdefault("cgroup v1", cgroup_chain(mount_root, point, paths["memory"])[0])
     return out
 
 
@@ -220,17 +175,17 @@ def _tightest(limits: list[Limit]) -> Limit | None:
 def cgroup_v2(root: str = "/") -> Limit | None:
     """The tightest ``memory.max`` of the process's cgroup v2 and its ancestors: ``left`` is the limit less
     ``memory.current`` of the same cgroup (less its reclaimable ``inactive_file`` page cache)."""
-    path = _cgroups(root).get("")
+    path = cgroup_paths(root).get("")
     if path is None:
         return None
     found = []
-    for mount_root, point, _ in _mounts(root, "cgroup2"):
-        for folder in _chain(mount_root, point, path):
-            size = _number(_read(root, os.path.join(folder, "memory.max")))
-            used = _number(_read(root, os.path.join(folder, "memory.current")))
+    for mount_root, point, _ in mounts(root, "cgroup2"):
+        for folder in cgroup_chain(mount_root, point, path):
+            size = _number(read_file(root, os.path.join(folder, "memory.max")))
+            used = _number(read_file(root, os.path.join(folder, "memory.current")))
             if size is None or used is None:
                 continue
-            used -= min(used, _stat(_read(root, os.path.join(folder, "memory.stat"))).get("inactive_file", 0))
+            used -= min(used, _stat(read_file(root, os.path.join(folder, "memory.stat"))).get("inactive_file", 0))
             found.append(Limit("cgroup v2", size, max(0, size - used), os.path.join(folder, "memory.max")))
     return _tightest(found)
 
@@ -239,20 +194,20 @@ def cgroup_v1(root: str = "/") -> Limit | None:
     """The tightest ``memory.limit_in_bytes`` of the process's cgroup v1 memory controller and its ancestors,
     or ``hierarchical_memory_limit`` of ``memory.stat`` (ancestors above the mount): ``left`` is the limit less
     ``memory.usage_in_bytes`` (less its reclaimable ``total_inactive_file`` page cache)."""
-    path = _cgroups(root).get("memory")
+    path = cgroup_paths(root).get("memory")
     if path is None:
         return None
     found = []
-    for mount_root, point, options in _mounts(root, "cgroup"):
+    for mount_root, point, options in mounts(root, "cgroup"):
         if "memory" not in options:
             continue
-        for i, folder in enumerate(_chain(mount_root, point, path)):
-            used = _number(_read(root, os.path.join(folder, "memory.usage_in_bytes")))
+        for i, folder in enumerate(cgroup_chain(mount_root, point, path)):
+            used = _number(read_file(root, os.path.join(folder, "memory.usage_in_bytes")))
             if used is None:
                 continue
-            stat = _stat(_read(root, os.path.join(folder, "memory.stat")))
+            stat = _stat(read_file(root, os.path.join(folder, "memory.stat")))
             used -= min(used, stat.get("total_inactive_file", stat.get("inactive_file", 0)))
-            size = _number(_read(root, os.path.join(folder, "memory.limit_in_bytes")))
+            size = _number(read_file(root, os.path.join(folder, "memory.limit_in_bytes")))
             if size is not None:
                 found.append(Limit("cgroup v1", size, max(0, size - used),
                                    os.path.join(folder, "memory.limit_in_bytes")))
@@ -285,7 +240,7 @@ def rlimits(root: str = "/") -> list[Limit]:
 
 def available(root: str = "/") -> Limit:
     """The memory available on the machine now: ``MemAvailable`` of /proc/meminfo, else physical memory."""
-    for line in (_read(root, "/proc/meminfo") or "").splitlines():
+    for line in (read_file(root, "/proc/meminfo") or "").splitlines():
         if line.startswith("MemAvailable:"):
             try:
                 return Limit("available", None, int(line.split()[1]) * 1024, "MemAvailable of /proc/meminfo")

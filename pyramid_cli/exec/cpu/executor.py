@@ -29,7 +29,6 @@ compiled or loaded only when a float64 run first needs them: a float32 run loads
 
 from __future__ import annotations
 
-import os
 import sys
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor, wait
@@ -41,6 +40,7 @@ import numpy as np
 
 from pyramid_cli.core.border import Border, fold
 from pyramid_cli.core.errors import BackendError
+from pyramid_cli.core.machine import usable_cores
 from pyramid_cli.exec.cpu import aot
 from pyramid_cli.exec.cpu.codegen import (
     POINTWISE_CODES,
@@ -75,11 +75,9 @@ OUT_DTYPES = (np.dtype(np.float32), np.dtype(np.float16), np.dtype(np.float64))
 
 
 def default_threads() -> int:
-    """The cores this process may use."""
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # pragma: no cover - not Linux
-        return max(1, os.cpu_count() or 1)
+    """The cores this process may use: its affinity, within its cgroups' CPU quota
+    (:func:`pyramid_cli.core.machine.usable_cores`)."""
+    return usable_cores()
 
 
 @dataclass
