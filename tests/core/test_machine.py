@@ -8,38 +8,21 @@ from pathlib import Path
 
 import pytest
 
+from helpers.proc_trees import MOUNTINFO_V1, MOUNTINFO_V2, cgroup_tree
 from pyramid_cli.core import machine
-
-MOUNTINFO_V2 = ("24 1 0:22 / /sys/fs/cgroup rw,nosuid - cgroup2 cgroup2 rw,nsdelegate\n"
-                "25 1 8:1 / / rw - ext4 /dev/sda1 rw\n")
-MOUNTINFO_V1 = ("31 23 0:28 / /sys/fs/cgroup rw,relatime - tmpfs tmpfs rw,mode=755\n"
-                "32 31 0:29 / /sys/fs/cgroup/cpu,cpuacct rw,relatime - cgroup cgroup rw,cpu,cpuacct\n"
-                "35 31 0:32 / /sys/fs/cgroup/memory rw,relatime - cgroup cgroup rw,memory\n")
-
-
-def put(root: Path, path: str, text) -> None:
-    f = root / path.lstrip("/")
-    f.parent.mkdir(parents=True, exist_ok=True)
-    f.write_text(str(text) + "\n")
 
 
 def v2(root: Path, path: str, levels: dict[str, str]) -> Path:
     """A cgroup v2 tree: ``levels`` maps each folder (relative to the mount) to its cpu.max."""
-    put(root, "/proc/self/mountinfo", MOUNTINFO_V2)
-    put(root, "/proc/self/cgroup", f"0::{path}")
-    for folder, text in levels.items():
-        put(root, f"/sys/fs/cgroup/{folder}".rstrip("/") + "/cpu.max", text)
+    cgroup_tree(root, MOUNTINFO_V2, f"0::{path}", {f"/sys/fs/cgroup/{f}": {"cpu.max": t} for f, t in levels.items()})
     return root
 
 
 def v1(root: Path, path: str, levels: dict[str, tuple]) -> Path:
     """A cgroup v1 tree: ``levels`` maps each folder to (cpu.cfs_quota_us, cpu.cfs_period_us)."""
-    put(root, "/proc/self/mountinfo", MOUNTINFO_V1)
-    put(root, "/proc/self/cgroup", f"12:memory:{path}\n11:cpu,cpuacct:{path}\n0::/")
-    for folder, (quota, period) in levels.items():
-        base = f"/sys/fs/cgroup/cpu,cpuacct/{folder}".rstrip("/")
-        put(root, f"{base}/cpu.cfs_quota_us", quota)
-        put(root, f"{base}/cpu.cfs_period_us", period)
+    cgroup_tree(root, MOUNTINFO_V1, f"12:memory:{path}\n11:cpu,cpuacct:{path}\n0::/", {
+        f"/sys/fs/cgroup/cpu,cpuacct/{folder}": {"cpu.cfs_quota_us": quota, "cpu.cfs_period_us": period}
+        for folder, (quota, period) in levels.items()})
     return root
 
 

@@ -7,25 +7,12 @@ from pathlib import Path
 
 import pytest
 
+from helpers.proc_trees import MOUNTINFO_V1, MOUNTINFO_V2, cgroup_tree, put
 from pyramid_cli.core.errors import UsageError
 from pyramid_cli.run import budget, stream
 
 MIB = 1 << 20
 V1_UNLIMITED = 9223372036854771712
-
-MOUNTINFO_V2 = ("24 1 0:22 / /sys/fs/cgroup rw,nosuid - cgroup2 cgroup2 rw,nsdelegate\n"
-                "25 1 8:1 / / rw - ext4 /dev/sda1 rw\n")
-MOUNTINFO_V1 = ("31 23 0:28 / /sys/fs/cgroup rw,relatime - tmpfs tmpfs rw,mode=755\n"
-                "32 31 0:29 / /sys/fs/cgroup/cpu,cpuacct rw,relatime - cgroup cgroup rw,cpu,cpuacct\n"
-                "35 31 0:32 / /sys/fs/cgroup/memory rw,relatime - cgroup cgroup rw,memory\n"
-                "41 31 0:38 / /sys/fs/cgroup/unified rw,relatime - cgroup2 cgroup2 rw\n")
-
-
-def put(root: Path, path: str, text) -> None:
-    f = root / path.lstrip("/")
-    f.parent.mkdir(parents=True, exist_ok=True)
-    f.write_text(str(text) + "\n")
-
 
 @pytest.fixture
 def root(tmp_path, monkeypatch):
@@ -38,22 +25,15 @@ def root(tmp_path, monkeypatch):
 
 def v2(root: Path, path: str, levels: dict[str, tuple]) -> None:
     """A cgroup v2 tree: ``levels`` maps each folder (relative to the mount) to (memory.max, memory.current)."""
-    put(root, "/proc/self/mountinfo", MOUNTINFO_V2)
-    put(root, "/proc/self/cgroup", f"0::{path}")
-    for folder, (limit, current) in levels.items():
-        base = f"/sys/fs/cgroup/{folder}".rstrip("/")
-        if limit is not None:
-            put(root, f"{base}/memory.max", limit)
-        put(root, f"{base}/memory.current", current)
+    cgroup_tree(root, MOUNTINFO_V2, f"0::{path}", {f"/sys/fs/cgroup/{folder}": {
+        "memory.max": limit, "memory.current": current} for folder, (limit, current) in levels.items()})
 
 
 def v1(root: Path, path: str, limit, usage, stat: str = "") -> str:
-    put(root, "/proc/self/mountinfo", MOUNTINFO_V1)
-    put(root, "/proc/self/cgroup", f"12:memory:{path}\n11:cpu,cpuacct:{path}\n0::/")
     base = f"/sys/fs/cgroup/memory{path}".rstrip("/")
-    put(root, f"{base}/memory.limit_in_bytes", limit)
-    put(root, f"{base}/memory.usage_in_bytes", usage)
-    put(root, f"{base}/memory.stat", stat or f"cache 0\nhierarchical_memory_limit {V1_UNLIMITED}")
+    cgroup_tree(root, MOUNTINFO_V1, f"12:memory:{path}\n11:cpu,cpuacct:{path}\n0::/", {base: {
+        "memory.limit_in_bytes": limit, "memory.usage_in_bytes": usage,
+        "memory.stat": stat or f"cache 0\nhierarchical_memory_limit {V1_UNLIMITED}"}})
     return base
 
 
