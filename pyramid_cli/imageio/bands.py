@@ -85,6 +85,16 @@ class ImageStream:
         self._block: tuple[int, np.ndarray] | None = None  # a row of tiles, for tiled files
         self.on_stored = None  # called with each band's rows as stored, before decoding (mipmap's SHA-1)
 
+    def reopen(self) -> None:
+        """Open the file again, in place, from its first row: OpenEXR gives a file as many line buffers as it has
+        codec threads when the file opens (:func:`~pyramid_cli.imageio.codecs.limited_exr_threads`)."""
+        self._stack.close()
+        self._stack = contextlib.ExitStack()
+        name = self._name = self._stack.enter_context(readable_name(self.path))
+        self._inp, self._spec, _, self._subimage = open_input(name, None, self.path)
+        self._stack.callback(self._inp.close)
+        self._block = None
+
     def codec_thread_bytes(self) -> int:
         """Bytes each of OpenEXR's codec threads holds for this file (0 for other formats:
         :func:`~pyramid_cli.imageio.codecs.exr_thread_bytes`)."""

@@ -19,6 +19,7 @@ band is refused before it starts. Images that fit run whole, as before (fastest)
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import os
 import time
@@ -546,57 +547,62 @@ def run_levels(in_path: str, paths: list[str], work, session, *, memory: int | N
     return True
 
 
-def codec_limit(choice: Choice, st, outputs: list[tuple[str, tuple[int, int]]],
+def codec_limit(choice: Choice, streams, outputs: list[tuple[str, tuple[int, int]]], info, channels: int,
                 options: dict) -> tuple[int, int] | None:
-    """(threads, bytes each holds) for OpenEXR to code the open input ``st`` and the ``outputs`` (path, (rows,
-    columns)) with where the threads it would use hold more line buffers than ``choice``'s working set leaves of
-    its budget (:mod:`pyramid_cli.imageio.codecs`); None where they fit, or no file is an OpenEXR one."""
+    """(threads, bytes each holds) for OpenEXR to code the open inputs ``streams`` and the ``outputs`` (path,
+    (rows, columns), written from ``info`` with ``channels`` as the write ``options`` ask) with where the threads
+    it would use hold more line buffers than ``choice``'s working set leaves of its budget
+    (:mod:`pyramid_cli.imageio.codecs`); None where they fit, or no file is an OpenEXR one."""
     from pyramid_cli import imageio as io
 
-    c = st.shape[2]
-    per = st.codec_thread_bytes() + sum(io.output_thread_bytes(p, st.info, c, size, **options) for p, size in outputs)
+    per = (sum(st.codec_thread_bytes() for st in streams)
+           + sum(io.output_thread_bytes(p, info, channels, size, **options) for p, size in outputs))
     left = choice.budget - choice.working_set
     if per == 0 or per * io.exr_threads() <= left:
         return None
     return max(1, left // per), per
 
 
-def codec_said(in_path: str, limit: tuple[int, int], choice: Choice) -> str:
-    """The ``-v`` line of a :func:`codec_limit`."""
+@contextlib.contextmanager
+def codecs_within(choice: Choice, streams, outputs: list[tuple[str, tuple[int, int]]], info, channels: int,
+                  options: dict, reporter=None, where: str = ""):
+    """Run the block with OpenEXR's codec threads (and OpenImageIO's pool) limited to what the budget leaves them
+    (:func:`codec_limit`), the open ``streams`` opened again under the limit (in place: OpenEXR counts a file's
+    threads when it opens), and the outputs opened inside the block; as they are where the threads fit."""
     from pyramid_cli import imageio as io
 
-    return (f"{in_path}: OpenEXR codes with {limit[0]} of its {io.exr_threads()} threads: each holds about "
-            f"{format_size(limit[1])} of line buffers, and the working set leaves "
-            f"{format_size(choice.budget - choice.working_set)} of the memory budget")
+    limit = codec_limit(choice, streams, outputs, info, channels, options)
+    if limit is None:
+        yield
+        return
+    if reporter is not None:
+        reporter.detail(f"{where}: OpenEXR codes with {limit[0]} of its {io.exr_threads()} threads: each holds about "
+                        f"{format_size(limit[1])} of line buffers, and the working set leaves "
+                        f"{format_size(choice.budget - choice.working_set)} of the memory budget")
+    with io.limited_exr_threads(limit[0]):
+        for st in streams:
+            st.reopen()
+        yield
 
 
 def _stream_decided(in_path: str, paths: list[str], work, session, st, choice: Choice, *, read, write, reporter,
                     attributes: dict | None = None) -> None:
     """:func:`stream_file` of the open ``st`` as ``choice`` (:func:`_decide`) says, with OpenEXR's codec threads
-    limited to what the budget leaves them (:func:`codec_limit`; the input is opened again under the limit, which
-    OpenEXR reads when a file opens)."""
-    from pyramid_cli import imageio as io
-    from pyramid_cli.run.settings import ReadOptions, WriteOptions
+    as the budget leaves room for (:func:`codecs_within`)."""
+    from pyramid_cli.run.settings import WriteOptions
 
-    ro, wo = read or ReadOptions(), write or WriteOptions()
+    wo = write or WriteOptions()
     options = wo.for_inputs([in_path]) if not isinstance(wo, dict) else dict(wo)
-    h, w = st.shape[:2]
+    h, w, c = st.shape
     plan = session.plan(work, [(h, w)])
     sizes = [(h, w)] * bool(work.keeps_input) + [plan.images[k].size for k in plan.outputs]
-    with st:
-        limit = codec_limit(choice, st, list(zip(paths, sizes, strict=False)), options)
-        if limit is None:
-            stream_file(in_path, paths, work, session, choice, budget=choice.budget, read=read, write=write,
-                        reporter=reporter, stream=st, attributes=attributes)
-            return
-    if reporter is not None:
-        reporter.detail(codec_said(in_path, limit, choice))
-    with io.limited_exr_threads(limit[0]), open_input(in_path, ro) as again:
+    with st, codecs_within(choice, [st], list(zip(paths, sizes, strict=False)), st.info, c, options, reporter,
+                           in_path):
         stream_file(in_path, paths, work, session, choice, budget=choice.budget, read=read, write=write,
-                    reporter=reporter, stream=again, attributes=attributes)
+                    reporter=reporter, stream=st, attributes=attributes)
 
 
 __all__ = ["BandTimes", "Choice", "choose", "choose_mip", "estimate", "parse_size", "default_memory",
            "available_memory", "stream_file", "open_input", "format_size", "run_job", "run_levels", "costs",
-           "executor_of", "read_step", "codec_limit", "codec_said", "run_bands", "speed_band", "band_rows",
+           "executor_of", "read_step", "codec_limit", "codecs_within", "run_bands", "speed_band", "band_rows",
            "warn_nonfinite", "MIN_BAND", "STREAM_PIXELS", "BAND_PIXELS"]

@@ -34,6 +34,7 @@ from pyramid_cli.run.stream import (
     MIN_BAND,
     Choice,
     choose,
+    codecs_within,
     costs,
     executor_of,
     open_input,
@@ -146,7 +147,9 @@ def stream_plan(plan: Plan, feeds: Sequence[Feed], out_path: str, info, channels
     emu = executor.work_dtype == np.float64
     (out,) = plan.outputs
     h, w = plan.images[out].size
-    with (io.stream_writers([out_path], [info], [(h, w, channels)], **options) as (bw,),
+    streams = [st for feed in feeds for st in feed.streams]
+    with (codecs_within(choice, streams, [(out_path, (h, w))], info, channels, options, reporter, where),
+          io.stream_writers([out_path], [info], [(h, w, channels)], **options) as (bw,),
           overlapped(None, 0, 1) as (_, writer),
           _reading(feeds, plan, band) as tees):
         def source(k, rows, cols):

@@ -19,8 +19,7 @@ from pyramid_cli.run.overlap import overlapped
 from pyramid_cli.run.stream import (
     MIN_BAND,
     choose_mip,
-    codec_limit,
-    codec_said,
+    codecs_within,
     costs,
     executor_of,
     open_input,
@@ -154,12 +153,7 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
         info = st.info
         options = wo.for_inputs([in_path])
         io.check_write_options(out_path, wo.pixel_type, wo.compression)  # refused before any work
-        limit = codec_limit(choice, st, [(out_path, (h, w))], options)
-        if limit is not None:  # OpenEXR's threads as the budget leaves room for: the input opened again under it
-            reporter.detail(codec_said(in_path, limit, choice))
-            st.close()  # its line buffers go with it (closed again by the stack: a no-op)
-            stack.enter_context(io.limited_exr_threads(limit[0]))
-            st = stack.enter_context(open_input(in_path, ro))
+        stack.enter_context(codecs_within(choice, [st], [(out_path, (h, w))], info, c, options, reporter, in_path))
         step = 2 * max(MIN_BAND, band)  # level 0's rows at a time outside the scheduler (multiples of 8)
         stats = PixelStats(h)
         once = bool(choice.level0)

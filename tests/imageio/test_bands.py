@@ -4,6 +4,7 @@ read and write. Streaming whole commands: tests/run/test_stream.py."""
 import numpy as np
 import pytest
 
+from helpers.images import noise
 from helpers.images import write as write_raw
 from pyramid_cli import imageio as pio
 from pyramid_cli.core.errors import OutputError
@@ -152,3 +153,18 @@ def test_a_small_exr_written_band_by_band_is_whole_when_checked(tmp_path, shape,
             w.write(0, rows)
         back = pio.read_image(tmp_path / "s.exr")
     assert back.pixels.shape == shape and not back.pixels.any()
+
+
+@pytest.mark.parametrize("tile", [0, 16])
+def test_a_stream_opened_again_in_place_reads_the_same_rows(tmp_path, tile):
+    """``reopen`` (OpenEXR counts a file's codec threads when it opens: run.stream.codecs_within) starts over on a
+    new handle, a tiled file's kept row of tiles included; the object, its shape and its counts stay."""
+    src = noise(40, 33, seed=4)
+    path = write_raw(tmp_path / "in.exr", src, "half", tile=tile)
+    with bands.open_stream(path, keep_half=True) as stream:
+        first = stream.read(0, 20)
+        before = stream._inp
+        stream.reopen()
+        assert stream._inp is not before and stream.shape == (40, 33, 4)
+        np.testing.assert_array_equal(stream.read(0, 20), first)
+        np.testing.assert_array_equal(stream.read(20, 40), src[20:].astype(np.float16))
