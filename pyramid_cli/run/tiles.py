@@ -36,6 +36,7 @@ from pyramid_cli.run.stream import (
     MIN_BAND,
     band_rows,
     choose,
+    codecs_within,
     costs,
     estimate,
     executor_codes,
@@ -266,13 +267,15 @@ def _make_levels(source, where: str, writer, sizes, options: TileOptions, settin
     def level(j: int, y0: int, px: np.ndarray) -> None:  # on the writer's thread
         writer.rows(j + 1, y0, px.astype(np.float32, copy=False))
 
+    streams = [source] if hasattr(source, "reopen") else []  # an EXR input's codec threads as the budget allows
     try:
-        if table is not None:  # the codes reach level 0 themselves
-            times = run_bands(source.read_stored, plan, executor, band, level, level0, codes=table)
-        else:
-            if stored is not None:
-                source.on_stored = stored.keep
-            times = run_bands(source.read, plan, executor, band, level, level0)
+        with codecs_within(choice, streams, [], source.info, c, {}, reporter, where):
+            if table is not None:  # the codes reach level 0 themselves
+                times = run_bands(source.read_stored, plan, executor, band, level, level0, codes=table)
+            else:
+                if stored is not None:
+                    source.on_stored = stored.keep
+                times = run_bands(source.read, plan, executor, band, level, level0)
     finally:
         if stored is not None:
             source.on_stored = None

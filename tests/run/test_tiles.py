@@ -170,3 +170,23 @@ def test_writer_memory_is_a_tile_row_per_level_in_the_stored_type():
     assert held == (sum(min(h, 256) * w for h, w in sizes) + 2 * 256 * 2000 + bands) * 3
     assert run_tiles.writer_memory(sizes[2:], 1, TileOptions(), band=1000) == 3 * 250 * 500 * 4 * 2
     assert run_tiles.writer_memory(sizes, 3, TileOptions(), itemsize=2) < held * 2  # 16-bit: twice the rows
+
+
+@pytest.mark.slow
+def test_an_exr_input_s_codec_threads_fit_the_budget(tmp_path, monkeypatch):
+    """With OpenImageIO told to use 16 threads (a 16-core machine), an EXR input's codec threads are limited to
+    what the budget leaves them (run.stream.codecs_within, the input opened again), and the tiles are the same."""
+    from helpers.cli import run_cli
+    from helpers.images import noise
+
+    src = write(tmp_path / "in.exr", noise(600, 700, seed=5), "half")
+    monkeypatch.setenv("OPENIMAGEIO_THREADS", "16")
+    r = run_cli("tiles", src, tmp_path / "a.dzi", "--memory", "20M", "-v")
+    assert r.returncode == 0 and "OpenEXR codes with" in r.stderr and "of its 16 threads" in r.stderr, r.stderr
+    monkeypatch.delenv("OPENIMAGEIO_THREADS")
+    r = run_cli("tiles", src, tmp_path / "b.dzi")
+    assert r.returncode == 0 and "OpenEXR codes with" not in r.stderr, r.stderr
+    a = sorted(p.relative_to(tmp_path / "a_files") for p in (tmp_path / "a_files").rglob("*.*"))
+    assert a and a == sorted(p.relative_to(tmp_path / "b_files") for p in (tmp_path / "b_files").rglob("*.*"))
+    for rel in a:
+        assert (tmp_path / "a_files" / rel).read_bytes() == (tmp_path / "b_files" / rel).read_bytes(), rel
