@@ -39,6 +39,7 @@ import numpy as np
 
 from pyramid_cli.core.border import Border, fold
 from pyramid_cli.exec.base import Executor
+from pyramid_cli.exec.gather import gather
 from pyramid_cli.plan.model import Image, Plan
 
 Rect = tuple[tuple[int, int], tuple[int, int]]
@@ -353,7 +354,7 @@ class Scheduler:
             return px, (a, c)
         ri = _fold(np.arange(*rr), src.rows, src.border)
         ci = _fold(np.arange(*cc), src.colext, src.border)
-        px = buf[np.ix_(np.maximum(ri - start, 0), np.maximum(ci - kept[0], 0))]
+        px = gather(buf, np.maximum(ri - start, 0), np.maximum(ci - kept[0], 0))
         if src.border == "zero":
             px[ri < src.rows[0]] = 0
             px[:, ci < src.colext[0]] = 0

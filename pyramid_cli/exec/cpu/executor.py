@@ -66,6 +66,7 @@ from pyramid_cli.exec.cpu.compile import (
     write_source,
 )
 from pyramid_cli.exec.emulate import plan_inputs, resample_table
+from pyramid_cli.exec.gather import MAX_BLOCKS, run_slice, runs
 from pyramid_cli.plan.model import Pass, Plan, PointwisePass, ResamplePass
 from pyramid_cli.plan.shapes import PassShape, shape, sources
 
@@ -98,32 +99,6 @@ def _fold(index: np.ndarray, n: int, border: str) -> np.ndarray:
     return fold(index + 1, n, Border.parse(border)) - 1
 
 
-MAX_BLOCKS = 64              # a window made of more slice copies than this is gathered by one fancy index
-
-
-def _runs(index: np.ndarray) -> list[tuple[int, int, int, int]]:
-    """``index`` (folded, −1 reads zero) as runs ``(start, stop, first, step)``: ``index[start:stop]`` is
-    ``first + step·k`` with ``step`` −1, 0 or 1 (``first`` −1: zeros). A folded index is a few such runs (the
-    inside, then a clamped, mirrored or wrapped strip), each one slice of the source. A run breaks where the
-    difference of neighbours changes, leaves −1..1, or the index enters or leaves the zeros."""
-    n = len(index)
-    d = np.diff(index)
-    cut = np.zeros(n, bool)
-    cut[0] = True
-    cut[1:] = (np.abs(d) > 1) | ((index[1:] < 0) != (index[:-1] < 0))
-    cut[2:] |= d[1:] != d[:-1]
-    starts = np.flatnonzero(cut).tolist() + [n]
-    return [(a, b, int(index[a]), int(d[a]) if b - a > 1 else 0) for a, b in zip(starts, starts[1:], strict=False)]
-
-
-def _slice(first: int, step: int, length: int) -> slice:
-    """The source slice of a run (a 0-step run: its one texel, broadcast by the assignment)."""
-    if step == 0:
-        return slice(first, first + 1)
-    last = first + step * (length - 1)
-    return slice(first, last + 1) if step > 0 else slice(first, last - 1 if last > 0 else None, -1)
-
-
 @lru_cache(maxsize=256)  # a strip's index arrays are as long as its side: 256 of 4K strips are ~15 MB
 def _window_index(rows: tuple[int, int], cols: tuple[int, int], extent: tuple[int, int], border: str):
     """How :func:`_window` copies a window: as slice copies ``(out rows, out columns, source rows, source
@@ -132,10 +107,10 @@ def _window_index(rows: tuple[int, int], cols: tuple[int, int], extent: tuple[in
     they are computed once."""
     ri = _fold(np.arange(rows[0], rows[1] + 1), extent[0], border)
     ci = _fold(np.arange(cols[0], cols[1] + 1), extent[1], border)
-    rr, cr = _runs(ri), _runs(ci)
+    rr, cr = runs(ri), runs(ci)
     if len(rr) * len(cr) <= MAX_BLOCKS:
         blocks = [(slice(r0, r1), slice(c0, c1),
-                   None if rf < 0 or cf < 0 else (_slice(rf, rs, r1 - r0), _slice(cf, cs, c1 - c0)))
+                   None if rf < 0 or cf < 0 else (run_slice(rf, rs, r1 - r0), run_slice(cf, cs, c1 - c0)))
                   for r0, r1, rf, rs in rr for c0, c1, cf, cs in cr]
         return (len(ri), len(ci)), blocks, None
     return (len(ri), len(ci)), None, (np.ix_(np.maximum(ri, 0), np.maximum(ci, 0)), ri < 0, ci < 0)
