@@ -119,14 +119,14 @@ class LoadingCPU:
 
     @property
     def name(self) -> str:
-        """``cpu (numba X, N thread(s))``, from numba's installed metadata (not imported for it)."""
+        """``cpu (numba X, N thread(s))``, numba's version read without importing it
+        (:func:`~pyramid_cli.exec.cpu.executor.numba_version`)."""
         if self._ready is not None:
             return self._ready.name
-        from importlib import metadata
+        from pyramid_cli.exec.cpu.executor import numba_version
 
-        try:
-            version = metadata.version("numba")
-        except metadata.PackageNotFoundError:
+        version = numba_version()
+        if version == "?":
             return self.result().name
         return f"cpu (numba {version}, {self.threads} thread(s))"
 

@@ -621,11 +621,25 @@ def build_ahead(plan: Plan, cache: str | Path | None = None) -> int:
 
 @lru_cache(maxsize=1)
 def numba_version() -> str:
-    """numba's version, from its installed metadata where it is not imported (ahead-of-time kernels run without
-    it)."""
+    """numba's version, where it is not imported (ahead-of-time kernels run without it) from the version file in
+    its package folder (under 2 ms), else from its installed metadata (``importlib.metadata`` took 25–30 ms here:
+    its import and a scan of every installed distribution)."""
     mod = sys.modules.get("numba")
     if mod is not None:
         return mod.__version__
+    import importlib.util
+    import re
+
+    spec = importlib.util.find_spec("numba")  # finds the package without importing it
+    if spec is None:
+        return "?"
+    try:
+        text = Path(spec.origin or "").with_name("_version.py").read_text()
+    except OSError:
+        text = ""
+    found = re.search(r'"version":\s*"([^"]+)"', text)  # versioneer's version_json
+    if found:
+        return found.group(1)
     from importlib import metadata
 
     try:
