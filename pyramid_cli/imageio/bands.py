@@ -66,11 +66,8 @@ class ImageStream:
         check_choice("nan mode", nan, options.NAN_POLICIES)
         self.path = p = os.fspath(path)
         check_input_file(p)
-        self._stack = contextlib.ExitStack()
-        name = self._name = self._stack.enter_context(readable_name(p))
-        self._inp, spec, fmt, self._subimage = open_input(name, None, p)
-        self._stack.callback(self._inp.close)
-        self._spec = spec
+        fmt = self._open()
+        spec = self._spec
         self.info = describe_spec(spec, fmt, p, colorspace, alpha, colorconfig=colorconfig)
         native = pixel_type_name(spec.format)
         uniform = len({str(t) for t in spec.channelformats}) <= 1
@@ -85,14 +82,19 @@ class ImageStream:
         self._block: tuple[int, np.ndarray] | None = None  # a row of tiles, for tiled files
         self.on_stored = None  # called with each band's rows as stored, before decoding (mipmap's SHA-1)
 
+    def _open(self) -> str:
+        """Open the file (its input, spec and subimage); its format."""
+        self._stack = contextlib.ExitStack()
+        name = self._name = self._stack.enter_context(readable_name(self.path))
+        self._inp, self._spec, fmt, self._subimage = open_input(name, None, self.path)
+        self._stack.callback(self._inp.close)
+        return fmt
+
     def reopen(self) -> None:
         """Open the file again, in place, from its first row: OpenEXR gives a file as many line buffers as it has
         codec threads when the file opens (:func:`~pyramid_cli.imageio.codecs.limited_exr_threads`)."""
         self._stack.close()
-        self._stack = contextlib.ExitStack()
-        name = self._name = self._stack.enter_context(readable_name(self.path))
-        self._inp, self._spec, _, self._subimage = open_input(name, None, self.path)
-        self._stack.callback(self._inp.close)
+        self._open()
         self._block = None
 
     def codec_thread_bytes(self) -> int:
@@ -258,8 +260,11 @@ class BandWriter:
                 self._open(self._encoder.spec(rows.shape[1], 1))
             self._flush(final=self.next >= self.height, stored=stored)
         except WriteFailed as exc:
-            raise OutputError(f"cannot write {self.path}: {str(exc).replace(self.tmp, self.path)}"
-                              f"{diagnosis(self.tmp)}") from None
+            raise self._failed(exc) from None
+
+    def _failed(self, exc: WriteFailed) -> OutputError:
+        """The one line a failed write says, naming the user's path (not the temporary's)."""
+        return OutputError(f"cannot write {self.path}: {str(exc).replace(self.tmp, self.path)}{diagnosis(self.tmp)}")
 
     def _open(self, band_spec: oiio.ImageSpec) -> None:
         spec = band_spec
@@ -304,6 +309,11 @@ class BandWriter:
         """Close the file and check it reads back (OutputError naming the user's path)."""
         if self.written != self.height:
             raise ValueError(f"{self.written} of {self.height} rows written")
+        self._close_verified(1, "single")
+
+    def _close_verified(self, subimages: int, kind: str) -> None:
+        """Close the file and check it reads back with ``subimages`` of its spec (``kind`` as
+        :func:`~pyramid_cli.imageio.write.verify` takes it)."""
         out, spec = self._out, self.spec
         assert out is not None and spec is not None, "every row written: the file is open and its spec known"
         try:
@@ -312,10 +322,9 @@ class BandWriter:
             # OpenImageIO's OpenEXR writer flushes the file's last bytes when it is destroyed, not at close: a
             # small MIP-mapped EXR read back empty here while it was still held
             del out
-            verify(self.tmp, self.fmt, [(spec, None)], "single")
+            verify(self.tmp, self.fmt, [(spec, None)] * subimages, kind)
         except WriteFailed as exc:
-            raise OutputError(f"cannot write {self.path}: {str(exc).replace(self.tmp, self.path)}"
-                              f"{diagnosis(self.tmp)}") from None
+            raise self._failed(exc) from None
 
     def abort(self) -> None:
         if self._out is not None:

@@ -18,7 +18,7 @@ from pyramid_cli.imageio.bands import BandWriter, band_quantum, check_band_outpu
 from pyramid_cli.imageio.encode import Encoder, encode, set_windows
 from pyramid_cli.imageio.formats import format_from_path, format_title, one_line
 from pyramid_cli.imageio.image import Image, ImageInfo
-from pyramid_cli.imageio.write import WriteFailed, checked, diagnosis, verify, write_file
+from pyramid_cli.imageio.write import WriteFailed, checked, write_file
 
 #: File name endings of TIFF textures, whose tiles must be a multiple of :data:`TIFF_TILE` pixels.
 TIFF_ENDINGS = (".tx", ".tif", ".tiff")
@@ -208,7 +208,7 @@ class MipBandWriter(BandWriter):
                 r1 = min(h, r0 + step)
                 px = rows(r0, r1)
                 if enc is None:
-                    enc = Encoder(self.path, self.info, px.shape[2] if px.ndim == 3 else 1, **self.options)
+                    enc = self.encoder(px.shape[2] if px.ndim == 3 else 1)
                 data = px if stored else enc.values(px)
                 if spec is None:
                     spec = enc.spec(px.shape[1], r1 - r0)
@@ -223,8 +223,7 @@ class MipBandWriter(BandWriter):
                                                spec.z + 1, np.ascontiguousarray(data[a:b]))
                     checked(out, ok, "write")
         except WriteFailed as exc:
-            raise OutputError(f"cannot write {self.path}: {str(exc).replace(self.tmp, self.path)}"
-                              f"{diagnosis(self.tmp)}") from None
+            raise self._failed(exc) from None
 
     def encoder(self, channels: int) -> Encoder:
         """How the levels of ``channels`` channels are stored (:meth:`append_level` with ``stored``)."""
@@ -235,18 +234,7 @@ class MipBandWriter(BandWriter):
         if self.written != self.height or max(self.levels, 1) != len(self.shapes):
             raise ValueError(f"{max(self.levels, 1) if self.written == self.height else 0} of {len(self.shapes)} "
                              "MIP levels written")
-        out, spec = self._out, self.spec
-        assert out is not None and spec is not None, "level 0 written: the file is open and its spec known"
-        try:
-            self._out = None
-            checked(out, out.close(), "close")
-            # OpenImageIO's OpenEXR writer flushes the file's last bytes when it is destroyed, not at close: a
-            # small MIP-mapped EXR read back empty here while it was still held
-            del out
-            verify(self.tmp, self.fmt, [(spec, None)] * len(self.shapes), "mipmap")
-        except WriteFailed as exc:
-            raise OutputError(f"cannot write {self.path}: {str(exc).replace(self.tmp, self.path)}"
-                              f"{diagnosis(self.tmp)}") from None
+        self._close_verified(len(self.shapes), "mipmap")
 
 
 @contextlib.contextmanager

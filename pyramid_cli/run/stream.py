@@ -445,7 +445,9 @@ def stream_file(in_path: str, out_path: str | list[str], work, session, choice: 
             choice = choose(plan, c, budget, in_bytes=stream.dtype.itemsize, out_bytes=4, force=True, where=in_path,
                             keeps_input=bool(kept), **costs(executor))
         band = choice.band or MIN_BAND
-        with io.stream_writers(paths, [info] * len(paths), [s + (c,) for s in sizes], **options) as writers:
+        with (codecs_within(choice, [stream], list(zip(paths, sizes, strict=True)), info, c, options, reporter,
+                            in_path),
+              io.stream_writers(paths, [info] * len(paths), [s + (c,) for s in sizes], **options) as writers):
             def keep(y0: int, px: np.ndarray) -> None:  # level 0 is the input: each row once, in order
                 writers[0].write(y0, px.astype(dtypes[0], copy=False))
 
@@ -523,8 +525,10 @@ def run_job(job, work, session, *, memory: int | None, read=None, write=None, re
     if reporter is not None:
         options = write.for_inputs([]) if hasattr(write, "for_inputs") else dict(write or {})
         reporter.detail(f"{io.describe_rules(st.info)}; {io.describe_output(job.output, st.info, **options)}")
-    h, w = st.shape[:2]
-    _stream_decided(job.input, [job.output], work, session, st, choice, read=read, write=write, reporter=reporter)
+    with st:
+        stream_file(job.input, job.output, work, session, choice, budget=choice.budget, read=read, write=write,
+                    reporter=reporter, stream=st)
+        h, w = st.shape[:2]
     if reporter is not None:
         reporter.result(f"wrote {job.output} ({w}×{h}, {session.ran}, streamed in bands of {choice.band} rows)")
     return True
@@ -542,8 +546,9 @@ def run_levels(in_path: str, paths: list[str], work, session, *, memory: int | N
     if decided is None:
         return False
     st, choice = decided
-    _stream_decided(in_path, paths, work, session, st, choice, read=read, write=options, reporter=reporter,
-                    attributes=attributes)
+    with st:
+        stream_file(in_path, paths, work, session, choice, budget=choice.budget, read=read, write=options,
+                    reporter=reporter, stream=st, attributes=attributes)
     return True
 
 
@@ -583,23 +588,6 @@ def codecs_within(choice: Choice, streams, outputs: list[tuple[str, tuple[int, i
         for st in streams:
             st.reopen()
         yield
-
-
-def _stream_decided(in_path: str, paths: list[str], work, session, st, choice: Choice, *, read, write, reporter,
-                    attributes: dict | None = None) -> None:
-    """:func:`stream_file` of the open ``st`` as ``choice`` (:func:`_decide`) says, with OpenEXR's codec threads
-    as the budget leaves room for (:func:`codecs_within`)."""
-    from pyramid_cli.run.settings import WriteOptions
-
-    wo = write or WriteOptions()
-    options = wo.for_inputs([in_path]) if not isinstance(wo, dict) else dict(wo)
-    h, w, c = st.shape
-    plan = session.plan(work, [(h, w)])
-    sizes = [(h, w)] * bool(work.keeps_input) + [plan.images[k].size for k in plan.outputs]
-    with st, codecs_within(choice, [st], list(zip(paths, sizes, strict=False)), st.info, c, options, reporter,
-                           in_path):
-        stream_file(in_path, paths, work, session, choice, budget=choice.budget, read=read, write=write,
-                    reporter=reporter, stream=st, attributes=attributes)
 
 
 __all__ = ["BandTimes", "Choice", "choose", "choose_mip", "estimate", "parse_size", "default_memory",
