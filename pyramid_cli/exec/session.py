@@ -341,10 +341,10 @@ class Session:
             self._use_cpu()
             self._why = "auto: no plan to estimate; the CPU executor, which sets nothing up before it runs"
             return
-        from pyramid_cli.exec.gl import GLExecutor
+        from pyramid_cli.exec.gl.textures import texture_bytes
 
         found = auto.estimates(cpu_plan, gl_plan, channels, jobs=max(1, count), threads=self.threads, costs=costs,
-                               texture_bytes=GLExecutor.texture_bytes)
+                               texture_bytes=texture_bytes)
         chosen = min(found, key=lambda b: found[b].seconds)
         self.estimates = found
         if chosen == "gl":

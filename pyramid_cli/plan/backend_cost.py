@@ -29,10 +29,10 @@ import json
 import math
 from dataclasses import dataclass, fields
 from functools import cache
-from importlib.resources import files
 from pathlib import Path
 
 from pyramid_cli.core import cache as disk
+from pyramid_cli.core import resources
 from pyramid_cli.plan import cost
 from pyramid_cli.plan.estimate import pass_measures
 from pyramid_cli.plan.model import Plan
@@ -174,7 +174,7 @@ def from_dict(d: dict, source: str = "shipped") -> BackendCosts:
 
 def shipped_dict() -> dict:
     """The package's ``backend_costs.json`` as a dict."""
-    return json.loads(files(__package__).joinpath(COSTS_FILE).read_text(encoding="utf-8"))
+    return resources.json_file(__package__, COSTS_FILE)
 
 
 def machine_file() -> Path:

@@ -29,11 +29,11 @@ Python: no GL, no numpy.
 
 from __future__ import annotations
 
-import json
 from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cache
-from importlib.resources import files
+
+from pyramid_cli.core import resources
 
 MODEL_FILE = "cost_model.json"
 CONSTANTS = ("pass_s", "shader_tap_s", "pixel_s", "fetch_linear_s", "fetch_nearest_s", "source_pixel_s")
@@ -124,7 +124,7 @@ def from_dict(d: dict) -> CostModel:
 
 def load_dict() -> dict:
     """The committed ``cost_model.json`` as a dict."""
-    return json.loads(files(__package__).joinpath(MODEL_FILE).read_text(encoding="utf-8"))
+    return resources.json_file(__package__, MODEL_FILE)
 
 
 @cache

@@ -16,7 +16,6 @@ from __future__ import annotations
 import glob
 import json
 import os
-import socket
 import sysconfig
 
 from pyramid_cli.core import cache
@@ -118,8 +117,9 @@ def driver_key() -> str:
 
     Cheap (a few dozen ``stat`` calls, no library loaded): glvnd's vendor files and the libraries they
     name, libEGL itself, Mesa's driver folders and ``libgallium``, the environment variables of
-    :data:`ENV_PREFIXES`, the GPU device nodes, the host name and the cores. A driver update, a new
-    vendor file or another ``MESA_``/``EGL_`` setting gives another key, and the renderer is probed again.
+    :data:`ENV_PREFIXES`, the GPU device nodes, the host name (``os.uname``, which ``socket.gethostname`` reads
+    too, without importing ``socket``) and the cores. A driver update, a new vendor file or another
+    ``MESA_``/``EGL_`` setting gives another key, and the renderer is probed again.
     """
     dirs = _lib_dirs()
     env = sorted((k, v) for k, v in os.environ.items() if k.startswith(ENV_PREFIXES))
@@ -141,7 +141,7 @@ def driver_key() -> str:
             drivers.append((d, _stat(os.path.join(d, "dri")), [_stat(g) for g in sorted(glob.glob(
                 os.path.join(d, "libgallium*.so*")))]))
     devices = sorted(glob.glob("/dev/dri/*") + glob.glob("/dev/nvidia*"))
-    return cache.key("egl", env, vendors, _library("libEGL.so.1", dirs), drivers, devices, socket.gethostname(),
+    return cache.key("egl", env, vendors, _library("libEGL.so.1", dirs), drivers, devices, os.uname().nodename,
                      os.cpu_count())
 
 

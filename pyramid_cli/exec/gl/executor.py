@@ -66,6 +66,7 @@ from pyramid_cli.exec import tiles
 from pyramid_cli.exec.emulate import plan_inputs, resample_table
 from pyramid_cli.exec.gl import shaders as generate
 from pyramid_cli.exec.gl.context import context_info, create_context, is_software_renderer
+from pyramid_cli.exec.gl.textures import texture_bytes, texture_size
 from pyramid_cli.plan.model import Plan, ResamplePass
 from pyramid_cli.plan.shapes import PassShape, PointwiseShape, shape, sources
 
@@ -75,15 +76,6 @@ INPUT_POOL = "-input"  # the pool of inputs' textures that are never render targ
 BAND_BYTES = 8 << 20  # upload staging: rows of RGBA32F per texture write
 MAX_TEXTURE_BYTES = 2 << 30  # llvmpipe fails to attach a texture of 2 GiB (8193², 12000×6000: docs/design.md §6)
 TILE_TEXELS = 1 << 24        # a tile's largest texture, about (256 MiB of RGBA32F), when a plan runs in tiles
-
-
-def _pow2(n: int) -> int:
-    return 1 << max(0, n - 1).bit_length()
-
-
-def texture_size(stored: tuple[int, int]) -> tuple[int, int]:
-    """Texture (rows, columns) for a stored extent: powers of two, one spare texel when there is room."""
-    return _pow2(stored[0]), _pow2(stored[1])
 
 
 def half_probe() -> np.ndarray:
@@ -436,12 +428,7 @@ class GLExecutor:
         (:func:`pyramid_cli.run.stream.costs`). A GPU's textures live in its own memory, and whole runs stay whole."""
         return is_software_renderer(self.renderer)
 
-    @staticmethod
-    def texture_bytes(extent: tuple[int, int]) -> int:
-        """Bytes of the texture that holds a stored (rows, columns) extent: power-of-two sides, RGBA32F at most
-        (host memory on llvmpipe, which ``--memory`` budgets count: :func:`pyramid_cli.run.stream.estimate`)."""
-        rows, cols = texture_size(extent)
-        return rows * cols * 16
+    texture_bytes = staticmethod(texture_bytes)
 
     def fits(self, plan: Plan) -> bool:
         """Whether ``plan`` runs whole: every image's power-of-two texture within GL_MAX_TEXTURE_SIZE and 2 GiB.

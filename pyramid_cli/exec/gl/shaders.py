@@ -19,10 +19,10 @@ from __future__ import annotations
 
 from fractions import Fraction
 from functools import cache
-from importlib.resources import files
 
 import numpy as np
 
+from pyramid_cli.core import resources
 from pyramid_cli.core.errors import BackendError
 from pyramid_cli.plan.shapes import PassShape, PointwiseShape, ShapeTap, pointwise_shape, shape, sources
 
@@ -38,7 +38,7 @@ class ShaderCompileError(BackendError):
 @cache
 def load(name: str) -> str:
     """Text of the template ``name`` from the package ``pyramid_cli.exec.gl`` (this folder)."""
-    return files(__package__).joinpath(name).read_text(encoding="utf-8")
+    return resources.text(__package__, name)
 
 
 # ------------------------------------------------------------------ GLSL text

@@ -158,14 +158,6 @@ def test_too_large_for_one_texture_runs_in_tiles(gl):
     np.testing.assert_allclose(gl.run(up, x), emulate.run(up, x), rtol=0, atol=1e-6)
 
 
-def test_texture_sizes_are_powers_of_two():
-    from pyramid_cli.exec.gl import texture_size
-
-    assert texture_size((1, 1)) == (1, 1)
-    assert texture_size((2160, 3840)) == (4096, 4096)
-    assert texture_size((129, 64)) == (256, 64)
-
-
 @gl_mark
 @pytest.mark.parametrize("channels", [None, 4], ids=["staged", "rgba-direct"])
 @pytest.mark.parametrize("text", ["cubic *^ g", "box *v g", "bartlett"])
