@@ -70,6 +70,10 @@ def linear_to_srgb(linear: np.ndarray) -> np.ndarray:
     return np.copysign(out, v)
 
 
+# Values scanned at a time for NaN and Inf (a quarter of a million: 512 KiB of half bits, 256 KiB of flags)
+NONFINITE_BLOCK = 1 << 18
+
+
 def count_nonfinite(pixels: np.ndarray) -> int:
     """Count NaN and infinite values.
 
@@ -83,11 +87,33 @@ def count_nonfinite(pixels: np.ndarray) -> int:
     int
         Number of elements that are NaN, +Inf or -Inf.
     """
-    if isinstance(pixels, np.ndarray) and pixels.dtype == np.float16:
+    if (not isinstance(pixels, np.ndarray) or not pixels.flags.c_contiguous or pixels.dtype.kind != "f"
+            or not pixels.size):
+        return int(np.size(pixels) - np.count_nonzero(np.isfinite(pixels)))
+    flat = pixels.reshape(-1)
+    half = pixels.dtype == np.float16
+    if half:
         # exponent bits all ones: ±inf and NaN. numpy's isfinite on half takes 7x as long (a 4K RGBA band of 272
         # rows: 5.9 ms against 0.8), and a streamed half EXR is scanned band by band as it is read
-        return int(np.count_nonzero((pixels.view(np.uint16) & 0x7C00) == 0x7C00))
-    return int(np.size(pixels) - np.count_nonzero(np.isfinite(pixels)))
+        flat = flat.view(np.uint16)
+    # in blocks, through two small buffers that stay in cache: a whole 4K RGBA half picture took 15 ms warm and
+    # 19 ms in a fresh process (its 100 MB of temporaries' pages), in blocks 6 ms
+    block = min(flat.size, NONFINITE_BLOCK)
+    flags = np.empty(block, dtype=bool)
+    exponent = np.empty(block, dtype=np.uint16) if half else None
+    bad = 0
+    for i in range(0, flat.size, block):
+        part = flat[i:i + block]
+        found = flags[:len(part)]
+        if exponent is not None:
+            bits = exponent[:len(part)]
+            np.bitwise_and(part, 0x7C00, out=bits)
+            np.equal(bits, 0x7C00, out=found)
+            bad += int(np.count_nonzero(found))
+        else:
+            np.isfinite(part, out=found)
+            bad += len(part) - int(np.count_nonzero(found))
+    return bad
 
 
 def colour_mask(nchannels: int, alpha_channel: int, names: list[str]) -> np.ndarray:

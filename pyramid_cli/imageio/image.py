@@ -98,10 +98,14 @@ class Image:
         alpha when :attr:`premultiplied` is true.
     spec : ImageInfo
         What is needed to write the image back like its input.
+    nonfinite : int
+        NaN and infinite values :func:`~pyramid_cli.imageio.read_image` kept in :attr:`pixels` (``nan="keep"``),
+        counted as it read them; 0 for pixels made otherwise.
     """
 
     pixels: np.ndarray
     spec: ImageInfo
+    nonfinite: int = field(default=0, compare=False)
 
     @property
     def premultiplied(self) -> bool:

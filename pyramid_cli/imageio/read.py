@@ -117,8 +117,8 @@ def read_image(path: str | os.PathLike[str], *, colorspace: str = "auto",
         pixel_hash = sha1_state(data)
     info = describe_spec(spec, fmt, p, colorspace, alpha, pixel_hash, colorconfig)
     pixels = decode_stored(data, info)
-    apply_nan_policy(pixels, nan, info, p, floats=data.dtype.kind == "f")
-    return Image(pixels=pixels, spec=info)
+    bad = apply_nan_policy(pixels, nan, info, p, floats=data.dtype.kind == "f")
+    return Image(pixels=pixels, spec=info, nonfinite=bad if nan == "keep" else 0)
 
 
 def describe_spec(spec: oiio.ImageSpec, fmt: str, p: str, colorspace: str, alpha: str,

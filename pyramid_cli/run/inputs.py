@@ -17,10 +17,8 @@ def read_input(path: str, read: ReadOptions, reporter: Reporter, keep_half: bool
     """
     image = io.read_image(path, colorspace=read.colorspace, alpha=read.alpha, nan=read.nan, keep_half=keep_half,
                           hash_source=hash_source, colorconfig=read.colorconfig)
-    integer = image.spec.pixel_type in ("uint8", "uint16") and not image.spec.channel_pixel_types
-    bad = io.count_nonfinite(image.pixels) if read.nan == "keep" and not integer else 0  # decoded codes are finite
-    if bad:
-        reporter.warn(nonfinite_kept(path, bad))
+    if image.nonfinite:  # counted as read (decoded integer codes are finite, and are not scanned)
+        reporter.warn(nonfinite_kept(path, image.nonfinite))
     return image
 
 

@@ -1,6 +1,7 @@
 """sRGB curves and non-finite counts (pyramid_cli.imageio.colour)."""
 
 import numpy as np
+import pytest
 
 from pyramid_cli.imageio import colour
 
@@ -15,6 +16,20 @@ def test_srgb_curves_are_inverse_and_match_the_standard_at_known_points():
 
 def test_count_nonfinite():
     assert colour.count_nonfinite(np.array([0.0, np.nan, np.inf, -np.inf, 1.0])) == 3
+
+
+@pytest.mark.parametrize("dtype", [np.float16, np.float32, np.float64])
+def test_count_nonfinite_in_blocks_counts_across_their_edges(dtype, monkeypatch):
+    """The scan goes a block at a time (NONFINITE_BLOCK values): values at each block's first and last place, a
+    last block shorter than the others, views that are not contiguous, empty arrays and lists all count."""
+    monkeypatch.setattr(colour, "NONFINITE_BLOCK", 7)
+    a = np.random.default_rng(3).standard_normal((5, 6, 3)).astype(dtype)  # 90 values: 12 blocks and 6 over
+    flat = a.reshape(-1)
+    flat[[0, 6, 7, 13, 14, 89]] = [np.nan, np.inf, -np.inf, np.nan, np.inf, np.nan]
+    assert colour.count_nonfinite(a) == 6
+    assert colour.count_nonfinite(a[:, ::2]) == a[:, ::2].size - np.count_nonzero(np.isfinite(a[:, ::2]))
+    assert colour.count_nonfinite(a[:0]) == 0
+    assert colour.count_nonfinite([1.0, float("nan")]) == 1
 
 
 def test_srgb8_tables_kept_in_the_cache_folder_are_the_computed_ones(monkeypatch, tmp_path):

@@ -27,6 +27,21 @@ def test_nan_kept_is_counted_and_warned(nan_exr):
                     "(--nan zero or --nan fail to change that)"]
 
 
+def test_nan_kept_is_counted_once_as_read(nan_exr, monkeypatch):
+    """The warning's count is the read's own (Image.nonfinite): the pixels are not scanned a second time."""
+    import pyramid_cli.imageio as io
+    from pyramid_cli.imageio import colour, read
+
+    scans = []
+    counted = colour.count_nonfinite
+    for where in (io, colour, read):  # the package's name, the function's home and the reader's import
+        monkeypatch.setattr(where, "count_nonfinite", lambda px: scans.append(px.size) or counted(px))
+    said = []
+    image = read_input(nan_exr, ReadOptions(), Reporter(err=said.append))
+    assert image.nonfinite == 3 and "3 NaN/Inf" in said[0]
+    assert scans == [4 * 5 * 3]
+
+
 def test_nan_zero_reads_zeros_quietly_and_fail_refuses(nan_exr):
     said = []
     image = read_input(nan_exr, ReadOptions(nan="zero"), Reporter(err=said.append))
