@@ -14,7 +14,7 @@ import OpenImageIO as oiio
 from pyramid_cli.core import options
 from pyramid_cli.core.errors import InputError, OutputError
 from pyramid_cli.imageio.atomic import atomic_paths
-from pyramid_cli.imageio.codecs import exr_thread_bytes
+from pyramid_cli.imageio.codecs import CodecMemory, exr_codec_memory
 from pyramid_cli.imageio.encode import Encoder, check_output_path, check_write_options, set_windows
 from pyramid_cli.imageio.formats import (
     ALPHA_MODES,
@@ -97,10 +97,10 @@ class ImageStream:
         self._open()
         self._block = None
 
-    def codec_thread_bytes(self) -> int:
-        """Bytes each of OpenEXR's codec threads holds for this file (0 for other formats:
-        :func:`~pyramid_cli.imageio.codecs.exr_thread_bytes`)."""
-        return exr_thread_bytes(self._spec, self.info.format)
+    def codec_memory(self) -> CodecMemory:
+        """What OpenEXR's codec holds for this file (nothing for other formats:
+        :func:`~pyramid_cli.imageio.codecs.exr_codec_memory`)."""
+        return exr_codec_memory(self._spec, self.info.format)
 
     def __enter__(self) -> ImageStream:
         return self
@@ -196,13 +196,16 @@ class ImageStream:
                                                                                    probe.view(bits.dtype))
 
 
-def output_thread_bytes(path: str | os.PathLike[str], info: ImageInfo, channels: int, size: tuple[int, int],
-                        **options) -> int:
-    """Bytes each of OpenEXR's codec threads holds for an output ``path`` of ``size`` (rows, columns) written
-    from ``info`` as the write ``options`` ask (0 for other formats:
-    :func:`~pyramid_cli.imageio.codecs.exr_thread_bytes`)."""
+def output_codec_memory(path: str | os.PathLike[str], info: ImageInfo, channels: int, size: tuple[int, int],
+                        tile: int = 0, **options) -> CodecMemory:
+    """What OpenEXR's codec holds for an output ``path`` of ``size`` (rows, columns) written from ``info`` as the
+    write ``options`` ask, in scanlines or in square tiles of ``tile`` pixels (a MIP file); nothing for other
+    formats (:func:`~pyramid_cli.imageio.codecs.exr_codec_memory`)."""
     enc = Encoder(path, info, channels, check_path=False, **options)
-    return exr_thread_bytes(enc.spec(size[1], size[0]), enc.fmt)
+    spec = enc.spec(size[1], size[0])
+    if tile:
+        spec.tile_width = spec.tile_height = tile
+    return exr_codec_memory(spec, enc.fmt)
 
 
 def open_stream(path: str | os.PathLike[str], **options) -> ImageStream:

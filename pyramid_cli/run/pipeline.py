@@ -11,6 +11,7 @@ is said on the way (a :class:`~pyramid_cli.run.report.Reporter`). Writes are ato
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
 from typing import TYPE_CHECKING
@@ -73,30 +74,33 @@ def process(paths: list[str], template: str | None, work: Work, session: Session
         first = _header(job_list[0].input)
         if first is not None:
             session.prepare_async(work, [first[0]], count=len(job_list), dtype=first[1])
-    if (not many and len(job_list) == 1 and cluster is None and frames is None
-            and not (skip_existing and batch.is_fresh(job_list[0]))):
-        from pyramid_cli.run.mip_whole import run_whole
-        from pyramid_cli.run.stream import run_job
-        from pyramid_cli.run.stream_mip import run_mip
+    # a single picture run whole: OpenEXR's codec threads limited to what its budget leaves (stream.hold_codecs)
+    with contextlib.ExitStack() as limits:
+        if (not many and len(job_list) == 1 and cluster is None and frames is None
+                and not (skip_existing and batch.is_fresh(job_list[0]))):
+            from pyramid_cli.run.mip_whole import run_whole
+            from pyramid_cli.run.stream import run_job
+            from pyramid_cli.run.stream_mip import run_mip
 
-        if mip_tile:
-            if run_mip(job_list[0], work, session, memory=memory, tile=mip_tile, read=ro, write=wo,
-                       reporter=reporter, whole=run_whole):
+            if mip_tile:
+                if run_mip(job_list[0], work, session, memory=memory, tile=mip_tile, read=ro, write=wo,
+                           reporter=reporter, whole=run_whole, limits=limits):
+                    return batch.Report(done=list(job_list))
+            elif run_job(job_list[0], work, session, memory=memory, read=ro, write=wo, reporter=reporter,
+                         limits=limits):
                 return batch.Report(done=list(job_list))
-        elif run_job(job_list[0], work, session, memory=memory, read=ro, write=wo, reporter=reporter):
-            return batch.Report(done=list(job_list))
-    elif memory is not None:
-        raise UsageError("--memory streams one input at a time (not batches, frame sequences or clusters)")
-    if cluster is not None:
-        from pyramid_cli.run.cluster import run_cluster
+        elif memory is not None:
+            raise UsageError("--memory streams one input at a time (not batches, frame sequences or clusters)")
+        if cluster is not None:
+            from pyramid_cli.run.cluster import run_cluster
 
-        report = run_cluster(job_list, work, cluster, session=session, read=ro, write=wo, reporter=reporter,
-                             keep_going=keep_going, skip_existing=skip_existing, jobs=jobs, mip_tile=mip_tile,
-                             chunk=chunk, many=many, timeout=cluster_timeout)
-    else:
-        assert isinstance(session, Session), "a session, unless the jobs run on a cluster"
-        report = run_jobs(job_list, work, session, read=ro, write=wo, reporter=reporter, keep_going=keep_going,
-                          skip_existing=skip_existing, jobs=jobs, mip_tile=mip_tile, many=many)
+            report = run_cluster(job_list, work, cluster, session=session, read=ro, write=wo, reporter=reporter,
+                                 keep_going=keep_going, skip_existing=skip_existing, jobs=jobs, mip_tile=mip_tile,
+                                 chunk=chunk, many=many, timeout=cluster_timeout)
+        else:
+            assert isinstance(session, Session), "a session, unless the jobs run on a cluster"
+            report = run_jobs(job_list, work, session, read=ro, write=wo, reporter=reporter, keep_going=keep_going,
+                              skip_existing=skip_existing, jobs=jobs, mip_tile=mip_tile, many=many)
     if not many and report.failed:
         raise report.failed[0][1]
     if many:

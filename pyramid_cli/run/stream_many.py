@@ -34,6 +34,7 @@ from pyramid_cli.run.stream import (
     MIN_BAND,
     Choice,
     choose,
+    codec_memory,
     codecs_within,
     costs,
     executor_of,
@@ -86,9 +87,11 @@ class _Tee:
 
 
 def decide(plan: Plan | None, channels: int, session, memory: int | None, *, where: str, reporter=None,
-           in_bytes: int = 4) -> Choice | None:
+           in_bytes: int = 4, codecs: int = 0) -> Choice | None:
     """The :class:`~pyramid_cli.run.stream.Choice` of a job of ``plan`` when it streams, else None (it runs whole:
-    it fits and is no faster in bands; the reference backend without ``memory``, which is then refused)."""
+    it fits and is no faster in bands; the reference backend without ``memory``, which is then refused).
+    ``codecs``: what OpenEXR's codecs hold on one thread for its files
+    (:func:`~pyramid_cli.run.stream.codec_memory`)."""
     if session is None or session.executor is None:
         if memory is not None:
             executor_of(session)  # refuses with the reason
@@ -100,7 +103,7 @@ def decide(plan: Plan | None, channels: int, session, memory: int | None, *, whe
     executor = executor_of(session)
     try:
         choice = choose(plan, channels, given.size, in_bytes=in_bytes, out_bytes=4, where=where,
-                        prefer=speed_band(plan, executor), **costs(executor))
+                        prefer=speed_band(plan, executor), codecs=codecs, **costs(executor))
     except DataError as exc:
         raise given.refusal(exc) from None
     if reporter is not None:
@@ -250,7 +253,9 @@ def blend_streamed(a_path: str, b_path: str, mask_path: str, output_path: str, w
         (h, w, c) = a.shape
         work.check(((h, w),) * 3, where=a_path)
         plan = session.plan(work, [(h, w)] * 3)
-        choice = decide(plan, c, session, memory, where=a_path, reporter=reporter)
+        options = write.for_inputs([a_path, b_path, mask_path])
+        codecs = codec_memory([a, b, m], [(output_path, (h, w))], a.info, c, options)[0]
+        choice = decide(plan, c, session, memory, where=a_path, reporter=reporter, codecs=codecs)
         if choice is None:
             return None
         alpha = mask_layout(mask_path, m.info, m.shape, a.shape, reporter.warn)
@@ -270,8 +275,7 @@ def blend_streamed(a_path: str, b_path: str, mask_path: str, output_path: str, w
         ka, kb, km = plan.inputs
         moved = b.info.linear_space != a.info.linear_space
         feeds = [Feed([a], [ka]), Feed([b], [kb], in_a_space if moved else None), Feed([m], [km], weights)]
-        stream_plan(plan, feeds, output_path, a.info, c, write.for_inputs([a_path, b_path, mask_path]), session,
-                    choice, where=a_path, reporter=reporter)
+        stream_plan(plan, feeds, output_path, a.info, c, options, session, choice, where=a_path, reporter=reporter)
         warn_nonfinite([a, b], ro, reporter)
         counts.say(mask_path, reporter.warn, NAN_HINT)
         reporter.detail(f"{io.describe_rules(a.info)}; executor {session.ran}")
@@ -307,12 +311,14 @@ def collapse_streamed(paths: list[str], output_path: str, session, settle: Calla
         sizes = [tuple(s[:2]) for s in shapes]
         plan = session.plan(work, sizes)
         h, w, c = shapes[0]
-        choice = decide(plan, c, session, memory, where=paths[0], reporter=reporter)
+        options = write.for_inputs(options_from)
+        codecs = codec_memory(streams, [(output_path, (h, w))], streams[0].info, c, options)[0]
+        choice = decide(plan, c, session, memory, where=paths[0], reporter=reporter, codecs=codecs)
         if choice is None:
             return None
         feeds = [Feed([st], [k]) for st, k in zip(streams, plan.inputs, strict=True)]
-        stream_plan(plan, feeds, output_path, streams[0].info, c, write.for_inputs(options_from), session, choice,
-                    where=paths[0], reporter=reporter)
+        stream_plan(plan, feeds, output_path, streams[0].info, c, options, session, choice, where=paths[0],
+                    reporter=reporter)
         warn_nonfinite(streams, ro, reporter)
     reporter.result(f"wrote {output_path} ({w}×{h}, {session.ran}, streamed in bands of {choice.band} rows)")
     return choice
@@ -392,7 +398,10 @@ def fill_streamed(input_path: str, output_path: str, session, work_for: Callable
         cc = colour.shape[2]
         work = work_for(premultiplied)
         plan = session.plan(work, [(h, w)] * 2)
-        choice = decide(plan, cc, session, memory, where=input_path, reporter=reporter)
+        options = write.for_inputs([input_path] + ([mask] if mask else []))
+        spec = dataclasses.replace(info, alpha_mode="none") if keep_alpha else info
+        codecs = codec_memory([st] + ([ms] if ms is not None else []), [(output_path, (h, w))], spec, c, options)[0]
+        choice = decide(plan, cc, session, memory, where=input_path, reporter=reporter, codecs=codecs)
         if choice is None:
             return None
         layout = (mask_layout(mask, ms.info, ms.shape, st.shape, reporter.warn)
@@ -437,9 +446,8 @@ def fill_streamed(input_path: str, output_path: str, session, work_for: Callable
 
         kc, kw = plan.inputs
         feed = Feed([st] + ([ms] if ms is not None else []), [kc, kw], prepare)
-        spec = dataclasses.replace(info, alpha_mode="none") if keep_alpha else info
-        stream_plan(plan, [feed], output_path, spec, c, write.for_inputs([input_path] + ([mask] if mask else [])),
-                    session, choice, where=input_path, reporter=reporter, finish=finish)
+        stream_plan(plan, [feed], output_path, spec, c, options, session, choice, where=input_path, reporter=reporter,
+                    finish=finish)
         if mask is not None:  # (a whole fill says nothing of the image's NaN/Inf: its holes)
             said.say(mask, reporter.warn, NAN_HINT)
         reporter.detail(f"{io.describe_rules(info)}; executor {session.ran}")

@@ -36,6 +36,7 @@ from pyramid_cli.run.stream import (
     MIN_BAND,
     band_rows,
     choose,
+    codec_memory,
     codecs_within,
     costs,
     estimate,
@@ -242,14 +243,17 @@ def _make_levels(source, where: str, writer, sizes, options: TileOptions, settin
     stored = stored_rows(source, writer, options)
     table = executor_codes(source, executor) if stored is not None else None
     in_bytes = source.stored_dtype.itemsize if table is not None else source.dtype.itemsize
+    streams = [source] if hasattr(source, "reopen") else []  # an EXR input's codec threads as the budget allows
+    codecs = codec_memory(streams, [], source.info, c, {})[0]
     kw = {"in_bytes": in_bytes, "out_bytes": 4, "keeps_input": True, **costs(executor)}
-    least = estimate(plan, c, MIN_BAND, **kw) + held
+    least = codecs + estimate(plan, c, MIN_BAND, **kw) + held
     if least > given.size:
+        by_codecs = f", {format_size(codecs)} that OpenEXR's codec holds on one thread" if codecs else ""
         raise given.refusal(DataError(
             f"{where}: this tile set needs at least {format_size(least)} of memory (bands of {MIN_BAND} rows and "
-            f"its guard bands at every level, and {format_size(held)} for the tile rows the writer holds), over "
-            f"the budget of {format_size(given.size)}; give more with --memory (memory= in Python)"))
-    choice = choose(plan, c, given.size - held, force=True, where=where, prefer=_prefer(plan), **kw)
+            f"its guard bands at every level{by_codecs}, and {format_size(held)} for the tile rows the writer "
+            f"holds), over the budget of {format_size(given.size)}; give more with --memory (memory= in Python)"))
+    choice = choose(plan, c, given.size - held, force=True, where=where, prefer=_prefer(plan), codecs=codecs, **kw)
     reporter.detail(f"{where}: {choice.describe()}")
     band = choice.band or MIN_BAND
 
@@ -267,7 +271,6 @@ def _make_levels(source, where: str, writer, sizes, options: TileOptions, settin
     def level(j: int, y0: int, px: np.ndarray) -> None:  # on the writer's thread
         writer.rows(j + 1, y0, px.astype(np.float32, copy=False))
 
-    streams = [source] if hasattr(source, "reopen") else []  # an EXR input's codec threads as the budget allows
     try:
         with codecs_within(choice, streams, [], source.info, c, {}, reporter, where):
             if table is not None:  # the codes reach level 0 themselves

@@ -8,6 +8,7 @@ import resource
 import numpy as np
 import pytest
 
+from helpers.budgets import codecs
 from helpers.cli import CLI, peak_rss, run_cli
 from helpers.images import noise, write
 from pyramid_cli import imageio as io
@@ -244,6 +245,34 @@ def test_many_codec_threads_are_limited_to_what_the_budget_leaves(tmp_path, monk
     assert np.array_equal(a, b)
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize("compression", ["dwab", "dwaa"])
+def test_a_dwa_file_s_codec_is_counted_in_the_budget(tmp_path, monkeypatch, compression):
+    """OpenEXR's DWA codecs hold far more than their line buffers: a 3840-wide DWAB file 56 MiB on one thread (7.5
+    chunks of 256 rows), DWAA about 13 MiB for every thread at any width (docs/performance.md). A budget that cannot
+    hold them on one thread is refused before any work (exit 5, one line, nothing written); one that can keeps the
+    run within it on a 16-core machine (OpenImageIO told so), with the pixels of a run with room."""
+    pytest.importorskip("numba")
+    monkeypatch.setenv("OPENIMAGEIO_THREADS", "16")
+    big, tiny = tmp_path / "big.exr", tmp_path / "tiny.exr"
+    write(big, noise(600, 1024, seed=1), "half", compression=compression)
+    write(tiny, noise(16, 16, seed=2), "half", compression=compression)
+    r = run_cli("blur", "--backend", "cpu", "--levels", "5", "--memory", "12M", big, tmp_path / "s.exr")
+    assert r.returncode == 5 and "OpenEXR's codecs hold on one thread" in r.stderr, r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1 and str(big) in r.stderr and "Traceback" not in r.stderr
+    assert sorted(os.listdir(tmp_path)) == ["big.exr", "tiny.exr"]
+    budget = 64 << 20
+    cmd = CLI + ["blur", "--backend", "cpu", "--levels", "5", "--memory", str(budget)]
+    base = peak_rss(cmd + [tiny, tmp_path / "t.exr"])
+    streamed = peak_rss(cmd + [big, tmp_path / "s.exr"])
+    assert streamed - base < 2 * budget, (base, streamed)
+    monkeypatch.delenv("OPENIMAGEIO_THREADS")
+    r = run_cli("blur", "--backend", "cpu", "--levels", "5", "--memory", "1G", big, tmp_path / "w.exr")
+    assert r.returncode == 0, r.stderr
+    a, b = (io.read_image(tmp_path / n, keep_half=True).pixels for n in ("s.exr", "w.exr"))
+    assert np.array_equal(a, b)
+
+
 def test_resource_module_measures_children():
     assert resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss >= 0
 
@@ -251,6 +280,7 @@ def test_resource_module_measures_children():
 @pytest.mark.parametrize("laplacian, budget", [(False, 280 << 10), (True, 300 << 10)])
 def test_levels_stream_every_level(tmp_path, session, laplacian, budget):
     """Every level (the input itself as level 0, or the Laplacian bands) streamed equals the whole run's files."""
+    from pyramid_cli.core.geometry import level_sizes
     from pyramid_cli.jobs.work import Laplacian, Levels
     from pyramid_cli.run.pipeline import write_levels_files
     from pyramid_cli.run.report import Reporter
@@ -260,6 +290,8 @@ def test_levels_stream_every_level(tmp_path, session, laplacian, budget):
     work = Laplacian(levels=3) if laplacian else Levels(levels=3)
     said = []
     rep = Reporter(verbose=True, out=said.append, err=said.append)
+    outputs = [(tmp_path / f"s_{k}.exr", size) for k, size in enumerate(level_sizes((150, 97), 3))]
+    budget += codecs(src, outputs, pixel_type="float" if laplacian else None)  # beside what the EXR codecs hold
     streamed = write_levels_files(str(src), str(tmp_path / "s_{level}.exr"), work, session, memory=budget,
                                   reporter=rep)
     assert any("streams in bands" in m for m in said), said
