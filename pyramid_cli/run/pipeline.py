@@ -145,6 +145,15 @@ def write_levels_files(input_path: str, pattern: str, work: Levels | Laplacian, 
     can undo them. One file per level streams, every level band by band, when the whole pyramid would not
     fit ``memory`` bytes (default: :func:`pyramid_cli.run.budget.default_budget`; :mod:`pyramid_cli.run.stream`).
     """
+    with contextlib.ExitStack() as limits:  # a whole run: OpenEXR's codec threads as its budget leaves them
+        return _write_levels_files(input_path, pattern, work, session, read=read, write=write, reporter=reporter,
+                                   multipart=multipart, sheet=sheet, memory=memory, limits=limits)
+
+
+def _write_levels_files(input_path: str, pattern: str, work: Levels | Laplacian, session: Session, *,
+                        read: ReadOptions | None, write: WriteOptions | None, reporter: Reporter | None,
+                        multipart: bool, sheet: str | None, memory: int | None,
+                        limits: contextlib.ExitStack) -> list[str]:
     ro, wo, reporter = read or ReadOptions(), write or WriteOptions(), reporter or Reporter()
     laplacian = isinstance(work, Laplacian)
     if memory is not None and (multipart or sheet):
@@ -171,7 +180,7 @@ def write_levels_files(input_path: str, pattern: str, work: Levels | Laplacian, 
                 else:
                     options["colorspace"] = wo.tocolorspace
             if run_levels(input_path, written, work, session, memory=memory, read=ro, options=options,
-                          attributes=attributes, reporter=reporter):
+                          attributes=attributes, reporter=reporter, limits=limits):
                 for path in written:
                     reporter.result(f"wrote {path}")
                 return written
