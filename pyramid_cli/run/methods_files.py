@@ -6,6 +6,7 @@ write options (:class:`~pyramid_cli.run.settings.ReadOptions`, ``WriteOptions``)
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 
 import numpy as np
@@ -18,6 +19,7 @@ from pyramid_cli.jobs.work import Blend, Fill
 from pyramid_cli.run.inputs import read_input
 from pyramid_cli.run.report import NAN_HINT, Reporter, announce_compiles
 from pyramid_cli.run.settings import ReadOptions, WriteOptions
+from pyramid_cli.run.stream import holds_codec_limits
 from pyramid_cli.run.stream_many import blend_streamed, fill_streamed, mask_layout
 from pyramid_cli.workflows.methods import fill_inputs, fill_output, mask_channels, mask_weights
 
@@ -38,12 +40,14 @@ def _read_mask(path: str, shape: tuple[int, ...], ro: ReadOptions, reporter: Rep
     return px[:, :, alpha]
 
 
+@holds_codec_limits
 def fill_file(input_path: str, output_path: str, session: Session, *, mask: str | None = None,
               holes: str | None = None, levels: int | None = None, analysis: str = catalogue.FILL_ANALYSIS,
               synthesis: str = catalogue.FILL_SYNTHESIS, weight_scale: int | tuple[int, int] = catalogue.FILL_SCALE,
               sweeps: int | tuple[int, int] = catalogue.FILL_SWEEPS, keep_alpha: bool = False, border: str = "clamp",
               allow_mixed_lattice: bool = False, read: ReadOptions | None = None, write: WriteOptions | None = None,
-              reporter: Reporter | None = None, memory: int | None = None) -> dict:
+              reporter: Reporter | None = None, memory: int | None = None,
+              limits: contextlib.ExitStack | None = None) -> dict:
     """Pull-push fill of one image file (:func:`pyramid_cli.api.fill`); returns what ``--json`` prints.
 
     ``keep_alpha`` writes the input's alpha beside the filled colours, stored unassociated (as they
@@ -78,7 +82,8 @@ def fill_file(input_path: str, output_path: str, session: Session, *, mask: str 
         return info
 
     streamed = fill_streamed(input_path, output_path, session, work_for, mask=mask, holes=holes, levels=levels,
-                             keep_alpha=keep_alpha, memory=memory, read=ro, write=wo, reporter=reporter)
+                             keep_alpha=keep_alpha, memory=memory, read=ro, write=wo, reporter=reporter,
+                             limits=limits)
     if streamed is not None:
         (h, w), counts, band = streamed
         return done(w, h, counts, f", streamed in bands of {band} rows")
@@ -128,11 +133,13 @@ def _levels(work, size) -> int:
     return mip_levels(tuple(size)) if work.levels is None else work.levels
 
 
+@holds_codec_limits
 def blend_files(a_path: str, b_path: str, mask_path: str, output_path: str, session: Session, *,
                 levels: int | None = None, analysis: str = catalogue.DEFAULT_ANALYSIS,
                 synthesis: str = catalogue.DEFAULT_SYNTHESIS, border: str = "clamp", allow_mixed_lattice: bool = False,
                 read: ReadOptions | None = None, write: WriteOptions | None = None,
-                reporter: Reporter | None = None, memory: int | None = None) -> dict:
+                reporter: Reporter | None = None, memory: int | None = None,
+                limits: contextlib.ExitStack | None = None) -> dict:
     """Multiresolution blend of two image files along a mask file (:func:`pyramid_cli.api.blend`).
 
     Streams band by band (:func:`pyramid_cli.run.stream_many.blend_streamed`) when the whole run would not fit
@@ -143,7 +150,7 @@ def blend_files(a_path: str, b_path: str, mask_path: str, output_path: str, sess
     work = Blend(levels=levels, analysis=analysis, synthesis=synthesis, border=border,
                  allow_mixed_lattice=allow_mixed_lattice)
     streamed = blend_streamed(a_path, b_path, mask_path, output_path, work, session, memory=memory, read=ro,
-                              write=wo, reporter=reporter)
+                              write=wo, reporter=reporter, limits=limits)
     if streamed is not None:
         return streamed
     a = read_input(a_path, ro, reporter)

@@ -27,6 +27,7 @@ from pyramid_cli.run.inputs import read_input
 from pyramid_cli.run.local import run_jobs
 from pyramid_cli.run.report import Reporter, announce_compiles
 from pyramid_cli.run.settings import ReadOptions, WriteOptions
+from pyramid_cli.run.stream import holds_codec_limits
 
 if TYPE_CHECKING:  # importing the cluster package imports distributed
     from pyramid_cli.run.cluster import SessionSpec
@@ -134,10 +135,12 @@ def level_path(pattern: str, level: int) -> str:
     return pattern.replace("{level}", str(level))
 
 
+@holds_codec_limits
 def write_levels_files(input_path: str, pattern: str, work: Levels | Laplacian, session: Session, *,
                        read: ReadOptions | None = None, write: WriteOptions | None = None,
                        reporter: Reporter | None = None, multipart: bool = False,
-                       sheet: str | None = None, memory: int | None = None) -> list[str]:
+                       sheet: str | None = None, memory: int | None = None,
+                       limits: contextlib.ExitStack | None = None) -> list[str]:
     """Every level of a pyramid (or the Laplacian bands) of one image, one file each or one multipart EXR.
 
     Returns the paths written. Laplacian bands are stored as float and record the
@@ -145,15 +148,6 @@ def write_levels_files(input_path: str, pattern: str, work: Levels | Laplacian, 
     can undo them. One file per level streams, every level band by band, when the whole pyramid would not
     fit ``memory`` bytes (default: :func:`pyramid_cli.run.budget.default_budget`; :mod:`pyramid_cli.run.stream`).
     """
-    with contextlib.ExitStack() as limits:  # a whole run: OpenEXR's codec threads as its budget leaves them
-        return _write_levels_files(input_path, pattern, work, session, read=read, write=write, reporter=reporter,
-                                   multipart=multipart, sheet=sheet, memory=memory, limits=limits)
-
-
-def _write_levels_files(input_path: str, pattern: str, work: Levels | Laplacian, session: Session, *,
-                        read: ReadOptions | None, write: WriteOptions | None, reporter: Reporter | None,
-                        multipart: bool, sheet: str | None, memory: int | None,
-                        limits: contextlib.ExitStack) -> list[str]:
     ro, wo, reporter = read or ReadOptions(), write or WriteOptions(), reporter or Reporter()
     laplacian = isinstance(work, Laplacian)
     if memory is not None and (multipart or sheet):
@@ -238,9 +232,11 @@ def _as_recorded(spec: io.ImageInfo, path: str, what: str, asked: str | None, de
     return asked
 
 
+@holds_codec_limits
 def collapse_files(inputs: list[str], output_path: str, session: Session, *, synthesis: str | None = None,
                    border: str | None = None, read: ReadOptions | None = None, write: WriteOptions | None = None,
-                   reporter: Reporter | None = None, memory: int | None = None) -> str:
+                   reporter: Reporter | None = None, memory: int | None = None,
+                   limits: contextlib.ExitStack | None = None) -> str:
     """Sum Laplacian bands back to the image: a multipart EXR, or band files L_0 … L_m−1, G_m in order.
 
     ``synthesis`` and ``border`` default to what the bands record (``pyramid levels --laplacian`` writes
@@ -263,7 +259,7 @@ def collapse_files(inputs: list[str], output_path: str, session: Session, *, syn
                     _as_recorded(spec, paths[0], "border", border, "clamp"))
 
         if collapse_streamed(ordered, output_path, session, settle, memory=memory, read=ro, write=wo,
-                             options_from=paths, reporter=reporter) is not None:
+                             options_from=paths, reporter=reporter, limits=limits) is not None:
             return output_path
     if len(paths) == 1:
         bands = io.read_parts(paths[0], colorspace=ro.colorspace, alpha=ro.alpha, nan=ro.nan,

@@ -21,10 +21,12 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import functools
 import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any, TypeVar, cast
 
 import numpy as np
 
@@ -34,6 +36,7 @@ from pyramid_cli.run.budget import available_memory, default_memory, format_size
 from pyramid_cli.run.overlap import DEPTH, overlapped
 from pyramid_cli.run.report import nonfinite_kept
 
+_Run = TypeVar("_Run", bound=Callable[..., Any])
 MIN_BAND = 8            # rows: dithering's Bayer pattern and most tile heights are multiples of 8
 COPIES = 3              # a band held, its next rows, and the transient concatenation of both
 PADDED = 1.25           # textures this many times the pictures: the executor pads the whole picture, so run bands
@@ -644,6 +647,17 @@ def codecs_within(choice: Choice, streams, outputs: list[tuple[str, tuple[int, i
         yield
 
 
+def holds_codec_limits(run: _Run) -> _Run:
+    """``run`` called with ``limits``: an ExitStack held around the whole call, in which a whole run's codec limit
+    (:func:`hold_codecs`) stays until ``run`` returns (``run`` takes ``limits=None`` when called without it)."""
+    @functools.wraps(run)
+    def holding(*args, **kwargs):
+        with contextlib.ExitStack() as limits:
+            return run(*args, limits=limits, **kwargs)
+
+    return cast(_Run, holding)
+
+
 def hold_codecs(limits: contextlib.ExitStack | None, choice: Choice, streams,
                 outputs: list[tuple[str, tuple[int, int]]], info, channels: int, options: dict, reporter=None,
                 where: str = "", tile: int = 0) -> None:
@@ -664,5 +678,6 @@ def hold_codecs(limits: contextlib.ExitStack | None, choice: Choice, streams,
 
 __all__ = ["BandTimes", "Choice", "choose", "choose_mip", "estimate", "parse_size", "default_memory",
            "available_memory", "stream_file", "open_input", "format_size", "run_job", "run_levels", "costs",
-           "executor_of", "read_step", "codec_memory", "codec_limit", "codecs_within", "hold_codecs", "run_bands",
-           "speed_band", "band_rows", "warn_nonfinite", "MIN_BAND", "STREAM_PIXELS", "BAND_PIXELS"]
+           "executor_of", "read_step", "codec_memory", "codec_limit", "codecs_within", "hold_codecs",
+           "holds_codec_limits", "run_bands", "speed_band", "band_rows", "warn_nonfinite", "MIN_BAND", "STREAM_PIXELS",
+           "BAND_PIXELS"]

@@ -38,6 +38,7 @@ from pyramid_cli.run.stream import (
     codecs_within,
     costs,
     executor_of,
+    hold_codecs,
     open_input,
     speed_band,
     warn_nonfinite,
@@ -87,11 +88,12 @@ class _Tee:
 
 
 def decide(plan: Plan | None, channels: int, session, memory: int | None, *, where: str, reporter=None,
-           in_bytes: int = 4, codecs: int = 0) -> Choice | None:
+           in_bytes: int = 4, codecs: int = 0, hold: Callable[[Choice], None] | None = None) -> Choice | None:
     """The :class:`~pyramid_cli.run.stream.Choice` of a job of ``plan`` when it streams, else None (it runs whole:
     it fits and is no faster in bands; the reference backend without ``memory``, which is then refused).
     ``codecs``: what OpenEXR's codecs hold on one thread for its files
-    (:func:`~pyramid_cli.run.stream.codec_memory`)."""
+    (:func:`~pyramid_cli.run.stream.codec_memory`); ``hold(choice)`` is called for a whole run (its codec limit:
+    :func:`~pyramid_cli.run.stream.hold_codecs`)."""
     if session is None or session.executor is None:
         if memory is not None:
             executor_of(session)  # refuses with the reason
@@ -108,6 +110,8 @@ def decide(plan: Plan | None, channels: int, session, memory: int | None, *, whe
         raise given.refusal(exc) from None
     if reporter is not None:
         reporter.detail(f"{where}: {choice.describe()}")
+    if not choice.streams and hold is not None:
+        hold(choice)
     return choice if choice.streams else None
 
 
@@ -232,7 +236,8 @@ def _runs_whole(output_path: str, session, memory: int | None, where: str) -> bo
     return False
 
 def blend_streamed(a_path: str, b_path: str, mask_path: str, output_path: str, work, session, *,
-                   memory: int | None, read, write, reporter) -> dict | None:
+                   memory: int | None, read, write, reporter, limits: contextlib.ExitStack | None = None
+                   ) -> dict | None:
     """``pyramid blend`` (:func:`pyramid_cli.run.methods_files.blend_files`) streamed: A, B and the mask each read
     in bands on a thread of its own, the output written in bands. Returns what ``--json`` prints, or None when
     the job runs whole (it fits and is no faster in bands, an output encoded whole, or inputs that do not
@@ -254,8 +259,10 @@ def blend_streamed(a_path: str, b_path: str, mask_path: str, output_path: str, w
         work.check(((h, w),) * 3, where=a_path)
         plan = session.plan(work, [(h, w)] * 3)
         options = write.for_inputs([a_path, b_path, mask_path])
-        codecs = codec_memory([a, b, m], [(output_path, (h, w))], a.info, c, options)[0]
-        choice = decide(plan, c, session, memory, where=a_path, reporter=reporter, codecs=codecs)
+        files = ([a, b, m], [(output_path, (h, w))], a.info, c, options)
+        codecs = codec_memory(*files)[0]
+        choice = decide(plan, c, session, memory, where=a_path, reporter=reporter, codecs=codecs,
+                        hold=lambda whole: hold_codecs(limits, whole, *files, reporter, a_path))
         if choice is None:
             return None
         alpha = mask_layout(mask_path, m.info, m.shape, a.shape, reporter.warn)
@@ -287,7 +294,8 @@ def blend_streamed(a_path: str, b_path: str, mask_path: str, output_path: str, w
 
 
 def collapse_streamed(paths: list[str], output_path: str, session, settle: Callable, *, memory: int | None, read,
-                      write, options_from: list[str], reporter) -> Choice | None:
+                      write, options_from: list[str], reporter, limits: contextlib.ExitStack | None = None
+                      ) -> Choice | None:
     """``pyramid collapse`` of band files L_0 … L_m−1, G_m (``paths``, in order) streamed: each band read in
     bands of its share of the output's rows on a thread of its own, the output written in bands. ``settle(info)``:
     the (synthesis, border) of the bands whose first file's header is ``info`` (refusing a contradiction);
@@ -312,8 +320,10 @@ def collapse_streamed(paths: list[str], output_path: str, session, settle: Calla
         plan = session.plan(work, sizes)
         h, w, c = shapes[0]
         options = write.for_inputs(options_from)
-        codecs = codec_memory(streams, [(output_path, (h, w))], streams[0].info, c, options)[0]
-        choice = decide(plan, c, session, memory, where=paths[0], reporter=reporter, codecs=codecs)
+        files = (streams, [(output_path, (h, w))], streams[0].info, c, options)
+        codecs = codec_memory(*files)[0]
+        choice = decide(plan, c, session, memory, where=paths[0], reporter=reporter, codecs=codecs,
+                        hold=lambda whole: hold_codecs(limits, whole, *files, reporter, paths[0]))
         if choice is None:
             return None
         feeds = [Feed([st], [k]) for st, k in zip(streams, plan.inputs, strict=True)]
@@ -352,8 +362,8 @@ class _Rows:
 
 
 def fill_streamed(input_path: str, output_path: str, session, work_for: Callable, *, mask: str | None, holes: str,
-                  levels: int | None, keep_alpha: bool, memory: int | None, read, write, reporter
-                  ) -> tuple[tuple[int, int], dict, int] | None:
+                  levels: int | None, keep_alpha: bool, memory: int | None, read, write, reporter,
+                  limits: contextlib.ExitStack | None = None) -> tuple[tuple[int, int], dict, int] | None:
     """``pyramid fill`` (:func:`pyramid_cli.run.methods_files.fill_file`) streamed: the image and the mask read in
     bands on threads of their own, each band made colours and weights by
     :func:`~pyramid_cli.workflows.methods.fill_inputs` (per pixel), the filled rows finished by
@@ -400,8 +410,10 @@ def fill_streamed(input_path: str, output_path: str, session, work_for: Callable
         plan = session.plan(work, [(h, w)] * 2)
         options = write.for_inputs([input_path] + ([mask] if mask else []))
         spec = dataclasses.replace(info, alpha_mode="none") if keep_alpha else info
-        codecs = codec_memory([st] + ([ms] if ms is not None else []), [(output_path, (h, w))], spec, c, options)[0]
-        choice = decide(plan, cc, session, memory, where=input_path, reporter=reporter, codecs=codecs)
+        files = ([st] + ([ms] if ms is not None else []), [(output_path, (h, w))], spec, c, options)
+        codecs = codec_memory(*files)[0]
+        choice = decide(plan, cc, session, memory, where=input_path, reporter=reporter, codecs=codecs,
+                        hold=lambda whole: hold_codecs(limits, whole, *files, reporter, input_path))
         if choice is None:
             return None
         layout = (mask_layout(mask, ms.info, ms.shape, st.shape, reporter.warn)
