@@ -9,8 +9,9 @@ height, so a band-streamed run sized to ``--memory`` can exceed it: a 1536-pixel
 within 16 MiB took 18 MiB over the interpreter's own peak with 2 codec threads and 48 MiB on a 16-core machine (an
 H100 host); a 3840-wide DWAB file took 113 MiB more than an uncompressed one even on one thread.
 
-:data:`EXR_CODEC_MEMORY` was measured on 2026-11-27 (``docs/performance.md``, "What OpenEXR's codecs hold"):
-peak memory of ``blur --levels 5`` streamed from and to 1920- and 3840-wide half RGBA files of each compression,
+:data:`EXR_CODEC_MEMORY` was measured on 2026-11-27 (``bench/codec_memory.py``; ``docs/performance.md``, "What
+OpenEXR's codecs hold"): the peak memory of ``blur --levels 5`` streamed from and to 1920- and 3840-wide half RGBA
+files of each compression,
 against the same run on uncompressed files, with OpenImageIO told to use 1, 2, 8 and 16 threads; the entries
 are those of one file, rounded up, so that two files (the input and the output) are at or above what was
 measured.

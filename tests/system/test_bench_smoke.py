@@ -82,3 +82,18 @@ def test_bench_gpu_scenario_on_cpu_torch(tmp_path):
     targets = [t for t in report["targets"] if t["target"].startswith("gpu")]
     assert len(targets) == 2 and all(t["met"] is None for t in targets)
     assert "== gpu" in p.stdout
+
+
+@pytest.mark.slow
+def test_codec_memory_bench_writes_each_figure(tmp_path):
+    """bench/codec_memory.py (the figures behind pyramid_cli.imageio.codecs.EXR_CODEC_MEMORY) runs end to end on a
+    made-up source: uncompressed and one compression, one width and thread count."""
+    out = tmp_path / "codecs.json"
+    p = subprocess.run([sys.executable, str(ROOT / "bench" / "codec_memory.py"), "--compressions", "dwab",
+                        "--widths", "256", "--threads", "1", "--repeat", "1", "--source", str(tmp_path / "none.exr"),
+                        "--json", str(out)], capture_output=True, text=True, timeout=300, cwd=ROOT)
+    assert p.returncode == 0, p.stderr[-2000:]
+    figures = json.loads(out.read_text())
+    assert set(figures) == {"256 none 1", "256 dwab 1"} and figures["256 none 1"]["per_file_mib"] == 0
+    assert all(f["peak_mib"] > 0 for f in figures.values())
+    assert "one file's codec" in p.stdout
