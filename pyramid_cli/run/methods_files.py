@@ -16,10 +16,10 @@ from pyramid_cli.core import catalogue
 from pyramid_cli.core.errors import InputError, UsageError
 from pyramid_cli.exec.session import Session
 from pyramid_cli.jobs.work import Blend, Fill
+from pyramid_cli.run.codec_budget import holds_codec_limits
 from pyramid_cli.run.inputs import read_input
 from pyramid_cli.run.report import NAN_HINT, Reporter, announce_compiles
 from pyramid_cli.run.settings import ReadOptions, WriteOptions
-from pyramid_cli.run.stream import holds_codec_limits
 from pyramid_cli.run.stream_many import blend_streamed, fill_streamed, mask_layout
 from pyramid_cli.workflows.methods import fill_inputs, fill_output, mask_channels, mask_weights
 

@@ -23,21 +23,23 @@ from pyramid_cli.exec.session import Session
 from pyramid_cli.imageio.texture import check_texture_tile
 from pyramid_cli.jobs.work import Collapse, Laplacian, Levels, Work, same_setting
 from pyramid_cli.run import batch
+from pyramid_cli.run.codec_budget import holds_codec_limits
 from pyramid_cli.run.inputs import read_input
 from pyramid_cli.run.local import run_jobs
 from pyramid_cli.run.report import Reporter, announce_compiles
 from pyramid_cli.run.settings import ReadOptions, WriteOptions
-from pyramid_cli.run.stream import holds_codec_limits
 
 if TYPE_CHECKING:  # importing the cluster package imports distributed
     from pyramid_cli.run.cluster import SessionSpec
 
 
+@holds_codec_limits
 def process(paths: list[str], template: str | None, work: Work, session: Session | SessionSpec | None, *,
             read: ReadOptions | None = None, write: WriteOptions | None = None, reporter: Reporter | None = None,
             keep_going: bool = False, skip_existing: bool = False, jobs: int = 2,
             mip_tile: int | None = None, frames: str | None = None, shard=None, cluster=None,
-            chunk: int | None = None, memory: int | None = None, cluster_timeout: float | None = None) -> batch.Report:
+            chunk: int | None = None, memory: int | None = None, cluster_timeout: float | None = None,
+            limits: contextlib.ExitStack | None = None) -> batch.Report:
     """Run ``work`` on every input of ``paths`` (``IN OUT``, or inputs with ``template``).
 
     One session for the whole batch; decoding and encoding overlap the work in ``jobs``
@@ -58,7 +60,8 @@ def process(paths: list[str], template: str | None, work: Work, session: Session
     decoding, computing and encoding at once, when it is large enough to be faster so
     (:func:`pyramid_cli.run.stream.speed_band`) or when its whole-picture run would not fit ``memory`` bytes
     (default: :func:`pyramid_cli.run.budget.default_budget`); ``mipmap`` only in the latter case
-    (:mod:`pyramid_cli.run.stream_mip`). Other images run whole.
+    (:mod:`pyramid_cli.run.stream_mip`). Other images run whole; one of them with OpenEXR's codec threads limited
+    to what its budget leaves (``limits``, given by :func:`~pyramid_cli.run.codec_budget.holds_codec_limits`).
     """
     ro, wo, reporter = read or ReadOptions(), write or WriteOptions(), reporter or Reporter()
     if mip_tile:
@@ -75,33 +78,31 @@ def process(paths: list[str], template: str | None, work: Work, session: Session
         first = _header(job_list[0].input)
         if first is not None:
             session.prepare_async(work, [first[0]], count=len(job_list), dtype=first[1])
-    # a single picture run whole: OpenEXR's codec threads limited to what its budget leaves (stream.hold_codecs)
-    with contextlib.ExitStack() as limits:
-        if (not many and len(job_list) == 1 and cluster is None and frames is None
-                and not (skip_existing and batch.is_fresh(job_list[0]))):
-            from pyramid_cli.run.mip_whole import run_whole
-            from pyramid_cli.run.stream import run_job
-            from pyramid_cli.run.stream_mip import run_mip
+    if (not many and len(job_list) == 1 and cluster is None and frames is None
+            and not (skip_existing and batch.is_fresh(job_list[0]))):
+        from pyramid_cli.run.mip_whole import run_whole
+        from pyramid_cli.run.stream import run_job
+        from pyramid_cli.run.stream_mip import run_mip
 
-            if mip_tile:
-                if run_mip(job_list[0], work, session, memory=memory, tile=mip_tile, read=ro, write=wo,
-                           reporter=reporter, whole=run_whole, limits=limits):
-                    return batch.Report(done=list(job_list))
-            elif run_job(job_list[0], work, session, memory=memory, read=ro, write=wo, reporter=reporter,
-                         limits=limits):
+        if mip_tile:
+            if run_mip(job_list[0], work, session, memory=memory, tile=mip_tile, read=ro, write=wo,
+                       reporter=reporter, whole=run_whole, limits=limits):
                 return batch.Report(done=list(job_list))
-        elif memory is not None:
-            raise UsageError("--memory streams one input at a time (not batches, frame sequences or clusters)")
-        if cluster is not None:
-            from pyramid_cli.run.cluster import run_cluster
+        elif run_job(job_list[0], work, session, memory=memory, read=ro, write=wo, reporter=reporter,
+                     limits=limits):
+            return batch.Report(done=list(job_list))
+    elif memory is not None:
+        raise UsageError("--memory streams one input at a time (not batches, frame sequences or clusters)")
+    if cluster is not None:
+        from pyramid_cli.run.cluster import run_cluster
 
-            report = run_cluster(job_list, work, cluster, session=session, read=ro, write=wo, reporter=reporter,
-                                 keep_going=keep_going, skip_existing=skip_existing, jobs=jobs, mip_tile=mip_tile,
-                                 chunk=chunk, many=many, timeout=cluster_timeout)
-        else:
-            assert isinstance(session, Session), "a session, unless the jobs run on a cluster"
-            report = run_jobs(job_list, work, session, read=ro, write=wo, reporter=reporter, keep_going=keep_going,
-                              skip_existing=skip_existing, jobs=jobs, mip_tile=mip_tile, many=many)
+        report = run_cluster(job_list, work, cluster, session=session, read=ro, write=wo, reporter=reporter,
+                             keep_going=keep_going, skip_existing=skip_existing, jobs=jobs, mip_tile=mip_tile,
+                             chunk=chunk, many=many, timeout=cluster_timeout)
+    else:
+        assert isinstance(session, Session), "a session, unless the jobs run on a cluster"
+        report = run_jobs(job_list, work, session, read=ro, write=wo, reporter=reporter, keep_going=keep_going,
+                          skip_existing=skip_existing, jobs=jobs, mip_tile=mip_tile, many=many)
     if not many and report.failed:
         raise report.failed[0][1]
     if many:

@@ -21,22 +21,20 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import functools
 import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, TypeVar, cast
 
 import numpy as np
 
 from pyramid_cli.core.errors import DataError, UsageError
 from pyramid_cli.plan import Plan
 from pyramid_cli.run.budget import available_memory, default_memory, format_size, parse_size, resolve
+from pyramid_cli.run.codec_budget import Codecs
 from pyramid_cli.run.overlap import DEPTH, overlapped
 from pyramid_cli.run.report import nonfinite_kept
 
-_Run = TypeVar("_Run", bound=Callable[..., Any])
 MIN_BAND = 8            # rows: dithering's Bayer pattern and most tile heights are multiples of 8
 COPIES = 3              # a band held, its next rows, and the transient concatenation of both
 PADDED = 1.25           # textures this many times the pictures: the executor pads the whole picture, so run bands
@@ -56,7 +54,7 @@ class Choice:
     padded: float = 0.0         # streams because whole, the executor's textures would be this many times the pictures
     level0: int = 0             # a streamed MIP map read once: bytes of level 0 kept in memory until its header
     faster: bool = False        # streams because it fits whole but is faster in bands (:func:`speed_band`)
-    codecs: int = 0             # bytes OpenEXR's codecs hold with one thread each, in the working set (codec_memory)
+    codecs: int = 0             # bytes OpenEXR's codecs hold with one thread each, in the working set (Codecs.first)
 
     @property
     def streams(self) -> bool:
@@ -219,8 +217,8 @@ def choose(plan: Plan, channels: int, budget: int, *, in_bytes: int = 4, out_byt
 
     ``force`` streams even when the whole picture fits; so does a picture whose textures the executor would
     pad, and one for which bands of about ``prefer`` rows are faster (:func:`_pick`, :func:`speed_band`).
-    ``codecs``: bytes OpenEXR's codecs hold for the files whatever the band (:func:`codec_memory`'s first), in
-    every working set. DataError when not even the smallest band fits."""
+    ``codecs``: bytes OpenEXR's codecs hold for the files whatever the band (``Codecs.first``:
+    :mod:`pyramid_cli.run.codec_budget`), in every working set. DataError when not even the smallest band fits."""
     def cost(band: int | None) -> int:
         return codecs + estimate(plan, channels, band, in_bytes=in_bytes, out_bytes=out_bytes, work_bytes=work_bytes,
                                  texture=texture, keeps_input=keeps_input)
@@ -465,13 +463,12 @@ def stream_file(in_path: str, out_path: str | list[str], work, session, choice: 
         half = stream.dtype == np.float16
         dtypes = [np.float16 if half and io.stores_half_unchanged(p, info, pixel_type=options.get("pixel_type"))
                   else np.float32 for p in paths]
+        codecs = Codecs.of([stream], list(zip(paths, sizes, strict=True)), info, c, options)
         if choice is None:
-            codecs = codec_memory([stream], list(zip(paths, sizes, strict=True)), info, c, options)[0]
             choice = choose(plan, c, budget, in_bytes=stream.dtype.itemsize, out_bytes=4, force=True, where=in_path,
-                            keeps_input=bool(kept), codecs=codecs, **costs(executor))
+                            keeps_input=bool(kept), codecs=codecs.first, **costs(executor))
         band = choice.band or MIN_BAND
-        with (codecs_within(choice, [stream], list(zip(paths, sizes, strict=True)), info, c, options, reporter,
-                            in_path),
+        with (codecs.within(choice, reporter, in_path),
               io.stream_writers(paths, [info] * len(paths), [s + (c,) for s in sizes], **options) as writers):
             def keep(y0: int, px: np.ndarray) -> None:  # level 0 is the input: each row once, in order
                 writers[0].write(y0, px.astype(dtypes[0], copy=False))
@@ -496,7 +493,7 @@ STREAMABLE = ("apply", "blur")  # single-image jobs of one output (Work.label); 
 def _decide(in_path: str, work, session, memory: int | None, read, reporter, outputs: list[str], write=None,
             limits: contextlib.ExitStack | None = None):
     """(open stream, choice) when ``work`` on ``in_path`` streams to ``outputs`` (written as ``write`` asks), else
-    None (it runs whole, as before, its codec threads limited in ``limits``: :func:`hold_codecs`)."""
+    None (it runs whole, as before, its codec threads limited in ``limits``: ``Codecs.hold``)."""
     from pyramid_cli.run.settings import ReadOptions
 
     if session is None or session.executor is None:
@@ -517,16 +514,15 @@ def _decide(in_path: str, work, session, memory: int | None, read, reporter, out
             st.close()
             return None
         executor = executor_of(session)
-        outs = list(zip(outputs, _output_sizes(work, plan, h, w), strict=True))
-        options = _write_options(write, in_path)
-        codecs = codec_memory([st], outs, st.info, c, options)[0]
+        codecs = Codecs.of([st], list(zip(outputs, _output_sizes(work, plan, h, w), strict=True)), st.info, c,
+                           _write_options(write, in_path))
         choice = choose(plan, c, budget, in_bytes=st.dtype.itemsize, out_bytes=4, where=in_path,
-                        keeps_input=work.keeps_input, prefer=speed_band(plan, executor), codecs=codecs,
+                        keeps_input=work.keeps_input, prefer=speed_band(plan, executor), codecs=codecs.first,
                         **costs(executor))
         if reporter is not None:
             reporter.detail(f"{in_path}: {choice.describe()}")
         if not choice.streams:
-            hold_codecs(limits, choice, [st], outs, st.info, c, options, reporter, in_path)
+            codecs.hold(limits, choice, reporter, in_path)
     except DataError as exc:
         st.close()
         raise given.refusal(exc) from None
@@ -588,96 +584,7 @@ def run_levels(in_path: str, paths: list[str], work, session, *, memory: int | N
     return True
 
 
-def codec_memory(streams, outputs: list[tuple[str, tuple[int, int]]], info, channels: int,
-                 options: dict, tile: int = 0) -> tuple[int, int]:
-    """(bytes with one thread, bytes each further thread adds) that OpenEXR's codecs hold for the open inputs
-    ``streams`` and the ``outputs`` (path, (rows, columns), written from ``info`` with ``channels`` as the write
-    ``options`` ask; in tiles of ``tile`` pixels when not 0): :mod:`pyramid_cli.imageio.codecs`; (0, 0) where no
-    file is an OpenEXR one."""
-    from pyramid_cli import imageio as io
-
-    held = [st.codec_memory() for st in streams]
-    held += [io.output_codec_memory(p, info, channels, size, tile, **options) for p, size in outputs]
-    return sum(m.first for m in held), sum(m.further for m in held)
-
-
-def codec_limit(choice: Choice, streams, outputs: list[tuple[str, tuple[int, int]]], info, channels: int,
-                options: dict, tile: int = 0) -> tuple[int, int] | None:
-    """(threads, bytes each further one holds) for OpenEXR to code the open inputs ``streams`` and the ``outputs``
-    (:func:`codec_memory`) with, where the threads it would use hold more than ``choice``'s working set leaves of
-    its budget; None where they fit, or no file is an OpenEXR one.
-
-    The codecs' first threads are in the working set where :func:`choose` counted them (``Choice.codecs``), which
-    refuses a budget they do not fit before any work; a choice made without them (one given to
-    :func:`stream_file`) leaves them less room. One thread each is the least the files are coded with."""
-    from pyramid_cli import imageio as io
-
-    first, further = codec_memory(streams, outputs, info, channels, options, tile)
-    left = choice.budget - choice.working_set - max(0, first - choice.codecs)
-    if further == 0 or further * (io.exr_threads() - 1) <= left:
-        return None
-    return 1 + max(0, left) // further, further
-
-
-def _said_limit(choice: Choice, limit: tuple[int, int], reporter, where: str) -> None:
-    from pyramid_cli import imageio as io
-
-    if reporter is not None:
-        reporter.detail(f"{where}: OpenEXR codes with {limit[0]} of its {io.exr_threads()} threads: each further "
-                        f"one holds about {format_size(limit[1])}, and the working set leaves "
-                        f"{format_size(choice.budget - choice.working_set)} of the memory budget")
-
-
-@contextlib.contextmanager
-def codecs_within(choice: Choice, streams, outputs: list[tuple[str, tuple[int, int]]], info, channels: int,
-                  options: dict, reporter=None, where: str = "", tile: int = 0):
-    """Run the block with OpenEXR's codec threads (and OpenImageIO's pool) limited to what the budget leaves them
-    (:func:`codec_limit`), the open ``streams`` opened again under the limit (in place: OpenEXR counts a file's
-    threads when it opens), and the outputs opened inside the block; as they are where the threads fit."""
-    from pyramid_cli import imageio as io
-
-    limit = codec_limit(choice, streams, outputs, info, channels, options, tile)
-    if limit is None:
-        yield
-        return
-    _said_limit(choice, limit, reporter, where)
-    with io.limited_exr_threads(limit[0]):
-        for st in streams:
-            st.reopen()
-        yield
-
-
-def holds_codec_limits(run: _Run) -> _Run:
-    """``run`` called with ``limits``: an ExitStack held around the whole call, in which a whole run's codec limit
-    (:func:`hold_codecs`) stays until ``run`` returns (``run`` takes ``limits=None`` when called without it)."""
-    @functools.wraps(run)
-    def holding(*args, **kwargs):
-        with contextlib.ExitStack() as limits:
-            return run(*args, limits=limits, **kwargs)
-
-    return cast(_Run, holding)
-
-
-def hold_codecs(limits: contextlib.ExitStack | None, choice: Choice, streams,
-                outputs: list[tuple[str, tuple[int, int]]], info, channels: int, options: dict, reporter=None,
-                where: str = "", tile: int = 0) -> None:
-    """For a whole run of ``choice`` (it fits the budget whole): OpenEXR's codec threads limited as
-    :func:`codecs_within` limits them, until ``limits`` (the caller's, held around the whole run) closes; the
-    ``streams`` are opened again under the limit. A whole run of a 1024-wide DWAA picture on a 16-core machine
-    otherwise held 13 MiB a thread for each file, 260 MiB over a budget of 64 MiB."""
-    from pyramid_cli import imageio as io
-
-    limit = codec_limit(choice, streams, outputs, info, channels, options, tile) if limits is not None else None
-    if limits is None or limit is None:
-        return
-    _said_limit(choice, limit, reporter, where)
-    limits.enter_context(io.limited_exr_threads(limit[0]))
-    for st in streams:
-        st.reopen()
-
-
 __all__ = ["BandTimes", "Choice", "choose", "choose_mip", "estimate", "parse_size", "default_memory",
            "available_memory", "stream_file", "open_input", "format_size", "run_job", "run_levels", "costs",
-           "executor_of", "read_step", "codec_memory", "codec_limit", "codecs_within", "hold_codecs",
-           "holds_codec_limits", "run_bands", "speed_band", "band_rows", "warn_nonfinite", "MIN_BAND", "STREAM_PIXELS",
-           "BAND_PIXELS"]
+           "executor_of", "read_step", "run_bands", "speed_band", "band_rows", "warn_nonfinite", "MIN_BAND",
+           "STREAM_PIXELS", "BAND_PIXELS"]

@@ -29,16 +29,14 @@ import numpy as np
 from pyramid_cli.core.errors import DataError, InputError
 from pyramid_cli.plan import Plan
 from pyramid_cli.run.budget import resolve
+from pyramid_cli.run.codec_budget import Codecs
 from pyramid_cli.run.overlap import Reader, overlapped
 from pyramid_cli.run.stream import (
     MIN_BAND,
     Choice,
     choose,
-    codec_memory,
-    codecs_within,
     costs,
     executor_of,
-    hold_codecs,
     open_input,
     speed_band,
     warn_nonfinite,
@@ -88,12 +86,12 @@ class _Tee:
 
 
 def decide(plan: Plan | None, channels: int, session, memory: int | None, *, where: str, reporter=None,
-           in_bytes: int = 4, codecs: int = 0, hold: Callable[[Choice], None] | None = None) -> Choice | None:
+           in_bytes: int = 4, codecs: Codecs | None = None, limits: contextlib.ExitStack | None = None
+           ) -> Choice | None:
     """The :class:`~pyramid_cli.run.stream.Choice` of a job of ``plan`` when it streams, else None (it runs whole:
     it fits and is no faster in bands; the reference backend without ``memory``, which is then refused).
-    ``codecs``: what OpenEXR's codecs hold on one thread for its files
-    (:func:`~pyramid_cli.run.stream.codec_memory`); ``hold(choice)`` is called for a whole run (its codec limit:
-    :func:`~pyramid_cli.run.stream.hold_codecs`)."""
+    ``codecs``: the job's files' (:class:`~pyramid_cli.run.codec_budget.Codecs`): their first threads counted in
+    the working set, and for a whole run the further ones limited until ``limits`` closes."""
     if session is None or session.executor is None:
         if memory is not None:
             executor_of(session)  # refuses with the reason
@@ -105,13 +103,13 @@ def decide(plan: Plan | None, channels: int, session, memory: int | None, *, whe
     executor = executor_of(session)
     try:
         choice = choose(plan, channels, given.size, in_bytes=in_bytes, out_bytes=4, where=where,
-                        prefer=speed_band(plan, executor), codecs=codecs, **costs(executor))
+                        prefer=speed_band(plan, executor), codecs=codecs.first if codecs else 0, **costs(executor))
     except DataError as exc:
         raise given.refusal(exc) from None
     if reporter is not None:
         reporter.detail(f"{where}: {choice.describe()}")
-    if not choice.streams and hold is not None:
-        hold(choice)
+    if not choice.streams and codecs is not None:
+        codecs.hold(limits, choice, reporter, where)
     return choice if choice.streams else None
 
 
@@ -155,7 +153,7 @@ def stream_plan(plan: Plan, feeds: Sequence[Feed], out_path: str, info, channels
     (out,) = plan.outputs
     h, w = plan.images[out].size
     streams = [st for feed in feeds for st in feed.streams]
-    with (codecs_within(choice, streams, [(out_path, (h, w))], info, channels, options, reporter, where),
+    with (Codecs.of(streams, [(out_path, (h, w))], info, channels, options).within(choice, reporter, where),
           io.stream_writers([out_path], [info], [(h, w, channels)], **options) as (bw,),
           overlapped(None, 0, 1) as (_, writer),
           _reading(feeds, plan, band) as tees):
@@ -259,10 +257,8 @@ def blend_streamed(a_path: str, b_path: str, mask_path: str, output_path: str, w
         work.check(((h, w),) * 3, where=a_path)
         plan = session.plan(work, [(h, w)] * 3)
         options = write.for_inputs([a_path, b_path, mask_path])
-        files = ([a, b, m], [(output_path, (h, w))], a.info, c, options)
-        codecs = codec_memory(*files)[0]
-        choice = decide(plan, c, session, memory, where=a_path, reporter=reporter, codecs=codecs,
-                        hold=lambda whole: hold_codecs(limits, whole, *files, reporter, a_path))
+        codecs = Codecs.of([a, b, m], [(output_path, (h, w))], a.info, c, options)
+        choice = decide(plan, c, session, memory, where=a_path, reporter=reporter, codecs=codecs, limits=limits)
         if choice is None:
             return None
         alpha = mask_layout(mask_path, m.info, m.shape, a.shape, reporter.warn)
@@ -320,10 +316,8 @@ def collapse_streamed(paths: list[str], output_path: str, session, settle: Calla
         plan = session.plan(work, sizes)
         h, w, c = shapes[0]
         options = write.for_inputs(options_from)
-        files = (streams, [(output_path, (h, w))], streams[0].info, c, options)
-        codecs = codec_memory(*files)[0]
-        choice = decide(plan, c, session, memory, where=paths[0], reporter=reporter, codecs=codecs,
-                        hold=lambda whole: hold_codecs(limits, whole, *files, reporter, paths[0]))
+        codecs = Codecs.of(streams, [(output_path, (h, w))], streams[0].info, c, options)
+        choice = decide(plan, c, session, memory, where=paths[0], reporter=reporter, codecs=codecs, limits=limits)
         if choice is None:
             return None
         feeds = [Feed([st], [k]) for st, k in zip(streams, plan.inputs, strict=True)]
@@ -410,10 +404,9 @@ def fill_streamed(input_path: str, output_path: str, session, work_for: Callable
         plan = session.plan(work, [(h, w)] * 2)
         options = write.for_inputs([input_path] + ([mask] if mask else []))
         spec = dataclasses.replace(info, alpha_mode="none") if keep_alpha else info
-        files = ([st] + ([ms] if ms is not None else []), [(output_path, (h, w))], spec, c, options)
-        codecs = codec_memory(*files)[0]
+        codecs = Codecs.of([st] + ([ms] if ms is not None else []), [(output_path, (h, w))], spec, c, options)
         choice = decide(plan, cc, session, memory, where=input_path, reporter=reporter, codecs=codecs,
-                        hold=lambda whole: hold_codecs(limits, whole, *files, reporter, input_path))
+                        limits=limits)
         if choice is None:
             return None
         layout = (mask_layout(mask, ms.info, ms.shape, st.shape, reporter.warn)

@@ -15,15 +15,13 @@ import numpy as np
 from pyramid_cli.core.errors import DataError, UsageError
 from pyramid_cli.imageio.spill import KeptRows
 from pyramid_cli.run.budget import resolve
+from pyramid_cli.run.codec_budget import Codecs
 from pyramid_cli.run.overlap import overlapped
 from pyramid_cli.run.stream import (
     MIN_BAND,
     choose_mip,
-    codec_memory,
-    codecs_within,
     costs,
     executor_of,
-    hold_codecs,
     open_input,
     read_step,
     warn_nonfinite,
@@ -86,7 +84,7 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
     """``pyramid mipmap`` of one input streamed when its whole run would not fit the budget (``memory``, else
     :func:`pyramid_cli.run.budget.default_budget`); False when it runs whole as before. A whole run has
     OpenEXR's codec threads limited to what the budget leaves them until ``limits`` closes
-    (:func:`~pyramid_cli.run.stream.hold_codecs`).
+    (:meth:`~pyramid_cli.run.codec_budget.Codecs.hold`).
 
     Level 0's header must say, before its first row, the SHA-1 of the source, the average and constant colour
     of level 0 as stored (:class:`pyramid_cli.workflows.mip.PixelStats`) and, under ``--constant-color-detect``, whether
@@ -140,15 +138,15 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
         # .tx took 2.32 CPU seconds and 445 MiB streamed against 1.77 s and 388 MiB whole (level 0 and the
         # coarser levels are kept until level 0's header is known, so bands save little): it streams when it must
         options = wo.for_inputs([in_path])
-        codecs = codec_memory([st], [(out_path, (h, w))], st.info, c, options, tile)[0]
+        codecs = Codecs.of([st], [(out_path, (h, w))], st.info, c, options, tile)
         try:
-            choice = choose_mip(plan, c, budget, level0=h * w * c * st.dtype.itemsize, codecs=codecs, **kw)
+            choice = choose_mip(plan, c, budget, level0=h * w * c * st.dtype.itemsize, codecs=codecs.first, **kw)
         except DataError as exc:
             raise given.refusal(exc) from None
         reporter.detail(f"{in_path}: {choice.describe()}")
         band = choice.band
         if band is None:  # runs whole (not Choice.streams): by ``whole`` where it says it can
-            hold_codecs(limits, choice, [st], [(out_path, (h, w))], st.info, c, options, reporter, in_path, tile)
+            codecs.hold(limits, choice, reporter, in_path)
             return bool(whole) and whole(job, work, session, st, plan, tile=tile, read=ro, write=wo,
                                          reporter=reporter)
         if not tiles.tileable(plan):
@@ -159,8 +157,7 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
         shapes = [(h, w, c)] + [plan.images[k].size + (c,) for k in plan.outputs]
         info = st.info
         io.check_write_options(out_path, wo.pixel_type, wo.compression)  # refused before any work
-        stack.enter_context(codecs_within(choice, [st], [(out_path, (h, w))], info, c, options, reporter, in_path,
-                                          tile))
+        stack.enter_context(codecs.within(choice, reporter, in_path))
         step = 2 * max(MIN_BAND, band)  # level 0's rows at a time outside the scheduler (multiples of 8)
         stats = PixelStats(h)
         once = bool(choice.level0)

@@ -30,14 +30,13 @@ import numpy as np
 from pyramid_cli.core import catalogue
 from pyramid_cli.core.errors import DataError, OutputError, PyramidError, UsageError
 from pyramid_cli.run.budget import format_size, resolve
+from pyramid_cli.run.codec_budget import Codecs
 from pyramid_cli.run.joblist import Report
 from pyramid_cli.run.report import Reporter
 from pyramid_cli.run.stream import (
     MIN_BAND,
     band_rows,
     choose,
-    codec_memory,
-    codecs_within,
     costs,
     estimate,
     executor_codes,
@@ -244,16 +243,17 @@ def _make_levels(source, where: str, writer, sizes, options: TileOptions, settin
     table = executor_codes(source, executor) if stored is not None else None
     in_bytes = source.stored_dtype.itemsize if table is not None else source.dtype.itemsize
     streams = [source] if hasattr(source, "reopen") else []  # an EXR input's codec threads as the budget allows
-    codecs = codec_memory(streams, [], source.info, c, {})[0]
+    codecs = Codecs.of(streams)
     kw = {"in_bytes": in_bytes, "out_bytes": 4, "keeps_input": True, **costs(executor)}
-    least = codecs + estimate(plan, c, MIN_BAND, **kw) + held
+    least = codecs.first + estimate(plan, c, MIN_BAND, **kw) + held
     if least > given.size:
-        by_codecs = f", {format_size(codecs)} that OpenEXR's codec holds on one thread" if codecs else ""
+        by_codecs = f", {format_size(codecs.first)} that OpenEXR's codec holds on one thread" if codecs.first else ""
         raise given.refusal(DataError(
             f"{where}: this tile set needs at least {format_size(least)} of memory (bands of {MIN_BAND} rows and "
             f"its guard bands at every level{by_codecs}, and {format_size(held)} for the tile rows the writer "
             f"holds), over the budget of {format_size(given.size)}; give more with --memory (memory= in Python)"))
-    choice = choose(plan, c, given.size - held, force=True, where=where, prefer=_prefer(plan), codecs=codecs, **kw)
+    choice = choose(plan, c, given.size - held, force=True, where=where, prefer=_prefer(plan), codecs=codecs.first,
+                    **kw)
     reporter.detail(f"{where}: {choice.describe()}")
     band = choice.band or MIN_BAND
 
@@ -272,7 +272,7 @@ def _make_levels(source, where: str, writer, sizes, options: TileOptions, settin
         writer.rows(j + 1, y0, px.astype(np.float32, copy=False))
 
     try:
-        with codecs_within(choice, streams, [], source.info, c, {}, reporter, where):
+        with codecs.within(choice, reporter, where):
             if table is not None:  # the codes reach level 0 themselves
                 times = run_bands(source.read_stored, plan, executor, band, level, level0, codes=table)
             else:

@@ -157,7 +157,7 @@ def test_a_small_exr_written_band_by_band_is_whole_when_checked(tmp_path, shape,
 
 @pytest.mark.parametrize("tile", [0, 16])
 def test_a_stream_opened_again_in_place_reads_the_same_rows(tmp_path, tile):
-    """``reopen`` (OpenEXR counts a file's codec threads when it opens: run.stream.codecs_within) starts over on a
+    """``reopen`` (OpenEXR counts a file's codec threads when it opens: run.codec_budget.Codecs.within) starts over on a
     new handle, a tiled file's kept row of tiles included; the object, its shape and its counts stay."""
     src = noise(40, 33, seed=4)
     path = write_raw(tmp_path / "in.exr", src, "half", tile=tile)

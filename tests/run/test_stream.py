@@ -280,22 +280,22 @@ def test_a_dwa_file_s_codec_is_counted_in_the_budget(tmp_path, monkeypatch, comp
                                              (["blend", "--levels", "3"], "128M")])
 def test_a_whole_run_s_codec_threads_fit_the_budget(tmp_path, monkeypatch, command, budget):
     """A picture that fits the budget whole still has its codec threads limited to what the whole run leaves of
-    it (:func:`pyramid_cli.run.stream.hold_codecs`), and the files are those of a run with room for every thread.
+    it (:meth:`pyramid_cli.run.codec_budget.Codecs.hold`), and the files are those of a run with room for every thread.
     (``levels`` writes four DWAA files at once, ``blend`` reads three: each one's codec holds 13 MiB.)"""
     pytest.importorskip("numba")
     px = noise(200, 1024, seed=1)
     px[3:9, 5:40] = np.nan  # holes for the fill
-    src = write(tmp_path / "in.exr", px, "half", compression="dwaa")
+    srcs = [write(tmp_path / "in.exr", px, "half", compression="dwaa")]
     if command[0] == "blend":
-        src = [src, write(tmp_path / "b.exr", noise(200, 1024, seed=2), "half", compression="dwaa"),
-               write(tmp_path / "m.exr", noise(200, 1024, 1, seed=3), "half", compression="dwaa")]
+        srcs += [write(tmp_path / "b.exr", noise(200, 1024, seed=2), "half", compression="dwaa"),
+                 write(tmp_path / "m.exr", noise(200, 1024, 1, seed=3), "half", compression="dwaa")]
     out = "{level}.exr" if command[0] == "levels" else "o.exr"
     monkeypatch.setenv("OPENIMAGEIO_THREADS", "16")
-    r = run_cli(*command, "--backend", "cpu", "--memory", budget, "-v", *np.atleast_1d(src), tmp_path / "a" / out)
+    r = run_cli(*command, "--backend", "cpu", "--memory", budget, "-v", *srcs, tmp_path / "a" / out)
     assert r.returncode == 0 and "runs whole" in r.stderr, r.stderr
     limited = re.search(r"OpenEXR codes with (\d+) of its 16 threads", r.stderr)
     assert limited and int(limited.group(1)) < 16, r.stderr
-    r = run_cli(*command, "--backend", "cpu", "--memory", "64G", "-v", *np.atleast_1d(src), tmp_path / "b" / out)
+    r = run_cli(*command, "--backend", "cpu", "--memory", "64G", "-v", *srcs, tmp_path / "b" / out)
     assert r.returncode == 0 and "OpenEXR codes with" not in r.stderr, r.stderr  # room for all 16
     names = sorted(os.listdir(tmp_path / "a"))
     assert names == sorted(os.listdir(tmp_path / "b")) and len(names) == (4 if command[0] == "levels" else 1)

@@ -104,7 +104,7 @@ def test_a_streamed_blend_stays_within_the_memory_given(big, monkeypatch, codec_
     (test_a_streamed_blend_writes_the_whole_runs_file); at 1024×768 its peak was 72 MiB over the tiny blend's
     when measured, against 13 MiB streamed in 16M (a third process is left out here: it took 3 s). Also with
     OpenImageIO told to use 16 threads, as on a 16-core machine: OpenEXR's threads are limited to what the budget
-    leaves them (run.stream.codecs_within)."""
+    leaves them (run.codec_budget.Codecs.within)."""
     pytest.importorskip("numba")
     if codec_threads:
         monkeypatch.setenv("OPENIMAGEIO_THREADS", codec_threads)

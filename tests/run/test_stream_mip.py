@@ -216,7 +216,7 @@ def test_streamed_mipmap_stays_within_the_memory_given(tmp_path, monkeypatch):
     """A picture several times --memory makes its MIP file within it (peak RSS over a tiny image's, a bound
     with a generous margin, not a timing); the whole run takes many times more; the files are the same. With
     OpenImageIO told to use 16 threads, as on a 16-core machine, where OpenEXR's line buffers (one set per codec
-    thread) took the streamed run 48 MiB over before they were limited (run.stream.codec_limit)."""
+    thread) took the streamed run 48 MiB over before they were limited (run.codec_budget.Codecs.limit)."""
 
     pytest.importorskip("numba")
     monkeypatch.setenv("OPENIMAGEIO_THREADS", "16")

@@ -175,7 +175,7 @@ def test_writer_memory_is_a_tile_row_per_level_in_the_stored_type():
 @pytest.mark.slow
 def test_an_exr_input_s_codec_threads_fit_the_budget(tmp_path, monkeypatch):
     """With OpenImageIO told to use 16 threads (a 16-core machine), an EXR input's codec threads are limited to
-    what the budget leaves them (run.stream.codecs_within, the input opened again), and the tiles are the same."""
+    what the budget leaves them (run.codec_budget.Codecs.within, the input opened again), and the tiles are the same."""
     from helpers.cli import run_cli
     from helpers.images import noise
 
