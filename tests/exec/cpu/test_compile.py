@@ -17,6 +17,7 @@ import pytest
 import pyramid_cli.plan.shapes as generate
 from helpers.paths import ROOT
 from helpers.plans import planned, random_image
+from pyramid_cli.core import cache
 from pyramid_cli.core.errors import BackendError
 from pyramid_cli.exec import emulate
 from pyramid_cli.workflows import pyramids
@@ -27,6 +28,7 @@ from pyramid_cli.exec import cpu  # noqa: E402
 
 
 def test_cache_dir_follows_the_conventions(monkeypatch, tmp_path):
+    monkeypatch.delenv(cache.HOME_ENV, raising=False)  # a run's own cache home would come before the conventions
     monkeypatch.setenv(cpu.CACHE_ENV, str(tmp_path / "mine"))
     assert cpu.cache_dir() == tmp_path / "mine"
     monkeypatch.delenv(cpu.CACHE_ENV)
