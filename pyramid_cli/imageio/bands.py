@@ -57,6 +57,10 @@ class ImageStream:
         NaN/Inf values seen so far (kept under ``nan="keep"``).
     stored_dtype : numpy dtype
         Of the rows as stored (uint8, uint16, float16 or float32), before decoding: what ``on_stored`` is given.
+    chunk_rows : int
+        Rows the file stores together (a row of tiles; an OpenEXR or TIFF file's chunk of scanlines or strip:
+        OpenImageIO's ``oiio:RowsPerChunk``), 1 for formats read row by row. A band is read in pieces cut at
+        its chunks' edges (:func:`chunk_pieces`).
     """
 
     def __init__(self, path: str, *, colorspace: str = "auto", alpha: str = "auto", nan: str = "keep",
@@ -79,6 +83,8 @@ class ImageStream:
         probe = {"uint8": np.uint8, "uint16": np.uint16, "half": np.float16}.get(self._read_type, np.float32)
         self.dtype = decode_stored(np.zeros((1, 1, spec.nchannels), dtype=probe), self.info).dtype
         self.stored_dtype = np.dtype(probe)  # of the rows on_stored is given
+        tiled = spec.tile_width > 0 and spec.tile_height > 0
+        self.chunk_rows = int(spec.tile_height) if tiled else max(1, spec.get_int_attribute("oiio:RowsPerChunk", 1))
         self._block: tuple[int, np.ndarray] | None = None  # a row of tiles, for tiled files
         self.on_stored = None  # called with each band's rows as stored, before decoding (mipmap's SHA-1)
 
@@ -130,8 +136,13 @@ class ImageStream:
                 parts.append(take.copy())  # decoded in place: the kept block stays as stored
                 y += len(take)
             return parts[0] if len(parts) == 1 else np.concatenate(parts)
-        data = inp.read_scanlines(self._subimage, 0, spec.y + y0, spec.y + y1, spec.z, 0, spec.nchannels,
-                                  self._read_type)
+        parts = [self._scanlines(a, b) for a, b in chunk_pieces(y0, y1, self.chunk_rows, spec.height)]
+        return parts[0] if len(parts) == 1 else np.concatenate(parts)
+
+    def _scanlines(self, y0: int, y1: int) -> np.ndarray:
+        spec = self._spec
+        data = self._inp.read_scanlines(self._subimage, 0, spec.y + y0, spec.y + y1, spec.z, 0, spec.nchannels,
+                                        self._read_type)
         self._check(data)
         return np.asarray(data).reshape(y1 - y0, spec.width, spec.nchannels)
 
@@ -194,6 +205,31 @@ class ImageStream:
             back = back[..., None]
         return back.dtype == dtype and back.shape == probe.shape and np.array_equal(back.view(bits.dtype),
                                                                                    probe.view(bits.dtype))
+
+
+def chunk_pieces(y0: int, y1: int, chunk: int, height: int) -> list[tuple[int, int]]:
+    """Rows ``y0 .. y1 − 1`` of a file stored in chunks of ``chunk`` rows (``height`` in all) as reads that each
+    lie in one chunk or cover whole ones: the rest of the chunk a band begins in, the whole chunks after it, and
+    the start of the chunk it ends in.
+
+    OpenImageIO decodes every chunk a read touches: a read that covers part of a chunk and runs on into the next
+    one decoded the part-read chunk a second time, where reads within one chunk did not. Measured on 3840-wide
+    files, bands of 40 rows, CPU of the reads: a DWAB file (chunks of 256 rows) 790 ms read as asked, 376 ms in
+    these pieces; PIZ (32) 628 and 340; zip (16) 436 and 384; a deflate TIFF (strips of 32 rows) 526 and 341.
+    A band that begins and ends at chunk edges is one piece.
+    """
+    if chunk <= 1:
+        return [(y0, y1)]
+    pieces = []
+    a = min(y1, -(-y0 // chunk) * chunk)  # the end of the chunk y0 is in (y0 itself at an edge)
+    if a > y0:
+        pieces.append((y0, a))
+    b = max(a, y1 if y1 == height else y1 // chunk * chunk)
+    if b > a:
+        pieces.append((a, b))
+    if y1 > b:
+        pieces.append((b, y1))
+    return pieces
 
 
 def output_codec_memory(path: str | os.PathLike[str], info: ImageInfo, channels: int, size: tuple[int, int],

@@ -168,3 +168,59 @@ def test_a_stream_opened_again_in_place_reads_the_same_rows(tmp_path, tile):
         assert stream._inp is not before and stream.shape == (40, 33, 4)
         np.testing.assert_array_equal(stream.read(0, 20), first)
         np.testing.assert_array_equal(stream.read(20, 40), src[20:].astype(np.float16))
+
+
+@pytest.mark.parametrize("rows, chunk, height, pieces", [
+    ((0, 40), 16, 300, [(0, 32), (32, 40)]),
+    ((40, 80), 16, 300, [(40, 48), (48, 80)]),
+    ((0, 64), 16, 300, [(0, 64)]),
+    ((5, 10), 16, 300, [(5, 10)]),
+    ((290, 300), 16, 300, [(290, 300)]),
+    ((256, 280), 256, 2160, [(256, 280)]),
+    ((200, 600), 256, 2160, [(200, 256), (256, 512), (512, 600)]),
+    ((7, 9), 1, 300, [(7, 9)]),
+])
+def test_a_band_is_read_in_pieces_cut_at_its_chunks_edges(rows, chunk, height, pieces):
+    assert bands.chunk_pieces(*rows, chunk, height) == pieces
+
+
+@pytest.mark.parametrize("name, pixel_type, tile, attrs, chunk", [
+    ("zip.exr", "half", 0, {"compression": "zip"}, 16),
+    ("dwab.exr", "half", 0, {"compression": "dwab"}, 256),
+    ("piz.exr", "float", 0, {"compression": "piz"}, 32),
+    ("tiled.exr", "half", 16, {"compression": "zip"}, 16),
+    ("strips.tif", "uint16", 0, {"compression": "zip", "tiff__RowsPerStrip": 24}, 24),
+    ("rows.png", "uint8", 0, {}, 1),
+])
+def test_bands_read_no_chunk_in_two_reads_and_give_the_whole_read_s_rows(tmp_path, monkeypatch, name, pixel_type,
+                                                                        tile, attrs, chunk):
+    """OpenImageIO decodes every chunk a read touches (an OpenEXR or TIFF file's chunk of scanlines, a row of
+    tiles): a read that runs from inside one chunk into the next decodes the first again. Bands of any size are read
+    in reads that lie in one chunk or cover whole ones (a tiled file's row of tiles is kept), each row once, and give
+    what a whole read gives, whatever the caller does to the rows it was given."""
+    h, w = 300, 37
+    src = noise(h, w, seed=5)
+    if pixel_type in ("uint8", "uint16"):
+        src = (src * (255 if pixel_type == "uint8" else 65535)).round().astype(pixel_type)
+    path = write_raw(tmp_path / name, src, pixel_type, tile=tile, **attrs)
+    whole = pio.read_image(path).pixels
+    reads = []
+    real = bands.ImageStream._scanlines
+    monkeypatch.setattr(bands.ImageStream, "_scanlines", lambda self, a, b: reads.append((a, b)) or real(self, a, b))
+    with bands.open_stream(path) as stream:
+        assert stream.chunk_rows == chunk
+        steps = [5, 40, 7, 64, 13, 100, 1]
+        parts, y = [], 0
+        while y < h:
+            band = stream.read(y, min(h, y + steps[len(parts) % len(steps)]))
+            parts.append(band.copy())
+            band[...] = -1  # a caller may decode in place: what a later band reads is not these rows
+            y += len(band)
+    np.testing.assert_array_equal(np.concatenate(parts), whole)
+    if tile:
+        assert not reads
+        return
+    assert [a for a, _ in reads] == sorted(a for a, _ in reads) and sum(b - a for a, b in reads) == h, reads
+    one_chunk = [a // chunk == (b - 1) // chunk for a, b in reads]
+    whole_chunks = [a % chunk == 0 and (b % chunk == 0 or b == h) for a, b in reads]
+    assert all(o or c for o, c in zip(one_chunk, whole_chunks, strict=True)), reads
