@@ -214,9 +214,9 @@ def chunk_pieces(y0: int, y1: int, chunk: int, height: int) -> list[tuple[int, i
 
     OpenImageIO decodes every chunk a read touches: a read that covers part of a chunk and runs on into the next
     one decoded the part-read chunk a second time, where reads within one chunk did not. Measured on 3840-wide
-    files, bands of 40 rows, CPU of OpenImageIO's reads alone: a DWAB file (chunks of 256 rows) 790 ms read as asked, 376 ms in
-    these pieces; PIZ (32) 628 and 340; zip (16) 436 and 384; a deflate TIFF (strips of 32 rows) 526 and 341.
-    A band that begins and ends at chunk edges is one piece.
+    files, bands of 40 rows, CPU of OpenImageIO's reads alone: a DWAB file (chunks of 256 rows) 790 ms read as
+    asked, 376 ms in these pieces; PIZ (32) 628 and 340; zip (16) 436 and 384; a deflate TIFF (strips of 32 rows)
+    526 and 341. A band that begins and ends at chunk edges is one piece.
     """
     if chunk <= 1:
         return [(y0, y1)]
