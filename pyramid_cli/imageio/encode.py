@@ -23,12 +23,14 @@ from pyramid_cli.imageio.formats import (
     HALF_AS_FLOAT,
     NO_ALPHA_FORMATS,
     PIXEL_TYPES,
+    PNG_FILTER_NAMES,
     PNG_FILTERS,
     TILED_FORMATS,
     check_choice,
     format_from_path,
     format_title,
     output_pixel_type,
+    png_compression,
 )
 from pyramid_cli.imageio.image import Image, ImageInfo, default_channel_names
 from pyramid_cli.imageio.ocio import (
@@ -207,8 +209,12 @@ def check_write_options(path: str | os.PathLike[str], pixel_type: str | None = N
     c = str(compression).strip().lower()
     name, _, level = c.partition(":")
     if fmt == "png":
-        if not (c.isdigit() and 0 <= int(c) <= 9):
-            raise UsageError(f"{out_path}: unknown --compression {compression} (PNG takes a zlib level 0-9)")
+        try:
+            png_compression(c)
+        except ValueError:
+            raise UsageError(f"{out_path}: unknown --compression {compression} (PNG takes a zlib level 0-9, and "
+                             f"optionally :FILTERS, the row filters from {', '.join(PNG_FILTER_NAMES)} joined with "
+                             "+, e.g. 6:none)") from None
     elif fmt == "jpeg":
         q = level if name == "jpeg" else c
         if not (q.isdigit() and 1 <= int(q) <= 100):
@@ -390,11 +396,12 @@ def _output_spec(info: ImageInfo, fmt: str, out_type: str, names: list[str], alp
     if fmt in HALF_AS_FLOAT and out_type == "half":  # asked for (stored_type): OpenImageIO writes float otherwise
         spec.attribute("tiff:half", 1)
     if fmt == "png":
-        spec.attribute("png:filter", PNG_FILTERS)
-    if compression is not None:
-        if fmt == "png" and compression.isdigit():
-            spec.attribute("png:compressionLevel", int(compression))  # zlib level 0-9
-        elif fmt == "jpeg" and compression.strip().isdigit():
+        level, filters = png_compression(compression) if compression is not None else (None, PNG_FILTERS)
+        spec.attribute("png:filter", filters)
+        if level is not None:
+            spec.attribute("png:compressionLevel", level)  # zlib level 0-9
+    elif compression is not None:
+        if fmt == "jpeg" and compression.strip().isdigit():
             spec.attribute("compression", f"jpeg:{int(compression)}")  # quality 1-100
         else:
             spec.attribute("compression", compression)

@@ -502,6 +502,34 @@ def test_png_rows_are_filtered_with_none_sub_or_up(tmp_path, ptype):
     assert np.array_equal(read_raw(ours)[0], read_raw(plain)[0])
 
 
+@pytest.mark.parametrize("compression, filters", [
+    ("6:none", {0}),
+    ("6:sub", {1}),
+    ("9:all", {0, 1, 2, 3, 4}),
+    ("1", {0, 1, 2}),
+])
+def test_png_row_filters_follow_the_compression(tmp_path, compression, filters):
+    """``--compression LEVEL:FILTERS`` (formats.png_compression): the row filters libpng may choose from, by libvips's
+    names (``6:none``: unfiltered, as libvips writes); the pixels are the same whatever the filters."""
+    y, x = np.mgrid[0:64, 0:96]
+    px = np.dstack([(x * y % 97) / 96.0, np.sin(x / 5.0) * 0.5 + 0.5, RNG.uniform(0, 1, (64, 96))])
+    plain = write_raw(tmp_path / "plain.png", px.astype(np.float32), "uint8")
+    out = tmp_path / "out.png"
+    pio.write_image(out, pio.read_image(plain), compression=compression)
+    used = png_row_filters(out)
+    assert used <= filters and (len(filters) != 1 or used == filters), used
+    if compression == "9:all":
+        assert used - {0, 1, 2}, used  # AVG or PAETH: as OpenImageIO's default does on this picture
+    assert np.array_equal(read_raw(out)[0], read_raw(plain)[0])
+
+
+def test_an_unknown_png_compression_is_refused_before_anything_is_written(tmp_path):
+    plain = write_raw(tmp_path / "plain.png", np.zeros((4, 4, 3), np.float32), "uint8")
+    with pytest.raises(UsageError, match=r"unknown --compression 6:bogus \(PNG takes a zlib level 0-9, and "):
+        pio.write_image(tmp_path / "out.png", pio.read_image(plain), compression="6:bogus")
+    assert not (tmp_path / "out.png").exists()
+
+
 @pytest.mark.parametrize("asked", [None, "half", "float"])
 def test_a_tiff_stores_half_only_when_asked(tmp_path, asked):
     """OpenImageIO writes a TIFF's half pixels as float unless told: a half input gives a float TIFF, and

@@ -59,3 +59,21 @@ def test_a_png_ends_with_its_iend_chunk_or_was_cut_short(tmp_path):
         assert not formats.png_ends(path), cut
     path.write_bytes(whole + b"\0" * (2 * formats.PNG_TAIL))
     assert formats.png_ends(path)
+
+
+@pytest.mark.parametrize("text, parsed", [
+    ("6", (6, formats.PNG_FILTERS)),
+    ("0", (0, formats.PNG_FILTERS)),
+    ("6:none", (6, 0x08)),
+    ("9:ALL", (9, 0xF8)),
+    (" 3:sub+up ", (3, 0x30)),
+    ("6:paeth+avg", (6, 0xC0)),
+])
+def test_png_compression_is_a_zlib_level_and_libvips_s_filter_names(text, parsed):
+    assert formats.png_compression(text) == parsed
+
+
+@pytest.mark.parametrize("text", ["", "10", "-1", "zip", "6:", "6:bogus", "6:none+", ":none", "none", "6:none:up"])
+def test_png_compression_refuses_what_it_does_not_name(text):
+    with pytest.raises(ValueError):
+        formats.png_compression(text)

@@ -43,6 +43,7 @@ import OpenImageIO as oiio
 from pyramid_cli.core.errors import OutputError, PyramidError, UsageError
 from pyramid_cli.imageio.atomic import error_reason
 from pyramid_cli.imageio.encode import check_write_options
+from pyramid_cli.imageio.formats import png_compression
 from pyramid_cli.imageio.image import default_channel_names
 from pyramid_cli.imageio.tilesets.base import TileOptions, TileSetWriter
 from pyramid_cli.imageio.tilesets.staging import Staging
@@ -221,8 +222,10 @@ class _TileFolderWriter(TileSetWriter):
             t.attribute("compression", f"webp:{self.quality}")
         elif self.options.compression is not None:
             c = str(self.options.compression)
-            if self.fmt == "png" and c.isdigit():
-                t.attribute("png:compressionLevel", int(c))
+            if self.fmt == "png":
+                level, filters = png_compression(c)
+                t.attribute("png:compressionLevel", level)
+                t.attribute("png:filter", filters)
             else:
                 t.attribute("compression", c)
         return t

@@ -148,6 +148,14 @@ def test_deep_zoom_options_as_dzsave(sources, tmp_path):
     assert tiles and set().union(*map(png_row_filters, tiles)) <= {0, 1, 2}  # formats.PNG_FILTERS, as every PNG
 
 
+def test_deep_zoom_png_tiles_take_the_compression_s_row_filters(sources, tmp_path):
+    """``--compression 6:none`` reaches every PNG tile: rows unfiltered, as ``vips dzsave`` writes them."""
+    px, img, levels = sources[(37, 53)]
+    write(DeepZoomWriter, tmp_path / "pic.dzi", img, levels, tile_size=8, overlap=3, suffix="png", compression="6:none")
+    tiles = list(tmp_path.rglob("*.png"))
+    assert tiles and set().union(*map(png_row_filters, tiles)) == {0}
+
+
 @pytest.mark.parametrize("suffix, within", [("webp", 12), ("tif", 0)])
 def test_webp_and_tif_tiles(sources, tmp_path, suffix, within):
     """The other tile formats: dzsave's names and sizes; TIFF exactly the stored values, WebP (Q 75) close."""
