@@ -150,12 +150,13 @@ def sequence_options(cluster: bool = True) -> list:
 
 
 def memory_option(f):
-    """--memory: the working-set budget of a streamed single-image job (pyramid_cli.run.stream)."""
+    """--memory: the working-set budget of a run on this machine (pyramid_cli.run.stream, pyramid_cli.run.local)."""
     return click.option("--memory", metavar="SIZE", default=None,
                         help="Working-set budget, e.g. 512M or 2G (default: the smallest that the container's memory "
                              "limit, the rlimits and a quarter of the available memory allow). "
                              "A picture whose whole run would not fit streams from file to file in bands of rows "
-                             "chosen from it; -v says which. Work that cannot fit is refused before it starts.")(f)
+                             "chosen from it; in a batch, one too large to be held beside the others runs alone. "
+                             "-v says which. Work that cannot fit is refused before it starts.")(f)
 
 
 def mixed_lattice_option(f):

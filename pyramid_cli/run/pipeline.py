@@ -25,7 +25,7 @@ from pyramid_cli.jobs.work import Collapse, Laplacian, Levels, Work, same_settin
 from pyramid_cli.run import batch
 from pyramid_cli.run.codec_budget import holds_codec_limits
 from pyramid_cli.run.inputs import read_input
-from pyramid_cli.run.local import run_jobs
+from pyramid_cli.run.local import run_in_budget
 from pyramid_cli.run.report import Reporter, announce_compiles
 from pyramid_cli.run.settings import ReadOptions, WriteOptions
 
@@ -62,6 +62,8 @@ def process(paths: list[str], template: str | None, work: Work, session: Session
     (default: :func:`pyramid_cli.run.budget.default_budget`); ``mipmap`` only in the latter case
     (:mod:`pyramid_cli.run.stream_mip`). Other images run whole; one of them with OpenEXR's codec threads limited
     to what its budget leaves (``limits``, given by :func:`~pyramid_cli.run.codec_budget.holds_codec_limits`).
+    A batch on this machine keeps to the same budget: a picture too large to be held beside the others in flight
+    runs alone, streamed where it would not fit alone either (:func:`pyramid_cli.run.local.run_in_budget`).
     """
     ro, wo, reporter = read or ReadOptions(), write or WriteOptions(), reporter or Reporter()
     if mip_tile:
@@ -91,8 +93,8 @@ def process(paths: list[str], template: str | None, work: Work, session: Session
         elif run_job(job_list[0], work, session, memory=memory, read=ro, write=wo, reporter=reporter,
                      limits=limits):
             return batch.Report(done=list(job_list))
-    elif memory is not None:
-        raise UsageError("--memory streams one input at a time (not batches, frame sequences or clusters)")
+    elif memory is not None and cluster is not None:
+        raise UsageError("--memory budgets this machine's run (not --cluster: the workers' memory is their own)")
     if cluster is not None:
         from pyramid_cli.run.cluster import run_cluster
 
@@ -101,8 +103,9 @@ def process(paths: list[str], template: str | None, work: Work, session: Session
                              chunk=chunk, many=many, timeout=cluster_timeout)
     else:
         assert isinstance(session, Session), "a session, unless the jobs run on a cluster"
-        report = run_jobs(job_list, work, session, read=ro, write=wo, reporter=reporter, keep_going=keep_going,
-                          skip_existing=skip_existing, jobs=jobs, mip_tile=mip_tile, many=many)
+        report = run_in_budget(job_list, work, session, memory=memory, read=ro, write=wo, reporter=reporter,
+                               keep_going=keep_going, skip_existing=skip_existing, jobs=jobs, mip_tile=mip_tile,
+                               many=many)
     if not many and report.failed:
         raise report.failed[0][1]
     if many:

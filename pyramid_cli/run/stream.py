@@ -535,6 +535,27 @@ def _decide(in_path: str, work, session, memory: int | None, read, reporter, out
     return st, choice
 
 
+def whole_bytes(in_path: str, work, session, read=None) -> int | None:
+    """Bytes ``work``'s whole run of ``in_path`` holds (:func:`estimate`, and what OpenEXR's codec holds for the
+    input on one thread), from its header; None where no plan says it (the reference backend, a job of several
+    inputs, a header that cannot be read: the run itself reports why)."""
+    from pyramid_cli.core.errors import PyramidError
+    from pyramid_cli.run.settings import ReadOptions
+
+    if session is None or session.executor is None or work.n_inputs != 1:
+        return None
+    try:
+        with open_input(in_path, read or ReadOptions()) as st:
+            h, w, c = st.shape
+            plan = session.plan(work, [(h, w)])
+            if plan is None:
+                return None
+            return Codecs.of([st]).first + estimate(plan, c, None, in_bytes=st.dtype.itemsize, out_bytes=4,
+                                                    keeps_input=work.keeps_input, **costs(session.executor))
+    except PyramidError:
+        return None
+
+
 def run_job(job, work, session, *, memory: int | None, read=None, write=None, reporter=None,
             limits: contextlib.ExitStack | None = None) -> bool:
     """Stream ``job`` when its whole-picture run would not fit the budget (``memory``, else
@@ -586,5 +607,6 @@ def run_levels(in_path: str, paths: list[str], work, session, *, memory: int | N
 
 __all__ = ["BandTimes", "Choice", "choose", "choose_mip", "estimate", "parse_size", "default_memory",
            "available_memory", "stream_file", "open_input", "format_size", "run_job", "run_levels", "costs",
-           "executor_of", "read_step", "run_bands", "speed_band", "band_rows", "warn_nonfinite", "MIN_BAND",
+           "executor_of", "read_step", "run_bands", "speed_band", "band_rows", "warn_nonfinite", "whole_bytes",
+           "MIN_BAND",
            "STREAM_PIXELS", "BAND_PIXELS"]

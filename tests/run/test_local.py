@@ -1,6 +1,8 @@
 """The local runner (pyramid_cli.run.local): read → run → write a list of jobs on one session, and a texture's
 channels as maketx's --nchannels and --monochrome-detect change them. Whole commands: tests/run/test_batch.py."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -9,9 +11,10 @@ from pyramid_cli import imageio as io
 from pyramid_cli.exec.session import Session
 from pyramid_cli.jobs.texture import TextureLevels
 from pyramid_cli.run import batch
-from pyramid_cli.run.local import run_jobs, texture_channels
+from pyramid_cli.run.local import held_at_once, run_in_budget, run_jobs, texture_channels
 from pyramid_cli.run.report import Reporter
 from pyramid_cli.run.settings import ReadOptions, WriteOptions
+from pyramid_cli.run.stream import whole_bytes
 
 
 @pytest.fixture(scope="module")
@@ -74,3 +77,57 @@ def test_a_half_texture_is_read_half_and_its_levels_made_half_where_the_file_kee
     assert set(made[1:]) == {np.dtype(levels_as)} and len(made) > 3
     got = io.read_image(job.output)
     np.testing.assert_array_equal(got.pixels, px.astype(np.float32))
+
+
+def test_a_batch_holds_a_picture_its_budget_cannot_hold_beside_others_alone_and_streams_it(tmp_path, session):
+    """run_in_budget: a picture whose whole run, held as many times as the batch holds pictures (held_at_once),
+    would not fit the budget runs alone, streamed when it does not fit alone either; the small ones overlap as
+    before. Job order is kept and the files are those of the plain batch (run_jobs), byte for byte."""
+    rng = np.random.default_rng(7)
+    sizes = [(16, 20), (300, 420), (24, 16)]
+    jobs = []
+    for k, (h, w) in enumerate(sizes):
+        pyr.write_image(tmp_path / f"in{k}.exr", rng.random((h, w, 4), dtype=np.float32).astype(np.float16))
+        jobs.append(batch.Job(str(tmp_path / f"in{k}.exr"), str(tmp_path / f"out{k}.exr")))
+    work = pyr.Blur(levels=3)
+    big = whole_bytes(jobs[1].input, work, session)
+    small = max(whole_bytes(j.input, work, session) for j in (jobs[0], jobs[2]))
+    memory = big // 2  # the big one streams even alone; the small ones fit the batch's share of it
+    assert small * held_at_once(2) < memory < big
+    out = []
+    report = run_in_budget(jobs, work, session, memory=memory, read=ReadOptions(), write=WriteOptions(),
+                           reporter=Reporter(out=out.append, err=out.append, verbose=True))
+    assert [j.input for j in report.done] == [j.input for j in jobs] and not report.failed
+    wrote = [line for line in out if line.startswith("wrote ")]
+    assert [line.split()[1] for line in wrote] == [j.output for j in jobs]
+    assert "streamed in bands of" in wrote[1] and "streamed" not in wrote[0] + wrote[2], wrote
+    plain = [batch.Job(j.input, j.output.replace("out", "plain")) for j in jobs]
+    run_jobs(plain, work, session, read=ReadOptions(), write=WriteOptions(), reporter=Reporter(out=out.append))
+    for a, b in zip(jobs, plain, strict=True):
+        assert (tmp_path / a.output).read_bytes() == (tmp_path / b.output).read_bytes()
+
+
+@pytest.mark.parametrize("keep_going", [False, True])
+def test_a_picture_run_alone_that_fails_is_reported_and_the_batch_goes_on_only_when_asked(tmp_path, session,
+                                                                                         keep_going):
+    rng = np.random.default_rng(8)
+    jobs = []
+    for k in range(3):
+        pyr.write_image(tmp_path / f"in{k}.exr", rng.random((200, 260, 3), dtype=np.float32))
+        jobs.append(batch.Job(str(tmp_path / f"in{k}.exr"), str(tmp_path / f"out{k}.exr")))
+    (tmp_path / "blocker").write_text("a file, not a folder")
+    jobs[0] = batch.Job(jobs[0].input, str(tmp_path / "blocker" / "out0.exr"))  # cannot be written
+    work = pyr.Blur(levels=2)
+    memory = whole_bytes(jobs[1].input, work, session) // 2  # every picture runs alone, streamed
+    out = []
+    report = run_in_budget(jobs, work, session, memory=memory, read=ReadOptions(), write=WriteOptions(),
+                           reporter=Reporter(out=out.append, err=out.append), keep_going=keep_going)
+    assert [j.output for j, _ in report.failed] == [jobs[0].output]
+    assert "blocker" in str(report.failed[0][1])
+    written = [j.output for j in jobs[1:]] if keep_going else []
+    assert [j.output for j in report.done] == written
+    assert sorted(p.name for p in tmp_path.glob("out*.exr")) == sorted(Path(p).name for p in written)
+
+
+def test_held_at_once_counts_the_reads_ahead_the_work_and_the_writes_behind():
+    assert held_at_once(1) == 4 and held_at_once(2) == 6 and held_at_once(0) == 4

@@ -128,14 +128,19 @@ def test_what_cannot_stream_is_refused_with_memory_and_runs_whole_without(tmp_pa
     write(src, noise(64, 64, seed=1), "half")
     with pytest.raises(UsageError, match="--resize.*whole picture"):
         mipmap(session, src, tmp_path / "r.exr", 10 << 10, resize=True)
-    with pytest.raises(UsageError, match="--memory streams one input"):
-        process([str(src), str(tmp_path / "other.exr")], str(tmp_path / "{stem}_t.exr"), TextureLevels(levels=None),
-                session, mip_tile=16, memory=1 << 20, reporter=Reporter(quiet=True))
     with pytest.raises(Exception, match="needs at least"):
         mipmap(session, src, tmp_path / "x.exr", 4 << 10)
     assert sorted(os.listdir(tmp_path)) == ["in.exr"]
     report = mipmap(session, src, tmp_path / "w.exr", None, resize=True)  # default budget: runs whole
     assert isinstance(report, batch.Report) and (tmp_path / "w.exr").exists()
+    # a batch takes --memory too (run.local.run_in_budget: each picture within it), and writes what it writes without
+    (tmp_path / "in2.exr").write_bytes(src.read_bytes())
+    for memory, suffix in ((1 << 20, "t"), (None, "free")):
+        report = process([str(src), str(tmp_path / "in2.exr")], str(tmp_path / ("{stem}_" + suffix + ".exr")),
+                         TextureLevels(levels=None), session, mip_tile=16, memory=memory, reporter=Reporter(quiet=True))
+        assert len(report.done) == 2 and not report.failed
+    for stem in ("in", "in2"):
+        assert (tmp_path / f"{stem}_t.exr").read_bytes() == (tmp_path / f"{stem}_free.exr").read_bytes()
 
 
 def test_pixel_stats_equal_the_whole_picture_functions():
