@@ -648,7 +648,7 @@ def process_files(work: Work, inputs: Sequence[str], output: str | None = None, 
                   backend: str = "auto", session: Session | None = None, keep_going: bool = False,
                   skip_existing: bool = False, jobs: int = 2, quiet: bool = True, frames: str | None = None,
                   shard: Any = None, cluster: Any = None, chunk: int | None = None,
-                  cluster_timeout: float | None = None, **io_options: Any) -> Report:
+                  cluster_timeout: float | None = None, memory: int | str | None = None, **io_options: Any) -> Report:
     """Run a job on files through the CLI's pipeline: ``inputs[0]`` → ``output``, or every input → ``template``.
 
     ``work`` is a :mod:`pyramid_cli.jobs.work` value (``Filter``, ``Blur``, …); ``io_options``
@@ -657,7 +657,10 @@ def process_files(work: Work, inputs: Sequence[str], output: str | None = None, 
     (``"K/N"`` or ``"auto"``) keeps one chunk of the jobs; ``cluster`` (a Dask address,
     ``"local:N"`` or a ``distributed.Client``) runs them on a Dask cluster in tasks of
     ``chunk`` jobs, waiting up to ``cluster_timeout`` seconds (default 30) to connect and with
-    no worker connected. A single file's failure raises.
+    no worker connected. ``memory`` (bytes, or ``"512M"``) is the budget of a run on this machine, as
+    ``--memory`` (default: what the container's and the process's limits leave): a picture whose whole run would
+    not fit it streams, and in a batch one too large to be held beside the others runs alone. A single file's
+    failure raises.
 
     Returns a :class:`~pyramid_cli.run.joblist.Report`: ``done``, ``skipped`` (up to date, with
     ``skip_existing``) and ``failed`` (each job with its :class:`~pyramid_cli.core.errors.PyramidError`,
@@ -665,6 +668,7 @@ def process_files(work: Work, inputs: Sequence[str], output: str | None = None, 
     Warnings come through :mod:`warnings` (a filter pair on two lattices as a MixedLatticeWarning, once),
     the lines ``-v`` prints are logged; the "wrote …" lines are printed unless ``quiet``.
     """
+    from pyramid_cli.run.budget import parse_size
     from pyramid_cli.run.pipeline import process
     from pyramid_cli.run.settings import ReadOptions, WriteOptions
 
@@ -684,7 +688,8 @@ def process_files(work: Work, inputs: Sequence[str], output: str | None = None, 
     reporter = PythonReporter(quiet=quiet, lattice=tuple(work.warnings()))
     return process(paths, template, work, runner, read=ro, write=wo, reporter=reporter, keep_going=keep_going,
                    skip_existing=skip_existing, jobs=jobs, frames=frames, shard=shard, cluster=cluster, chunk=chunk,
-                   cluster_timeout=cluster_timeout)
+                   cluster_timeout=cluster_timeout, memory=memory if memory is None or isinstance(memory, int) else
+                   parse_size(memory))
 
 
 # The border aliases in the docstrings come from core.border's one table.

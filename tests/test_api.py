@@ -11,7 +11,7 @@ import pyramid_cli as pyr
 from helpers.marks import slow_beyond
 from pyramid_cli import api
 from pyramid_cli.core.border import Border
-from pyramid_cli.core.errors import PyramidError
+from pyramid_cli.core.errors import PyramidError, UsageError
 from pyramid_cli.core.geometry import mip_levels
 from pyramid_cli.core.parse import parse
 from pyramid_cli.core.sigma import sigma_blend
@@ -184,6 +184,23 @@ def test_process_files_runs_the_cli_pipeline(tmp_path):
     assert [job.output for job in report.done] == [str(tmp_path / "sub" / "out.exr")]
     np.testing.assert_allclose(pyr.read_image(tmp_path / "sub" / "out.exr").pixels,
                                pyramids.blur_reference(a.astype(np.float64), 2), rtol=0, atol=1e-5)
+
+
+def test_process_files_takes_a_memory_budget_for_a_batch(tmp_path):
+    """``memory=`` as ``--memory``: a batch within it (a picture too large to be held beside the others runs alone,
+    streamed) writes what it writes without; a size it cannot read is refused."""
+    rng = np.random.default_rng(9)
+    for k, shape in enumerate([(8, 6, 3), (260, 300, 3)]):
+        pyr.write_image(tmp_path / f"in{k}.exr", rng.random(shape).astype(np.float32), pixel_type="float")
+    inputs = [str(tmp_path / "in0.exr"), str(tmp_path / "in1.exr")]
+    for memory, folder in (("1M", "tight"), (None, "free")):
+        report = pyr.process_files(pyr.Blur(levels=2), inputs, template=str(tmp_path / folder / "{stem}.exr"),
+                                   backend="cpu", memory=memory)
+        assert len(report.done) == 2 and report.exit_code == 0
+    for k in range(2):
+        assert (tmp_path / "tight" / f"in{k}.exr").read_bytes() == (tmp_path / "free" / f"in{k}.exr").read_bytes()
+    with pytest.raises(UsageError, match="--memory: expected a size"):
+        pyr.process_files(pyr.Blur(levels=2), inputs, template=str(tmp_path / "x" / "{stem}.exr"), memory="lots")
 
 
 def test_docstring_examples_run():
