@@ -17,6 +17,7 @@ import sys
 import time
 from types import SimpleNamespace
 
+import numpy as np
 import pytest
 from click.testing import CliRunner
 
@@ -352,3 +353,28 @@ def test_api_takes_frames_and_shards(tmp_path):
     kw = {"template": str(tmp_path / "out" / "o.{frame}.exr"), "backend": "cpu", "frames": "1-6x1"}
     assert pyr.process_files(WORK, [str(tmp_path / "in" / "plate.####.exr")], shard="2/3", **kw).exit_code == 0
     assert outputs(tmp_path / "out") == ["o.3.exr", "o.4.exr"]
+
+
+def test_a_worker_keeps_its_chunk_within_its_own_memory_budget(tmp_path, monkeypatch):
+    """A worker runs its chunk as a local batch does (run.local.run_in_budget): with its budget (its container's
+    limits; here made small) a picture too large to be held beside the others streams alone, and the files are the
+    ones a run with room writes."""
+    distributed = pytest.importorskip("distributed")
+    from pyramid_cli.run import budget
+
+    rng = np.random.default_rng(11)
+    for k, shape in enumerate([(8, 6, 3), (240, 320, 3), (10, 12, 3)]):
+        pyr.write_image(tmp_path / "in" / f"p{k}.exr", rng.random(shape).astype(np.float32), pixel_type="float")
+    inputs = sorted(str(p) for p in (tmp_path / "in").glob("*.exr"))
+    assert pyr.process_files(WORK, inputs, template=str(tmp_path / "one" / "{stem}.exr"), backend="cpu").exit_code == 0
+    monkeypatch.setattr(budget, "default_budget", lambda root="/": budget.Budget(1 << 20))  # the workers run here
+    said = []
+    monkeypatch.setattr(budget.Budget, "describe", lambda self: said.append(self.size) or "1.0 MiB (test)")
+    with distributed.LocalCluster(n_workers=1, processes=False, threads_per_worker=1,
+                                  dashboard_address=None) as local, distributed.Client(local) as client:
+        report = pyr.process_files(WORK, inputs, template=str(tmp_path / "many" / "{stem}.exr"), backend="cpu",
+                                   cluster=client, chunk=3, quiet=False)
+    assert report.exit_code == 0 and len(report.done) == 3
+    assert said and set(said) == {1 << 20}  # the middle picture ran alone, in the worker's budget
+    for name in outputs(tmp_path / "one"):
+        assert (tmp_path / "many" / name).read_bytes() == (tmp_path / "one" / name).read_bytes(), name

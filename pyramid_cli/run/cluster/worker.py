@@ -169,7 +169,7 @@ def run_chunk(jobs: list[batch.Job], work, read, write, *, keep_going: bool, ski
     """
     from distributed import get_worker
 
-    from pyramid_cli.run.local import run_jobs
+    from pyramid_cli.run.local import run_in_budget, run_jobs
     from pyramid_cli.run.report import Reporter
     from pyramid_cli.run.shard import remove_stale_temps
 
@@ -206,8 +206,8 @@ def run_chunk(jobs: list[batch.Job], work, read, write, *, keep_going: bool, ski
                     if not bar:
                         reporter.result(line_from_disk(j, work, mip_tile, session.ran or session.name))
                     report.done.append(j)
-            elif not halted and (keep_going or not report.failed):
-                r = run_jobs(part, work, session, **options)
+            elif not halted and (keep_going or not report.failed):  # within the worker's own limits, as locally
+                r = run_in_budget(part, work, session, memory=None, **options)
                 report.done += r.done
                 report.skipped += r.skipped
                 report.failed += r.failed
