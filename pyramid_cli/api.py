@@ -657,10 +657,8 @@ def process_files(work: Work, inputs: Sequence[str], output: str | None = None, 
     (``"K/N"`` or ``"auto"``) keeps one chunk of the jobs; ``cluster`` (a Dask address,
     ``"local:N"`` or a ``distributed.Client``) runs them on a Dask cluster in tasks of
     ``chunk`` jobs, waiting up to ``cluster_timeout`` seconds (default 30) to connect and with
-    no worker connected. ``memory`` (bytes, or ``"512M"``) is the budget of a run on this machine, as
-    ``--memory`` (default: what the container's and the process's limits leave): a picture whose whole run would
-    not fit it streams, and in a batch one too large to be held beside the others runs alone. A single file's
-    failure raises.
+    no worker connected. ``memory`` (bytes, or ``"512M"``) is ``--memory``, this machine's budget (default: what
+    the container's and process's limits leave; docs/performance.md). A single file's failure raises.
 
     Returns a :class:`~pyramid_cli.run.joblist.Report`: ``done``, ``skipped`` (up to date, with
     ``skip_existing``) and ``failed`` (each job with its :class:`~pyramid_cli.core.errors.PyramidError`,
@@ -688,8 +686,7 @@ def process_files(work: Work, inputs: Sequence[str], output: str | None = None, 
     reporter = PythonReporter(quiet=quiet, lattice=tuple(work.warnings()))
     return process(paths, template, work, runner, read=ro, write=wo, reporter=reporter, keep_going=keep_going,
                    skip_existing=skip_existing, jobs=jobs, frames=frames, shard=shard, cluster=cluster, chunk=chunk,
-                   cluster_timeout=cluster_timeout, memory=memory if memory is None or isinstance(memory, int) else
-                   parse_size(memory))
+                   cluster_timeout=cluster_timeout, memory=parse_size(memory) if isinstance(memory, str) else memory)
 
 
 # The border aliases in the docstrings come from core.border's one table.

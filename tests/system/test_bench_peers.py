@@ -17,8 +17,8 @@ from helpers.bench import quick_report
 from helpers.paths import ROOT
 
 PEERS = ROOT / "bench" / "peers.py"
-JOBS = {"png-blur", "tiff-blur", "exr-blur", "png-mipmap", "exr-mipmap", "cpu-opencv", "backend-1080p",
-        "backend-4k", "backend-batch"}
+JOBS = {"png-blur", "png-blur-unfiltered", "tiff-blur", "exr-blur", "png-mipmap", "exr-mipmap", "cpu-opencv",
+        "backend-1080p", "backend-4k", "backend-batch"}
 
 
 def _installed(module: str) -> bool:
