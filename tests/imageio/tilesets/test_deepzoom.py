@@ -14,7 +14,7 @@ import pytest
 
 import pyramid_cli as pyr
 from helpers.disks import mounted
-from helpers.stored import png_row_filters
+from helpers.stored import png_row_filters, read_raw
 from pyramid_cli.core.errors import OutputError, UsageError
 from pyramid_cli.imageio.read import read_image
 from pyramid_cli.imageio.tilesets import TileOptions, writer_class
@@ -149,11 +149,17 @@ def test_deep_zoom_options_as_dzsave(sources, tmp_path):
 
 
 def test_deep_zoom_png_tiles_take_the_compression_s_row_filters(sources, tmp_path):
-    """``--compression 6:none`` reaches every PNG tile: rows unfiltered, as ``vips dzsave`` writes them."""
+    """``--compression 6:none`` reaches every PNG tile: rows unfiltered, as ``vips dzsave`` writes them (read from
+    its own tiles), and libvips reads each of ours as OpenImageIO does."""
     px, img, levels = sources[(37, 53)]
-    write(DeepZoomWriter, tmp_path / "pic.dzi", img, levels, tile_size=8, overlap=3, suffix="png", compression="6:none")
-    tiles = list(tmp_path.rglob("*.png"))
-    assert tiles and set().union(*map(png_row_filters, tiles)) == {0}
+    write(DeepZoomWriter, tmp_path / "ours" / "pic.dzi", img, levels, tile_size=8, overlap=3, suffix="png",
+          compression="6:none")
+    vips_image(px).dzsave(str(tmp_path / "vips" / "pic"), tile_size=8, overlap=3, suffix=".png")
+    ours, theirs = list((tmp_path / "ours").rglob("*.png")), list((tmp_path / "vips").rglob("*.png"))
+    assert ours and set().union(*map(png_row_filters, ours)) == {0} == set().union(*map(png_row_filters, theirs))
+    for tile in ours:
+        assert np.array_equal(pyvips.Image.new_from_file(str(tile)).numpy().reshape(read_raw(tile)[0].shape),
+                              read_raw(tile)[0]), tile
 
 
 @pytest.mark.parametrize("suffix, within", [("webp", 12), ("tif", 0)])
