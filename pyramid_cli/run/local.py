@@ -177,7 +177,8 @@ def run_in_budget(job_list: list[batch.Job], work: Work, session: Session, *, me
     share = resolve(memory).size // held_at_once(jobs)
     runs: list[tuple[bool, list[batch.Job]]] = []
     for job in job_list:
-        need = None if skip_existing and batch.is_fresh(job) else whole_bytes(job.input, work, session, read)
+        need = None if skip_existing and batch.is_fresh(job) else whole_bytes(job.input, work, session, read,
+                                                                               job.output, write, mip_tile or 0)
         alone = need is not None and need > share
         if runs and runs[-1][0] == alone:
             runs[-1][1].append(job)

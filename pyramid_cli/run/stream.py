@@ -535,10 +535,12 @@ def _decide(in_path: str, work, session, memory: int | None, read, reporter, out
     return st, choice
 
 
-def whole_bytes(in_path: str, work, session, read=None) -> int | None:
-    """Bytes ``work``'s whole run of ``in_path`` holds (:func:`estimate`, and what OpenEXR's codec holds for the
-    input on one thread), from its header; None where no plan says it (the reference backend, a job of several
-    inputs, a header that cannot be read: the run itself reports why)."""
+def whole_bytes(in_path: str, work, session, read=None, output: str | None = None, write=None,
+                tile: int = 0) -> int | None:
+    """Bytes ``work``'s whole run of ``in_path`` holds (:func:`estimate`), and what OpenEXR's codecs hold on one
+    thread for the input and for ``output`` (written as ``write`` asks, a MIP file in tiles of ``tile``), from
+    the header; None where no plan says it (the reference backend, a job of several inputs, a header that cannot
+    be read: the run itself reports why)."""
     from pyramid_cli.core.errors import PyramidError
     from pyramid_cli.run.settings import ReadOptions
 
@@ -550,8 +552,11 @@ def whole_bytes(in_path: str, work, session, read=None) -> int | None:
             plan = session.plan(work, [(h, w)])
             if plan is None:
                 return None
-            return Codecs.of([st]).first + estimate(plan, c, None, in_bytes=st.dtype.itemsize, out_bytes=4,
-                                                    keeps_input=work.keeps_input, **costs(session.executor))
+            size = (h, w) if tile else _output_sizes(work, plan, h, w)[-1]
+            outputs = [] if output is None else [(output, size)]
+            codecs = Codecs.of([st], outputs, st.info, c, _write_options(write, in_path), tile)
+            return codecs.first + estimate(plan, c, None, in_bytes=st.dtype.itemsize, out_bytes=4,
+                                           keeps_input=work.keeps_input, **costs(session.executor))
     except PyramidError:
         return None
 
