@@ -157,8 +157,9 @@ def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: R
 
 def held_at_once(jobs: int) -> int:
     """Pictures a batch overlapping its I/O in ``jobs`` threads holds at once (:func:`pyramid_cli.run.batch.run`):
-    ``jobs + 1`` read ahead, the one computed, and up to ``jobs`` written behind."""
-    return 2 * max(1, jobs) + 2
+    ``jobs + 1`` read ahead, the one computed, and up to ``jobs`` written behind; one with ``jobs`` 1, which reads,
+    computes and writes one picture after another."""
+    return 1 if jobs <= 1 else 2 * jobs + 2
 
 
 def run_in_budget(job_list: list[batch.Job], work: Work, session: Session, *, memory: int | None, read: ReadOptions,

@@ -130,4 +130,5 @@ def test_a_picture_run_alone_that_fails_is_reported_and_the_batch_goes_on_only_w
 
 
 def test_held_at_once_counts_the_reads_ahead_the_work_and_the_writes_behind():
-    assert held_at_once(1) == 4 and held_at_once(2) == 6 and held_at_once(0) == 4
+    """batch.run overlaps with two threads or more; with one it holds one picture at a time."""
+    assert held_at_once(2) == 6 and held_at_once(4) == 10 and held_at_once(1) == held_at_once(0) == 1
