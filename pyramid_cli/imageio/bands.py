@@ -120,7 +120,7 @@ class ImageStream:
     def _stored(self, y0: int, y1: int) -> np.ndarray:
         spec, inp = self._spec, self._inp
         if spec.tile_width > 0 and spec.tile_height > 0:  # whole rows of tiles, kept for the next band
-            th = spec.tile_height
+            th = self.chunk_rows
             parts = []
             y = y0
             while y < y1:

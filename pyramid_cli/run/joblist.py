@@ -35,6 +35,12 @@ class Report:
     def exit_code(self) -> int:
         return self.failed[0][1].exit_code if self.failed else 0
 
+    def extend(self, other: Report) -> None:
+        """Add what ``other`` did (a later part of the same batch)."""
+        self.done += other.done
+        self.skipped += other.skipped
+        self.failed += other.failed
+
 
 def expand(patterns: list[str]) -> list[str]:
     """Input paths; quoted glob patterns are expanded here (sorted), so Makefiles need no shell globbing."""

@@ -162,18 +162,32 @@ def held_at_once(jobs: int) -> int:
     return 1 if jobs <= 1 else 2 * jobs + 2
 
 
+def run_alone(job: batch.Job, work: Work, session: Session, *, memory: int | None, read: ReadOptions,
+              write: WriteOptions, reporter: Reporter, mip_tile: int | None = None,
+              limits: contextlib.ExitStack | None = None) -> bool:
+    """One input's run: streamed when its whole run would not fit the budget (:func:`pyramid_cli.run.stream.run_job`,
+    a MIP file :func:`pyramid_cli.run.stream_mip.run_mip`, which writes it whole itself where it can); False,
+    having written nothing, where the caller runs it whole (its codec threads limited until ``limits`` closes)."""
+    from pyramid_cli.run.stream import run_job
+    from pyramid_cli.run.stream_mip import run_mip
+
+    if mip_tile:
+        return run_mip(job, work, session, memory=memory, tile=mip_tile, read=read, write=write, reporter=reporter,
+                       whole=mip_whole.run_whole, limits=limits)
+    return run_job(job, work, session, memory=memory, read=read, write=write, reporter=reporter, limits=limits)
+
+
 def run_in_budget(job_list: list[batch.Job], work: Work, session: Session, *, memory: int | None, read: ReadOptions,
                   write: WriteOptions, reporter: Reporter, keep_going: bool = False, skip_existing: bool = False,
                   jobs: int = 2, mip_tile: int | None = None, many: bool = True) -> batch.Report:
     """:func:`run_jobs` on this machine within the memory budget (``memory``, else
     :func:`pyramid_cli.run.budget.default_budget`: a container's limits): a picture whose whole run
     (:func:`pyramid_cli.run.stream.whole_bytes`), held :func:`held_at_once` times, would not fit it runs alone, as
-    one input does (streamed where it would not fit alone either: :func:`pyramid_cli.run.stream.run_job`,
-    :func:`pyramid_cli.run.stream_mip.run_mip`); the others in runs of overlapped I/O as before. In job order. Two
-    8K half EXRs blurred in one call held 1.8 GB, which a 700 MiB container kills."""
+    one input does (:func:`run_alone`: streamed where it would not fit alone either); the others in runs of
+    overlapped I/O as before. In job order. Two 8K half EXRs blurred in one call held 1.8 GB, which a 700 MiB
+    container kills."""
     from pyramid_cli.run.budget import resolve
-    from pyramid_cli.run.stream import run_job, whole_bytes
-    from pyramid_cli.run.stream_mip import run_mip
+    from pyramid_cli.run.stream import whole_bytes
 
     share = resolve(memory).size // held_at_once(jobs)
     runs: list[tuple[bool, list[batch.Job]]] = []
@@ -194,35 +208,22 @@ def run_in_budget(job_list: list[batch.Job], work: Work, session: Session, *, me
         return overlapped(job_list, jobs, many)
     report = batch.Report()
     for alone, part in runs:
-        if report.failed and not keep_going:
-            break
-        if not alone:  # no progress bar: the pictures run alone say what they wrote as they go
-            done = overlapped(part, jobs, False)
-            report.done += done.done
-            report.skipped += done.skipped
-            report.failed += done.failed
-            continue
-        for job in part:
+        for group in [part] if not alone else [[job] for job in part]:
             if report.failed and not keep_going:
-                break
+                return report
+            if not alone:  # no progress bar: the pictures run alone say what they wrote as they go
+                report.extend(overlapped(group, jobs, False))
+                continue
             try:
                 with contextlib.ExitStack() as limits:
-                    if mip_tile:
-                        ran = run_mip(job, work, session, memory=memory, tile=mip_tile, read=read, write=write,
-                                      reporter=reporter, whole=mip_whole.run_whole, limits=limits)
-                    else:
-                        ran = run_job(job, work, session, memory=memory, read=read, write=write, reporter=reporter,
-                                      limits=limits)
-                    if not ran:  # it fits alone: whole, with nothing beside it
-                        done = overlapped([job], 1, False)
-                        report.failed += done.failed
-                        if done.failed:
-                            continue
+                    if run_alone(group[0], work, session, memory=memory, read=read, write=write, reporter=reporter,
+                                 mip_tile=mip_tile, limits=limits):
+                        report.done += group
+                    else:  # it fits alone: whole, with nothing beside it
+                        report.extend(overlapped(group, 1, False))
             except PyramidError as e:
-                report.failed.append((job, e))
-                continue
-            report.done.append(job)
+                report.failed.append((group[0], e))
     return report
 
 
-__all__ = ["held_at_once", "run_in_budget", "run_jobs", "texture_channels"]
+__all__ = ["held_at_once", "run_alone", "run_in_budget", "run_jobs", "texture_channels"]

@@ -25,7 +25,7 @@ from pyramid_cli.jobs.work import Collapse, Laplacian, Levels, Work, same_settin
 from pyramid_cli.run import batch
 from pyramid_cli.run.codec_budget import holds_codec_limits
 from pyramid_cli.run.inputs import read_input
-from pyramid_cli.run.local import run_in_budget
+from pyramid_cli.run.local import run_alone, run_in_budget
 from pyramid_cli.run.report import Reporter, announce_compiles
 from pyramid_cli.run.settings import ReadOptions, WriteOptions
 
@@ -82,16 +82,9 @@ def process(paths: list[str], template: str | None, work: Work, session: Session
             session.prepare_async(work, [first[0]], count=len(job_list), dtype=first[1])
     if (not many and len(job_list) == 1 and cluster is None and frames is None
             and not (skip_existing and batch.is_fresh(job_list[0]))):
-        from pyramid_cli.run.mip_whole import run_whole
-        from pyramid_cli.run.stream import run_job
-        from pyramid_cli.run.stream_mip import run_mip
-
-        if mip_tile:
-            if run_mip(job_list[0], work, session, memory=memory, tile=mip_tile, read=ro, write=wo,
-                       reporter=reporter, whole=run_whole, limits=limits):
-                return batch.Report(done=list(job_list))
-        elif run_job(job_list[0], work, session, memory=memory, read=ro, write=wo, reporter=reporter,
-                     limits=limits):
+        assert isinstance(session, Session), "a session, unless the jobs run on a cluster"
+        if run_alone(job_list[0], work, session, memory=memory, read=ro, write=wo, reporter=reporter,
+                     mip_tile=mip_tile, limits=limits):
             return batch.Report(done=list(job_list))
     elif memory is not None and cluster is not None:
         raise UsageError("--memory budgets this machine's run (not --cluster: the workers' memory is their own)")

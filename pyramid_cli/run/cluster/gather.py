@@ -151,9 +151,7 @@ class _Run:
         report = batch.Report()
         for result in self.results:
             if result is not None:
-                report.done += result.report.done
-                report.skipped += result.report.skipped
-                report.failed += result.report.failed
+                report.extend(result.report)
         return report
 
     def stop_variable(self) -> str | None:

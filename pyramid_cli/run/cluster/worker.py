@@ -207,10 +207,7 @@ def run_chunk(jobs: list[batch.Job], work, read, write, *, keep_going: bool, ski
                         reporter.result(line_from_disk(j, work, mip_tile, session.ran or session.name))
                     report.done.append(j)
             elif not halted and (keep_going or not report.failed):  # within the worker's own limits, as locally
-                r = run_in_budget(part, work, session, memory=None, **options)
-                report.done += r.done
-                report.skipped += r.skipped
-                report.failed += r.failed
+                report.extend(run_in_budget(part, work, session, memory=None, **options))
     return ChunkResult(report, messages, session.ran or session.name)
 
 
