@@ -535,12 +535,24 @@ def _decide(in_path: str, work, session, memory: int | None, read, reporter, out
     return st, choice
 
 
-def whole_bytes(in_path: str, work, session, read=None, output: str | None = None, write=None,
-                tile: int = 0) -> int | None:
-    """Bytes ``work``'s whole run of ``in_path`` holds (:func:`estimate`), and what OpenEXR's codecs hold on one
-    thread for the input and for ``output`` (written as ``write`` asks, a MIP file in tiles of ``tile``), from
-    the header; None where no plan says it (the reference backend, a job of several inputs, a header that cannot
-    be read: the run itself reports why)."""
+@dataclass(frozen=True)
+class Weight:
+    """What a batch weighs a picture by (:func:`pyramid_cli.run.local.run_in_budget`): ``whole``, the bytes its
+    whole run holds (:func:`estimate` and OpenEXR's codecs for its files); ``streamed``, the pixels of its widest
+    output where it runs faster streamed than whole alone (:func:`speed_band`: what :func:`run_job` would do with
+    it), else 0."""
+
+    whole: int
+    streamed: int = 0
+
+
+def weigh(in_path: str, work, session, read=None, output: str | None = None, write=None,
+          tile: int = 0) -> Weight | None:
+    """The :class:`Weight` of ``work``'s run of ``in_path``: what OpenEXR's codecs hold on one thread for the
+    input and for ``output`` (written as ``write`` asks; a MIP file in tiles of ``tile``, which streams only where
+    it would not fit) and the rest from the header; None where no plan says it (the reference backend, a job of
+    several inputs, a header that cannot be read: the run itself reports why)."""
+    from pyramid_cli import imageio as io
     from pyramid_cli.core.errors import PyramidError
     from pyramid_cli.run.settings import ReadOptions
 
@@ -555,8 +567,11 @@ def whole_bytes(in_path: str, work, session, read=None, output: str | None = Non
             size = (h, w) if tile else _output_sizes(work, plan, h, w)[-1]
             outputs = [] if output is None else [(output, size)]
             codecs = Codecs.of([st], outputs, st.info, c, _write_options(write, in_path), tile)
-            return codecs.first + estimate(plan, c, None, in_bytes=st.dtype.itemsize, out_bytes=4,
-                                           keeps_input=work.keeps_input, **costs(session.executor))
+            whole = codecs.first + estimate(plan, c, None, in_bytes=st.dtype.itemsize, out_bytes=4,
+                                            keeps_input=work.keeps_input, **costs(session.executor))
+            faster = (not tile and work.label in STREAMABLE and not work.keeps_input
+                      and (output is None or io.streams_to(output)) and speed_band(plan, session.executor) is not None)
+            return Weight(whole, max(a * b for a, b in (plan.images[k].size for k in plan.outputs)) if faster else 0)
     except PyramidError:
         return None
 
@@ -612,6 +627,6 @@ def run_levels(in_path: str, paths: list[str], work, session, *, memory: int | N
 
 __all__ = ["BandTimes", "Choice", "choose", "choose_mip", "estimate", "parse_size", "default_memory",
            "available_memory", "stream_file", "open_input", "format_size", "run_job", "run_levels", "costs",
-           "executor_of", "read_step", "run_bands", "speed_band", "band_rows", "warn_nonfinite", "whole_bytes",
+           "executor_of", "read_step", "run_bands", "speed_band", "band_rows", "warn_nonfinite", "weigh", "Weight",
            "MIN_BAND",
            "STREAM_PIXELS", "BAND_PIXELS"]

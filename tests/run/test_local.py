@@ -14,7 +14,7 @@ from pyramid_cli.run import batch
 from pyramid_cli.run.local import held_at_once, run_in_budget, run_jobs, texture_channels
 from pyramid_cli.run.report import Reporter
 from pyramid_cli.run.settings import ReadOptions, WriteOptions
-from pyramid_cli.run.stream import whole_bytes
+from pyramid_cli.run.stream import weigh
 
 
 @pytest.fixture(scope="module")
@@ -90,8 +90,8 @@ def test_a_batch_holds_a_picture_its_budget_cannot_hold_beside_others_alone_and_
         pyr.write_image(tmp_path / f"in{k}.exr", rng.random((h, w, 4), dtype=np.float32).astype(np.float16))
         jobs.append(batch.Job(str(tmp_path / f"in{k}.exr"), str(tmp_path / f"out{k}.exr")))
     work = pyr.Blur(levels=3)
-    big = whole_bytes(jobs[1].input, work, session)
-    small = max(whole_bytes(j.input, work, session) for j in (jobs[0], jobs[2]))
+    big = weigh(jobs[1].input, work, session).whole
+    small = max(weigh(j.input, work, session).whole for j in (jobs[0], jobs[2]))
     memory = big // 2  # the big one streams even alone; the small ones fit the batch's share of it
     assert small * held_at_once(2) < memory < big
     out = []
@@ -118,7 +118,7 @@ def test_a_picture_run_alone_that_fails_is_reported_and_the_batch_goes_on_only_w
     (tmp_path / "blocker").write_text("a file, not a folder")
     jobs[0] = batch.Job(jobs[0].input, str(tmp_path / "blocker" / "out0.exr"))  # cannot be written
     work = pyr.Blur(levels=2)
-    memory = whole_bytes(jobs[1].input, work, session) // 2  # every picture runs alone, streamed
+    memory = weigh(jobs[1].input, work, session).whole // 2  # every picture runs alone, streamed
     out = []
     report = run_in_budget(jobs, work, session, memory=memory, read=ReadOptions(), write=WriteOptions(),
                            reporter=Reporter(out=out.append, err=out.append), keep_going=keep_going)
@@ -130,5 +130,59 @@ def test_a_picture_run_alone_that_fails_is_reported_and_the_batch_goes_on_only_w
 
 
 def test_held_at_once_counts_the_reads_ahead_the_work_and_the_writes_behind():
-    """batch.run overlaps with two threads or more; with one it holds one picture at a time."""
+    """batch.run overlaps with two threads or more; with one it holds one picture at a time; never more pictures
+    than the batch has."""
     assert held_at_once(2) == 6 and held_at_once(4) == 10 and held_at_once(1) == held_at_once(0) == 1
+    assert held_at_once(2, 2) == 2 and held_at_once(2, 9) == 6 and held_at_once(4, 1) == held_at_once(2, 0) == 1
+
+
+def test_two_pictures_overlap_where_the_budget_holds_both_whole_runs(tmp_path, session, monkeypatch):
+    """A batch of two holds two pictures at most: where two whole runs fit the budget (six would not) they
+    overlap as a batch does instead of running one after the other. Two 8K MIP maps lost their overlap to the
+    six-picture bound (9.5 → 10.7 s)."""
+    from pyramid_cli.run import local
+
+    rng = np.random.default_rng(9)
+    jobs = []
+    for k in range(2):
+        pyr.write_image(tmp_path / f"in{k}.exr", rng.random((120, 160, 4), dtype=np.float32).astype(np.float16))
+        jobs.append(batch.Job(str(tmp_path / f"in{k}.exr"), str(tmp_path / f"out{k}.exr")))
+    work = pyr.Blur(levels=3)
+    memory = weigh(jobs[0].input, work, session).whole * 3  # two whole runs fit; six would not
+    alone = []
+    monkeypatch.setattr(local, "run_alone", lambda job, *a, **k: alone.append(job) or False)
+    report = run_in_budget(jobs, work, session, memory=memory, read=ReadOptions(), write=WriteOptions(),
+                           reporter=Reporter())
+    assert alone == [] and [j.input for j in report.done] == [j.input for j in jobs]
+    report = run_in_budget(jobs * 4, work, session, memory=memory, read=ReadOptions(), write=WriteOptions(),
+                           reporter=Reporter())  # eight: six held at once would not fit
+    assert len(alone) == 8 and len(report.done) == 8
+
+
+@pytest.mark.parametrize("jobs, large, streamed", [(2, 6_000_000, False), (2, 100_000, True), (1, 6_000_000, True)])
+def test_a_large_picture_that_streams_faster_alone_leaves_the_overlap(tmp_path, session, monkeypatch, jobs, large,
+                                                                       streamed):
+    """Pictures that stream faster than they run whole (run.stream.speed_band) and have ALONE_PIXELS or more
+    stream one by one, as one input would; with one thread, which overlaps nothing, any of them does. Two 8K
+    frames overlapped took 7.5 s and 1.8 GB, streamed one by one 5.2 s and 139 MiB. The thresholds are scaled
+    down here so that 300×420 pictures count as large."""
+    from pyramid_cli.run import local, stream
+
+    monkeypatch.setattr(stream, "STREAM_PIXELS", 1 << 14)
+    monkeypatch.setattr(stream, "BAND_PIXELS", 1 << 12)
+    monkeypatch.setattr(local, "ALONE_PIXELS", large)
+    rng = np.random.default_rng(10)
+    jobs_list = []
+    for k in range(3):
+        pyr.write_image(tmp_path / f"in{k}.exr", rng.random((300, 420, 3), dtype=np.float32).astype(np.float16))
+        jobs_list.append(batch.Job(str(tmp_path / f"in{k}.exr"), str(tmp_path / f"out{k}.exr")))
+    work = pyr.Blur(levels=2)
+    assert weigh(jobs_list[0].input, work, session).streamed == 300 * 420
+    assert weigh(jobs_list[0].input, pyr.TextureLevels(), session, tile=64).streamed == 0  # MIP files: by fit only
+    out = []
+    report = run_in_budget(jobs_list, work, session, memory=None, read=ReadOptions(), write=WriteOptions(),
+                           reporter=Reporter(out=out.append, err=out.append), jobs=jobs)
+    assert [j.input for j in report.done] == [j.input for j in jobs_list]
+    wrote = [line for line in out if line.startswith("wrote ")]
+    assert [line.split()[1] for line in wrote] == [j.output for j in jobs_list]
+    assert all(("streamed in bands of" in line) == streamed for line in wrote), wrote

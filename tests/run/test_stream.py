@@ -377,8 +377,8 @@ def test_a_signal_during_a_streamed_write(tmp_path):
                    lambda f: io.read_image(f).pixels.shape == (1024, 1024, 3))
 
 
-def test_whole_bytes_is_the_whole_run_s_estimate_and_its_files_codecs(tmp_path):
-    """``whole_bytes`` (what a batch weighs each picture by: run.local.run_in_budget) is :func:`stream.estimate` of
+def test_weigh_is_the_whole_run_s_estimate_and_its_files_codecs(tmp_path):
+    """``weigh`` (what a batch weighs each picture by: run.local.run_in_budget) is :func:`stream.estimate` of
     the whole run, plus what OpenEXR's codecs hold on one thread for the input and for the output as it will be
     written (a DWAB output); None for what it cannot say."""
     from pyramid_cli.exec.session import Session
@@ -389,11 +389,11 @@ def test_whole_bytes_is_the_whole_run_s_estimate_and_its_files_codecs(tmp_path):
     work = Blur(levels=2)
     with Session("cpu") as session, stream.open_input(src, ReadOptions()) as st:
         plan = session.plan(work, [(300, 200)])
-        bare = stream.whole_bytes(src, work, session)
+        bare = stream.weigh(src, work, session).whole
         assert bare == st.codec_memory().first + stream.estimate(plan, 4, None, in_bytes=2, out_bytes=4,
                                                                  **stream.costs(session.executor))
-        dwab = stream.whole_bytes(src, work, session, output=out, write=WriteOptions(compression="dwab"))
+        dwab = stream.weigh(src, work, session, output=out, write=WriteOptions(compression="dwab")).whole
         held = io.output_codec_memory(out, st.info, 4, (300, 200), compression="dwab").first
         assert dwab is not None and dwab - bare == held > 0
-        assert stream.whole_bytes(str(tmp_path / "missing.exr"), work, session) is None
-    assert stream.whole_bytes(src, work, None) is None
+        assert stream.weigh(str(tmp_path / "missing.exr"), work, session) is None
+    assert stream.weigh(src, work, None) is None
