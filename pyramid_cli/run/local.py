@@ -7,6 +7,8 @@ Dask worker for its chunk (:mod:`pyramid_cli.run.cluster`).
 from __future__ import annotations
 
 import contextlib
+import dataclasses
+from collections.abc import Callable
 
 import numpy as np
 
@@ -217,13 +219,30 @@ def run_in_budget(job_list: list[batch.Job], work: Work, session: Session, *, me
 
     if not any(alone for alone, _ in runs):
         return overlapped(job_list, jobs, many)
+    with contextlib.ExitStack() as shown:
+        bar = None
+        if many and reporter.progress is not None and not reporter.quiet:
+            # one bar for the whole batch, as an overlapped one shows: the parts move it, and the pictures run
+            # alone do not print their lines either
+            bar = shown.enter_context(reporter.progress(len(job_list)))
+            reporter = dataclasses.replace(reporter, out=lambda msg: None,
+                                           progress=lambda total: contextlib.nullcontext(bar))
+        return _run_parts(runs, overlapped, work, session, memory=memory, read=read, write=write, reporter=reporter,
+                          keep_going=keep_going, mip_tile=mip_tile, jobs=jobs, bar=bar)
+
+
+def _run_parts(runs: list[tuple[bool, list[batch.Job]]], overlapped: Callable, work: Work, session: Session, *,
+               memory: int | None, read: ReadOptions, write: WriteOptions, reporter: Reporter, keep_going: bool,
+               mip_tile: int | None, jobs: int, bar) -> batch.Report:
+    """:func:`run_in_budget`'s stretches in order: ``overlapped(part, threads, show_bar)`` for those that overlap,
+    :func:`run_alone` for each picture of the others; ``bar`` (or None) moves by one per picture run alone."""
     report = batch.Report()
     for alone, part in runs:
         for group in [part] if not alone else [[job] for job in part]:
             if report.failed and not keep_going:
                 return report
-            if not alone:  # no progress bar: the pictures run alone say what they wrote as they go
-                report.extend(overlapped(group, jobs, False))
+            if not alone:
+                report.extend(overlapped(group, jobs, bar is not None))
                 continue
             try:
                 with contextlib.ExitStack() as limits:
@@ -234,6 +253,8 @@ def run_in_budget(job_list: list[batch.Job], work: Work, session: Session, *, me
                         report.extend(overlapped(group, 1, False))
             except PyramidError as e:
                 report.failed.append((group[0], e))
+            if bar is not None:
+                bar.update(1)
     return report
 
 

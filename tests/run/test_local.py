@@ -186,3 +186,43 @@ def test_a_large_picture_that_streams_faster_alone_leaves_the_overlap(tmp_path, 
     wrote = [line for line in out if line.startswith("wrote ")]
     assert [line.split()[1] for line in wrote] == [j.output for j in jobs_list]
     assert all(("streamed in bands of" in line) == streamed for line in wrote), wrote
+
+
+def test_a_batch_with_pictures_run_alone_shows_one_progress_bar_over_all_of_them(tmp_path, session, monkeypatch):
+    """At a terminal a batch shows a bar, not a line per file, whether its pictures overlap or some run alone:
+    one bar over the whole batch, moved once per picture; without a bar each picture's line is printed."""
+    from pyramid_cli.run import local, stream
+
+    monkeypatch.setattr(stream, "STREAM_PIXELS", 1 << 14)
+    monkeypatch.setattr(stream, "BAND_PIXELS", 1 << 12)
+    monkeypatch.setattr(local, "ALONE_PIXELS", 100_000)
+    rng = np.random.default_rng(11)
+    jobs = []
+    for k, (h, w) in enumerate([(16, 20), (300, 420), (24, 16), (20, 20)]):  # the second runs alone
+        pyr.write_image(tmp_path / f"in{k}.exr", rng.random((h, w, 3), dtype=np.float32))
+        jobs.append(batch.Job(str(tmp_path / f"in{k}.exr"), str(tmp_path / f"out{k}.exr")))
+    bars = []
+
+    class Bar:
+        def __init__(self, total):
+            self.total, self.moved = total, 0
+            bars.append(self)
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            return False
+
+        def update(self, n):
+            self.moved += n
+
+    out = []
+    report = run_in_budget(jobs, pyr.Blur(levels=2), session, memory=None, read=ReadOptions(), write=WriteOptions(),
+                           reporter=Reporter(out=out.append, err=out.append, progress=Bar))
+    assert len(report.done) == 4 and [(b.total, b.moved) for b in bars] == [(4, 4)] and out == []
+    out.clear()
+    report = run_in_budget(jobs, pyr.Blur(levels=2), session, memory=None, read=ReadOptions(), write=WriteOptions(),
+                           reporter=Reporter(out=out.append, err=out.append))
+    assert [line.split()[1] for line in out] == [j.output for j in jobs]
+    assert "streamed in bands" in out[1] and len(bars) == 1
