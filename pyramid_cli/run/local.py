@@ -158,10 +158,12 @@ def run_jobs(job_list: list[batch.Job], work: Work, session: Session, *, read: R
 
 
 # Pictures of ALONE_PIXELS or more that stream faster alone (run.stream.speed_band) leave a batch's overlap and
-# stream alone. Measured with `blur --levels 5` on half EXRs, fresh processes interleaved, 3 rounds: 12 frames of
-# 1080p overlapped 1.80 s, 301 MiB, against 2.16 s, 132 MiB streamed one by one; 4 of 4K 2.73 s, 566 MiB against
-# 2.65 s, 133 MiB; 2 of 8K 7.49 s, 1.8 GB against 5.24 s, 139 MiB.
-ALONE_PIXELS = 6_000_000
+# stream alone: whole, two of them thrash memory. Measured with fresh processes interleaved, 2-3 rounds, the
+# streamed runs one after another against the same batch overlapped whole: two 8K (7680x4320) half EXRs
+# `blur --levels 5` 5.14 s, 141 MiB against 7.49 s, 1.8 GB; two 8K 8-bit PNGs `blur --sigma 8` 6.50 s, 133 MiB
+# against 7.02 s, 2.6 GB. At 4K the overlap keeps two of PNG's one-thread encoders busy: four 4K PNGs 4.40 s
+# streamed against 3.59 s overlapped (four 4K half EXRs: 2.46 against 2.79 s), so 4K overlaps.
+ALONE_PIXELS = 1 << 24
 
 
 def held_at_once(jobs: int, count: int | None = None) -> int:
@@ -196,8 +198,9 @@ def run_in_budget(job_list: list[batch.Job], work: Work, session: Session, *, me
     one input does (:func:`run_alone`: streamed where it would not fit alone either, or where that is faster),
     where its whole run (:func:`pyramid_cli.run.stream.weigh`), held :func:`held_at_once` times (no more than
     the batch has pictures), would not fit the budget, and where it streams faster alone and has
-    :data:`ALONE_PIXELS` or more (any size with ``jobs`` 1, which overlaps nothing); the others run in stretches
-    of overlapped I/O. Two 8K half EXRs blurred in one call held 1.8 GB, which a 700 MiB container kills."""
+    :data:`ALONE_PIXELS` (16.8 million) or more (any size with ``jobs`` 1, which overlaps nothing); the others
+    run in stretches of overlapped I/O. Two 8K half EXRs blurred in one call held 1.8 GB, which a 700 MiB
+    container kills."""
     from pyramid_cli.run.budget import resolve
     from pyramid_cli.run.stream import weigh
 
