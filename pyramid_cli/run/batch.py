@@ -97,6 +97,8 @@ def run(jobs: list[Job], read: Callable, work: Callable, write: Callable, *, kee
     for j in jobs:
         if skip_existing and is_fresh(j):
             report.skipped.append(j)
+            if progress:  # a bar over every job reaches its end
+                progress(j)
         else:
             todo.append(j)
     pool = ThreadPoolExecutor(max_workers=max(1, workers)) if workers > 1 else None

@@ -143,3 +143,20 @@ def test_lines_are_said_in_job_order_whichever_write_ends_first():
     report = batch.run(jobs, lambda j: j.input, lambda v: v.upper(), write, workers=3, written=written)
     assert said == ["IN0", "IN1", "IN2", "IN3", "IN4", "IN5"] and len(report.done) == 6
     assert threads == {threading.get_ident()}
+
+
+def test_a_batch_s_progress_counts_the_outputs_it_skips(tmp_path):
+    """A progress bar over a batch reaches its end with --skip-existing: skipped jobs move it too."""
+    from pyramid_cli.run import batch
+
+    jobs = []
+    for k in range(3):
+        (tmp_path / f"in{k}").write_text("x")
+        jobs.append(batch.Job(str(tmp_path / f"in{k}"), str(tmp_path / f"out{k}")))
+    time.sleep(0.01)
+    (tmp_path / "out1").write_text("newer than its input")
+    moved = []
+    report = batch.run(jobs, lambda j: j, lambda x: x, lambda j, x: None, skip_existing=True, workers=2,
+                       progress=moved.append)
+    assert [j.input for j in report.skipped] == [jobs[1].input] and len(report.done) == 2
+    assert sorted(j.input for j in moved) == sorted(j.input for j in jobs)
