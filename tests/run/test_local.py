@@ -23,6 +23,28 @@ def session():
         yield s
 
 
+def exr_jobs(tmp_path, sizes, seed, channels=4, half=True) -> list[batch.Job]:
+    """One job per size (rows, columns): a random EXR ``in{k}.exr`` (half unless told) to ``out{k}.exr``."""
+    rng = np.random.default_rng(seed)
+    jobs = []
+    for k, (h, w) in enumerate(sizes):
+        px = rng.random((h, w, channels), dtype=np.float32)
+        pyr.write_image(tmp_path / f"in{k}.exr", px.astype(np.float16) if half else px)
+        jobs.append(batch.Job(str(tmp_path / f"in{k}.exr"), str(tmp_path / f"out{k}.exr")))
+    return jobs
+
+
+@pytest.fixture
+def small_is_large(monkeypatch):
+    """The thresholds scaled down so that 300×420 pictures stream faster (run.stream.speed_band) and count as
+    large (run.local.ALONE_PIXELS, to be set by the test)."""
+    from pyramid_cli.run import local, stream
+
+    monkeypatch.setattr(stream, "STREAM_PIXELS", 1 << 14)
+    monkeypatch.setattr(stream, "BAND_PIXELS", 1 << 12)
+    return local
+
+
 def test_run_jobs_writes_each_output_and_says_so_in_job_order(tmp_path, session):
     jobs = []
     for k in range(3):
@@ -83,12 +105,7 @@ def test_a_batch_holds_a_picture_its_budget_cannot_hold_beside_others_alone_and_
     """run_in_budget: a picture whose whole run, held as many times as the batch holds pictures (held_at_once),
     would not fit the budget runs alone, streamed when it does not fit alone either; the small ones overlap as
     before. Job order is kept and the files are those of the plain batch (run_jobs), byte for byte."""
-    rng = np.random.default_rng(7)
-    sizes = [(16, 20), (300, 420), (24, 16)]
-    jobs = []
-    for k, (h, w) in enumerate(sizes):
-        pyr.write_image(tmp_path / f"in{k}.exr", rng.random((h, w, 4), dtype=np.float32).astype(np.float16))
-        jobs.append(batch.Job(str(tmp_path / f"in{k}.exr"), str(tmp_path / f"out{k}.exr")))
+    jobs = exr_jobs(tmp_path, [(16, 20), (300, 420), (24, 16)], seed=7)
     work = pyr.Blur(levels=3)
     big = weigh(jobs[1].input, work, session).whole
     small = max(weigh(j.input, work, session).whole for j in (jobs[0], jobs[2]))
@@ -110,11 +127,7 @@ def test_a_batch_holds_a_picture_its_budget_cannot_hold_beside_others_alone_and_
 @pytest.mark.parametrize("keep_going", [False, True])
 def test_a_picture_run_alone_that_fails_is_reported_and_the_batch_goes_on_only_when_asked(tmp_path, session,
                                                                                          keep_going):
-    rng = np.random.default_rng(8)
-    jobs = []
-    for k in range(3):
-        pyr.write_image(tmp_path / f"in{k}.exr", rng.random((200, 260, 3), dtype=np.float32))
-        jobs.append(batch.Job(str(tmp_path / f"in{k}.exr"), str(tmp_path / f"out{k}.exr")))
+    jobs = exr_jobs(tmp_path, [(200, 260)] * 3, seed=8, channels=3, half=False)
     (tmp_path / "blocker").write_text("a file, not a folder")
     jobs[0] = batch.Job(jobs[0].input, str(tmp_path / "blocker" / "out0.exr"))  # cannot be written
     work = pyr.Blur(levels=2)
@@ -142,11 +155,7 @@ def test_two_pictures_overlap_where_the_budget_holds_both_whole_runs(tmp_path, s
     six-picture bound (9.5 → 10.7 s)."""
     from pyramid_cli.run import local
 
-    rng = np.random.default_rng(9)
-    jobs = []
-    for k in range(2):
-        pyr.write_image(tmp_path / f"in{k}.exr", rng.random((120, 160, 4), dtype=np.float32).astype(np.float16))
-        jobs.append(batch.Job(str(tmp_path / f"in{k}.exr"), str(tmp_path / f"out{k}.exr")))
+    jobs = exr_jobs(tmp_path, [(120, 160)] * 2, seed=9)
     work = pyr.Blur(levels=3)
     memory = weigh(jobs[0].input, work, session).whole * 3  # two whole runs fit; six would not
     alone = []
@@ -160,22 +169,14 @@ def test_two_pictures_overlap_where_the_budget_holds_both_whole_runs(tmp_path, s
 
 
 @pytest.mark.parametrize("jobs, large, streamed", [(2, 1 << 24, False), (2, 100_000, True), (1, 1 << 24, True)])
-def test_a_large_picture_that_streams_faster_alone_leaves_the_overlap(tmp_path, session, monkeypatch, jobs, large,
-                                                                       streamed):
+def test_a_large_picture_that_streams_faster_alone_leaves_the_overlap(tmp_path, session, monkeypatch, small_is_large,
+                                                                       jobs, large, streamed):
     """Pictures that stream faster than they run whole (run.stream.speed_band) and have ALONE_PIXELS or more
     stream one by one, as one input would; with one thread, which overlaps nothing, any of them does. Two 8K
     frames overlapped took 7.5 s and 1.8 GB, streamed one by one 5.1 s and 141 MiB. The thresholds are scaled
     down here so that 300×420 pictures count as large."""
-    from pyramid_cli.run import local, stream
-
-    monkeypatch.setattr(stream, "STREAM_PIXELS", 1 << 14)
-    monkeypatch.setattr(stream, "BAND_PIXELS", 1 << 12)
-    monkeypatch.setattr(local, "ALONE_PIXELS", large)
-    rng = np.random.default_rng(10)
-    jobs_list = []
-    for k in range(3):
-        pyr.write_image(tmp_path / f"in{k}.exr", rng.random((300, 420, 3), dtype=np.float32).astype(np.float16))
-        jobs_list.append(batch.Job(str(tmp_path / f"in{k}.exr"), str(tmp_path / f"out{k}.exr")))
+    monkeypatch.setattr(small_is_large, "ALONE_PIXELS", large)
+    jobs_list = exr_jobs(tmp_path, [(300, 420)] * 3, seed=10, channels=3)
     work = pyr.Blur(levels=2)
     assert weigh(jobs_list[0].input, work, session).streamed == 300 * 420
     assert weigh(jobs_list[0].input, pyr.TextureLevels(), session, tile=64).streamed == 0  # MIP files: by fit only
@@ -188,19 +189,12 @@ def test_a_large_picture_that_streams_faster_alone_leaves_the_overlap(tmp_path, 
     assert all(("streamed in bands of" in line) == streamed for line in wrote), wrote
 
 
-def test_a_batch_with_pictures_run_alone_shows_one_progress_bar_over_all_of_them(tmp_path, session, monkeypatch):
+def test_a_batch_with_pictures_run_alone_shows_one_progress_bar_over_all_of_them(tmp_path, session, monkeypatch,
+                                                                                 small_is_large):
     """At a terminal a batch shows a bar, not a line per file, whether its pictures overlap or some run alone:
     one bar over the whole batch, moved once per picture; without a bar each picture's line is printed."""
-    from pyramid_cli.run import local, stream
-
-    monkeypatch.setattr(stream, "STREAM_PIXELS", 1 << 14)
-    monkeypatch.setattr(stream, "BAND_PIXELS", 1 << 12)
-    monkeypatch.setattr(local, "ALONE_PIXELS", 100_000)
-    rng = np.random.default_rng(11)
-    jobs = []
-    for k, (h, w) in enumerate([(16, 20), (300, 420), (24, 16), (20, 20)]):  # the second runs alone
-        pyr.write_image(tmp_path / f"in{k}.exr", rng.random((h, w, 3), dtype=np.float32))
-        jobs.append(batch.Job(str(tmp_path / f"in{k}.exr"), str(tmp_path / f"out{k}.exr")))
+    monkeypatch.setattr(small_is_large, "ALONE_PIXELS", 100_000)
+    jobs = exr_jobs(tmp_path, [(16, 20), (300, 420), (24, 16), (20, 20)], seed=11, channels=3, half=False)  # 2nd alone
     bars = []
 
     class Bar:
