@@ -216,12 +216,12 @@ def run_in_budget(job_list: list[batch.Job], work: Work, session: Session, *, me
         else:
             runs.append((alone, [job]))
 
-    def overlapped(part: list[batch.Job], threads: int, bar: bool) -> batch.Report:
-        return run_jobs(part, work, session, read=read, write=write, reporter=reporter, keep_going=keep_going,
+    def overlapped(part: list[batch.Job], threads: int, bar: bool, says: Reporter) -> batch.Report:
+        return run_jobs(part, work, session, read=read, write=write, reporter=says, keep_going=keep_going,
                         skip_existing=skip_existing, jobs=threads, mip_tile=mip_tile, many=bar)
 
     if not any(alone for alone, _ in runs):
-        return overlapped(job_list, jobs, many)
+        return overlapped(job_list, jobs, many, reporter)
     with contextlib.ExitStack() as shown:
         bar = None
         if many and reporter.progress is not None and not reporter.quiet:
@@ -237,7 +237,8 @@ def run_in_budget(job_list: list[batch.Job], work: Work, session: Session, *, me
 def _run_parts(runs: list[tuple[bool, list[batch.Job]]], overlapped: Callable, work: Work, session: Session, *,
                memory: int | None, read: ReadOptions, write: WriteOptions, reporter: Reporter, keep_going: bool,
                mip_tile: int | None, jobs: int, bar) -> batch.Report:
-    """:func:`run_in_budget`'s stretches in order: ``overlapped(part, threads, show_bar)`` for those that overlap,
+    """:func:`run_in_budget`'s stretches in order: ``overlapped(part, threads, show_bar, reporter)`` for those that
+    overlap,
     :func:`run_alone` for each picture of the others; ``bar`` (or None) moves by one per picture run alone."""
     report = batch.Report()
     for alone, part in runs:
@@ -245,7 +246,7 @@ def _run_parts(runs: list[tuple[bool, list[batch.Job]]], overlapped: Callable, w
             if report.failed and not keep_going:
                 return report
             if not alone:
-                report.extend(overlapped(group, jobs, bar is not None))
+                report.extend(overlapped(group, jobs, bar is not None, reporter))
                 continue
             try:
                 with contextlib.ExitStack() as limits:
@@ -253,7 +254,7 @@ def _run_parts(runs: list[tuple[bool, list[batch.Job]]], overlapped: Callable, w
                                  mip_tile=mip_tile, limits=limits):
                         report.done += group
                     else:  # it fits alone: whole, with nothing beside it
-                        report.extend(overlapped(group, 1, False))
+                        report.extend(overlapped(group, 1, False, reporter))
             except PyramidError as e:
                 report.failed.append((group[0], e))
             if bar is not None:

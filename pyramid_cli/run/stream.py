@@ -490,6 +490,11 @@ def stream_file(in_path: str, out_path: str | list[str], work, session, choice: 
 STREAMABLE = ("apply", "blur")  # single-image jobs of one output (Work.label); levels: run_levels
 
 
+def streamable(work) -> bool:
+    """Whether :func:`run_job` can stream ``work`` (one of :data:`STREAMABLE`, of one input it does not keep)."""
+    return work.label in STREAMABLE and work.n_inputs == 1 and not work.keeps_input
+
+
 def _decide(in_path: str, work, session, memory: int | None, read, reporter, outputs: list[str], write=None,
             limits: contextlib.ExitStack | None = None):
     """(open stream, choice) when ``work`` on ``in_path`` streams to ``outputs`` (written as ``write`` asks), else
@@ -569,8 +574,8 @@ def weigh(in_path: str, work, session, read=None, output: str | None = None, wri
             codecs = Codecs.of([st], outputs, st.info, c, _write_options(write, in_path), tile)
             whole = codecs.first + estimate(plan, c, None, in_bytes=st.dtype.itemsize, out_bytes=4,
                                             keeps_input=work.keeps_input, **costs(session.executor))
-            faster = (not tile and work.label in STREAMABLE and not work.keeps_input
-                      and (output is None or io.streams_to(output)) and speed_band(plan, session.executor) is not None)
+            faster = (not tile and streamable(work) and (output is None or io.streams_to(output))
+                      and speed_band(plan, session.executor) is not None)
             return Weight(whole, max(a * b for a, b in (plan.images[k].size for k in plan.outputs)) if faster else 0)
     except PyramidError:
         return None
@@ -584,7 +589,7 @@ def run_job(job, work, session, *, memory: int | None, read=None, write=None, re
     with OpenEXR's codec threads limited to what the budget leaves them until ``limits`` closes."""
     from pyramid_cli import imageio as io
 
-    if work.label not in STREAMABLE or work.n_inputs != 1 or work.keeps_input:
+    if not streamable(work):
         if memory is not None:
             raise UsageError(f"--memory: {work.label} runs whole pictures (it streams apply, blur and levels)")
         return False
@@ -627,6 +632,6 @@ def run_levels(in_path: str, paths: list[str], work, session, *, memory: int | N
 
 __all__ = ["BandTimes", "Choice", "choose", "choose_mip", "estimate", "parse_size", "default_memory",
            "available_memory", "stream_file", "open_input", "format_size", "run_job", "run_levels", "costs",
-           "executor_of", "read_step", "run_bands", "speed_band", "band_rows", "warn_nonfinite", "weigh", "Weight",
+           "executor_of", "read_step", "run_bands", "speed_band", "band_rows", "warn_nonfinite", "weigh", "Weight", "streamable",
            "MIN_BAND",
            "STREAM_PIXELS", "BAND_PIXELS"]
