@@ -632,6 +632,6 @@ def run_levels(in_path: str, paths: list[str], work, session, *, memory: int | N
 
 __all__ = ["BandTimes", "Choice", "choose", "choose_mip", "estimate", "parse_size", "default_memory",
            "available_memory", "stream_file", "open_input", "format_size", "run_job", "run_levels", "costs",
-           "executor_of", "read_step", "run_bands", "speed_band", "band_rows", "warn_nonfinite", "weigh", "Weight", "streamable",
-           "MIN_BAND",
+           "executor_of", "read_step", "run_bands", "speed_band", "band_rows", "warn_nonfinite", "weigh", "Weight",
+           "streamable", "MIN_BAND",
            "STREAM_PIXELS", "BAND_PIXELS"]
