@@ -543,9 +543,9 @@ def _decide(in_path: str, work, session, memory: int | None, read, reporter, out
 @dataclass(frozen=True)
 class Weight:
     """What a batch weighs a picture by (:func:`pyramid_cli.run.local.run_in_budget`): ``whole``, the bytes its
-    whole run holds (:func:`estimate` and OpenEXR's codecs for its files); ``streamed``, the pixels of its widest
-    output where it runs faster streamed than whole alone (:func:`speed_band`: what :func:`run_job` would do with
-    it), else 0."""
+    whole run holds (``Choice.whole``: :func:`estimate` and OpenEXR's codecs for its files); ``streamed``, the
+    pixels of its widest output where :func:`choose` streams it, fitting, because bands are faster
+    (``Choice.faster``: what :func:`run_job` would do with it), else 0."""
 
     whole: int
     streamed: int = 0
@@ -553,15 +553,16 @@ class Weight:
 
 def weigh(in_path: str, work, session, read=None, output: str | None = None, write=None,
           tile: int = 0) -> Weight | None:
-    """The :class:`Weight` of ``work``'s run of ``in_path``: what OpenEXR's codecs hold on one thread for the
-    input and for ``output`` (written as ``write`` asks; a MIP file in tiles of ``tile``, which streams only where
-    it would not fit) and the rest from the header; None where no plan says it (the reference backend, a job of
-    several inputs, a header that cannot be read: the run itself reports why)."""
+    """The :class:`Weight` of ``work``'s run of ``in_path`` to ``output`` (written as ``write`` asks; a MIP file in
+    tiles of ``tile``, which streams only where it would not fit), from the header: :func:`choose`'s choice with
+    no limit on the budget; None where no plan says it (the reference backend, a job of several inputs, a header
+    that cannot be read: the run itself reports why)."""
     from pyramid_cli import imageio as io
     from pyramid_cli.core.errors import PyramidError
     from pyramid_cli.run.settings import ReadOptions
 
-    if session is None or session.executor is None or work.n_inputs != 1:
+    executor = None if session is None else session.executor
+    if executor is None or work.n_inputs != 1:
         return None
     try:
         with open_input(in_path, read or ReadOptions()) as st:
@@ -570,15 +571,16 @@ def weigh(in_path: str, work, session, read=None, output: str | None = None, wri
             if plan is None:
                 return None
             size = (h, w) if tile else _output_sizes(work, plan, h, w)[-1]
-            outputs = [] if output is None else [(output, size)]
-            codecs = Codecs.of([st], outputs, st.info, c, _write_options(write, in_path), tile)
-            whole = codecs.first + estimate(plan, c, None, in_bytes=st.dtype.itemsize, out_bytes=4,
-                                            keeps_input=work.keeps_input, **costs(session.executor))
-            faster = (not tile and streamable(work) and (output is None or io.streams_to(output))
-                      and speed_band(plan, session.executor) is not None)
-            return Weight(whole, max(a * b for a, b in (plan.images[k].size for k in plan.outputs)) if faster else 0)
+            codecs = Codecs.of([st], [] if output is None else [(output, size)], st.info, c,
+                               _write_options(write, in_path), tile)
+            streams = not tile and streamable(work) and (output is None or io.streams_to(output))
+            choice = choose(plan, c, 1 << 62, in_bytes=st.dtype.itemsize, out_bytes=4, where=in_path,
+                            keeps_input=work.keeps_input, prefer=speed_band(plan, executor) if streams else None,
+                            codecs=codecs.first, **costs(executor))
     except PyramidError:
         return None
+    widest = max(a * b for a, b in (plan.images[k].size for k in plan.outputs))
+    return Weight(choice.whole, widest if choice.faster else 0)
 
 
 def run_job(job, work, session, *, memory: int | None, read=None, write=None, reporter=None,
