@@ -495,6 +495,21 @@ def streamable(work) -> bool:
     return work.label in STREAMABLE and work.n_inputs == 1 and not work.keeps_input
 
 
+def choose_run(plan: Plan, channels: int, budget: int, executor, *, where: str, reporter=None, in_bytes: int = 4,
+               keeps_input: bool = False, codecs: Codecs | None = None,
+               limits: contextlib.ExitStack | None = None) -> Choice:
+    """A file job's :func:`choose` on ``executor``, bands preferred where faster (:func:`speed_band`), said under
+    ``-v``. ``codecs``: the job's files' (:class:`~pyramid_cli.run.codec_budget.Codecs`): their first threads
+    counted in the working set, and for a run that goes whole the further ones limited until ``limits`` closes."""
+    choice = choose(plan, channels, budget, in_bytes=in_bytes, out_bytes=4, where=where, keeps_input=keeps_input,
+                    prefer=speed_band(plan, executor), codecs=codecs.first if codecs else 0, **costs(executor))
+    if reporter is not None:
+        reporter.detail(f"{where}: {choice.describe()}")
+    if not choice.streams and codecs is not None:
+        codecs.hold(limits, choice, reporter, where)
+    return choice
+
+
 def _decide(in_path: str, work, session, memory: int | None, read, reporter, outputs: list[str], write=None,
             limits: contextlib.ExitStack | None = None):
     """(open stream, choice) when ``work`` on ``in_path`` streams to ``outputs`` (written as ``write`` asks), else
@@ -505,12 +520,11 @@ def _decide(in_path: str, work, session, memory: int | None, read, reporter, out
         if memory is not None:
             executor_of(session)  # refuses with the reason
         return None
-    ro = read or ReadOptions()
     given = resolve(memory)
     budget = given.size
     if reporter is not None:
         reporter.detail(f"{in_path}: {given.describe()}")
-    st = open_input(in_path, ro)
+    st = open_input(in_path, read or ReadOptions())
     try:
         h, w, c = st.shape
         work.check(((h, w),), where=in_path)
@@ -518,16 +532,10 @@ def _decide(in_path: str, work, session, memory: int | None, read, reporter, out
         if plan is None:
             st.close()
             return None
-        executor = executor_of(session)
         codecs = Codecs.of([st], list(zip(outputs, _output_sizes(work, plan, h, w), strict=True)), st.info, c,
                            _write_options(write, in_path))
-        choice = choose(plan, c, budget, in_bytes=st.dtype.itemsize, out_bytes=4, where=in_path,
-                        keeps_input=work.keeps_input, prefer=speed_band(plan, executor), codecs=codecs.first,
-                        **costs(executor))
-        if reporter is not None:
-            reporter.detail(f"{in_path}: {choice.describe()}")
-        if not choice.streams:
-            codecs.hold(limits, choice, reporter, in_path)
+        choice = choose_run(plan, c, budget, executor_of(session), where=in_path, reporter=reporter,
+                            in_bytes=st.dtype.itemsize, keeps_input=work.keeps_input, codecs=codecs, limits=limits)
     except DataError as exc:
         st.close()
         raise given.refusal(exc) from None
@@ -635,5 +643,5 @@ def run_levels(in_path: str, paths: list[str], work, session, *, memory: int | N
 __all__ = ["BandTimes", "Choice", "choose", "choose_mip", "estimate", "parse_size", "default_memory",
            "available_memory", "stream_file", "open_input", "format_size", "run_job", "run_levels", "costs",
            "executor_of", "read_step", "run_bands", "speed_band", "band_rows", "warn_nonfinite", "weigh", "Weight",
-           "streamable", "MIN_BAND",
+           "streamable", "choose_run", "MIN_BAND",
            "STREAM_PIXELS", "BAND_PIXELS"]

@@ -34,11 +34,9 @@ from pyramid_cli.run.overlap import Reader, overlapped
 from pyramid_cli.run.stream import (
     MIN_BAND,
     Choice,
-    choose,
-    costs,
+    choose_run,
     executor_of,
     open_input,
-    speed_band,
     warn_nonfinite,
 )
 
@@ -100,16 +98,11 @@ def decide(plan: Plan | None, channels: int, session, memory: int | None, *, whe
     given = resolve(memory)
     if reporter is not None:
         reporter.detail(f"{where}: {given.describe()}")
-    executor = executor_of(session)
     try:
-        choice = choose(plan, channels, given.size, in_bytes=in_bytes, out_bytes=4, where=where,
-                        prefer=speed_band(plan, executor), codecs=codecs.first if codecs else 0, **costs(executor))
+        choice = choose_run(plan, channels, given.size, executor_of(session), where=where, reporter=reporter,
+                            in_bytes=in_bytes, codecs=codecs, limits=limits)
     except DataError as exc:
         raise given.refusal(exc) from None
-    if reporter is not None:
-        reporter.detail(f"{where}: {choice.describe()}")
-    if not choice.streams and codecs is not None:
-        codecs.hold(limits, choice, reporter, where)
     return choice if choice.streams else None
 
 
