@@ -48,10 +48,12 @@ class Codecs:
         ``info`` with ``channels`` as the write ``options`` ask, in tiles of ``tile`` pixels where not 0 (a MIP
         file); nothing for files that are not OpenEXR ones."""
         from pyramid_cli import imageio as io
+        from pyramid_cli.imageio.codecs import CodecMemory
 
-        held = [st.codec_memory() for st in streams]
-        held += [io.output_codec_memory(p, info, channels, size, tile, **(options or {})) for p, size in outputs]
-        return cls(tuple(streams), sum(m.first for m in held), sum(m.further for m in held))
+        held = sum((st.codec_memory() for st in streams), CodecMemory())
+        held = sum((io.output_codec_memory(p, info, channels, size, tile, **(options or {})) for p, size in outputs),
+                   held)
+        return cls(tuple(streams), held.first, held.further)
 
     def limit(self, choice: _Choice) -> tuple[int, int] | None:
         """(threads, bytes each further one holds) to code the files with where the threads OpenEXR would use hold
