@@ -238,27 +238,31 @@ def _run_parts(runs: list[tuple[bool, list[batch.Job]]], overlapped: Callable, w
                memory: int | None, read: ReadOptions, write: WriteOptions, reporter: Reporter, keep_going: bool,
                mip_tile: int | None, jobs: int, bar) -> batch.Report:
     """:func:`run_in_budget`'s stretches in order: ``overlapped(part, threads, show_bar, reporter)`` for those that
-    overlap,
-    :func:`run_alone` for each picture of the others; ``bar`` (or None) moves by one per picture run alone."""
+    overlap, :func:`run_alone` for each picture of the others; ``bar`` (or None) moves by one per picture run
+    alone."""
     report = batch.Report()
-    for alone, part in runs:
-        for group in [part] if not alone else [[job] for job in part]:
+
+    def alone(job: batch.Job) -> None:
+        try:
+            with contextlib.ExitStack() as limits:
+                if run_alone(job, work, session, memory=memory, read=read, write=write, reporter=reporter,
+                             mip_tile=mip_tile, limits=limits):
+                    report.done.append(job)
+                else:  # it fits alone: whole, with nothing beside it
+                    report.extend(overlapped([job], 1, False, reporter))
+        except PyramidError as e:
+            report.failed.append((job, e))
+        if bar is not None:
+            bar.update(1)
+
+    for runs_alone, part in runs:
+        for group in ([job] for job in part) if runs_alone else [part]:
             if report.failed and not keep_going:
                 return report
-            if not alone:
+            if runs_alone:
+                alone(group[0])
+            else:
                 report.extend(overlapped(group, jobs, bar is not None, reporter))
-                continue
-            try:
-                with contextlib.ExitStack() as limits:
-                    if run_alone(group[0], work, session, memory=memory, read=read, write=write, reporter=reporter,
-                                 mip_tile=mip_tile, limits=limits):
-                        report.done += group
-                    else:  # it fits alone: whole, with nothing beside it
-                        report.extend(overlapped(group, 1, False, reporter))
-            except PyramidError as e:
-                report.failed.append((group[0], e))
-            if bar is not None:
-                bar.update(1)
     return report
 
 
