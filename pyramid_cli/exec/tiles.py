@@ -132,8 +132,9 @@ class Scheduler:
         the image keeps).
     sink : callable
         ``sink(k, row, col, pixels)``: output image ``k``'s pixels at ``(row, col)``; called in row order
-        within a strip. ``pixels`` is a view of the scheduler's buffers, valid during the call only: copy
-        what must outlive it.
+        within a strip. ``pixels`` is a read-only view of the scheduler's buffers, whose rows are never written
+        again once made (:meth:`_append` makes a new buffer, :meth:`_trim` only narrows the view): a sink may
+        keep it without a copy, holding that buffer's memory while it does.
     band, width : int
         Rows and columns of a tile, in pixels of the largest output (smaller outputs get their share).
     dtype
@@ -304,7 +305,9 @@ class Scheduler:
         start, kept = st.held()[0], st.kept()
         rows = slice(st.emitted - start, hi - start)
         cols = slice(span[0] - kept[0], span[1] - kept[0])
-        self.sink(k, st.emitted, span[0], st.pixels()[rows, cols])
+        view = st.pixels()[rows, cols]
+        view.flags.writeable = False
+        self.sink(k, st.emitted, span[0], view)
         st.emitted = hi
         self._trim(k)
 
@@ -338,7 +341,8 @@ class Scheduler:
     def _append(self, st: _State, px: np.ndarray | list[np.ndarray]) -> None:
         parts = px if isinstance(px, list) else [px]
         kept = [] if st.buf is None or not len(st.buf) else [st.buf]
-        # one copy of the kept rows and the new ones (a ring buffer measured no faster, and held more)
+        # one copy of the kept rows and the new ones into a new buffer: rows once made are never written again, so
+        # the sink keeps views (a ring buffer measured no faster, and held more)
         st.buf = np.concatenate(kept + parts) if len(kept) + len(parts) > 1 else parts[0].copy()
         st.done = st.held()[1] + sum(p.shape[0] for p in parts)
         self.peak_pixels = max(self.peak_pixels, sum(s.buf.shape[0] * s.buf.shape[1] for s in self.state.values()

@@ -378,9 +378,10 @@ def run_bands(read: Callable[[int, int], np.ndarray], plan: Plan, executor, band
     ``band`` output rows, the input decoded ahead by ``read(y0, y1)`` and the rows handed behind
     (:mod:`pyramid_cli.run.overlap`).
 
-    ``output_rows(j, y0, px)``: rows of ``plan.outputs[j]`` (a copy, the executor's working type), in order within
-    each output; ``input_rows(y0, px)``: each input row once, in order, as decoded (a job that keeps its input
-    writes it as level 0). Both are called on the writer's thread, in the order the scheduler makes the rows.
+    ``output_rows(j, y0, px)``: rows of ``plan.outputs[j]`` (the executor's working type), in order within each
+    output: read-only views of the scheduler's rows, never written again, which it may keep without a copy;
+    ``input_rows(y0, px)``: each input row once, in order, as decoded (a job that keeps its input writes it as
+    level 0). Both are called on the writer's thread, in the order the scheduler makes the rows.
     Whatever they hold is theirs to release; an error on any thread, or an interruption, stops and joins both
     threads before it goes on (:func:`~pyramid_cli.run.overlap.overlapped`).
 
@@ -405,8 +406,8 @@ def run_bands(read: Callable[[int, int], np.ndarray], plan: Plan, executor, band
                 parts = [px[:, cols[0]:cols[1]] for px in parts]
             return [px.astype(np.float64) for px in parts] if emu else parts
 
-        def sink(k, r, c0, px):  # px is the scheduler's buffer: the writer keeps rows, so a copy
-            writer.call(output_rows, slot[k], r, px.copy())
+        def sink(k, r, c0, px):  # the scheduler's rows, never written again: handed on as they are
+            writer.call(output_rows, slot[k], r, px)
 
         scheduler = tiles.Scheduler(executor, plan, source, sink, band=band, dtype=np.float64 if emu else np.float32,
                                     codes=codes)

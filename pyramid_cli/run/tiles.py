@@ -268,8 +268,8 @@ def _make_levels(source, where: str, writer, sizes, options: TileOptions, settin
         else:
             writer.rows(0, y0, px.astype(np.float32, copy=False), None if stored is None else stored.take(len(px)))
 
-    def level(j: int, y0: int, px: np.ndarray) -> None:  # on the writer's thread
-        writer.rows(j + 1, y0, px.astype(np.float32, copy=False))
+    def level(j: int, y0: int, px: np.ndarray) -> None:  # on the writer's thread: the band engine's rows
+        writer.rows(j + 1, y0, px.astype(np.float32, copy=False), owned=True)
 
     try:
         with codecs.within(choice, reporter, where):

@@ -180,7 +180,7 @@ def write_block(job: PartJob, session) -> dict:
                     return px.astype(native, copy=False)
 
                 def sink(k, r, c0, px):
-                    writer.rows(slot[k], r, px.astype(np.float32, copy=False))
+                    writer.rows(slot[k], r, px.astype(np.float32, copy=False), owned=True)  # never written again
                     keep(slot[k], r, px)
 
                 windows = {k: spans[slot[k]] for k in plan.outputs}
@@ -248,7 +248,7 @@ def write_coarse(job: PartJob, session) -> dict:
         plan = session.plan(Levels(levels=count - 1 - m, analysis=job.analysis, border=job.border), [(hm, wm)])
 
         def level(j: int, y0: int, px: np.ndarray) -> None:
-            writer.rows(m + 1 + j, y0, px.astype(np.float32, copy=False))
+            writer.rows(m + 1 + j, y0, px.astype(np.float32, copy=False), owned=True)
 
         run_bands(read, plan, session.executor, band_rows(plan.images[plan.outputs[0]].size[1]), level)
         return writer.end_part()

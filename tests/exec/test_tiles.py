@@ -413,3 +413,31 @@ def test_coarse_outputs_advance_a_band_at_a_time():
     s.run()
     lead_bands = p.images[p.outputs[0]].size[0] // 8
     assert s.steps <= 2 * lead_bands + len(p.outputs), s.steps
+
+
+@pytest.mark.parametrize("border", ["clamp", "mirror"])
+def test_a_sink_may_keep_the_rows_it_is_given_without_a_copy(cpu_executor, border):
+    """The scheduler never writes into rows it has made (the band engine hands them to the writers without a
+    copy): views kept by the sink until the end hold the whole run's pixels, at odd sizes, bands and strips, and
+    are read-only."""
+    size = (45, 29)
+    x = image(size, 3, seed=5)
+    for work in (Levels(levels=4, border=border), Blur(levels=2, border=border)):
+        p = work.plan((size,))
+        whole = cpu_executor.run_outputs(p, [x])
+        for band, width in ((4, None), (8, 11)):
+            got: dict = {k: [] for k in p.outputs}
+
+            def sink(k, r, c, px, got=got):
+                with pytest.raises(ValueError, match="read-only"):
+                    px[:1, :1] = 0
+                got[k].append((r, c, px))
+
+            tiles.Scheduler(cpu_executor, p, lambda k, r, c: x[r[0]:r[1], c[0]:c[1]].copy(), sink,
+                            band=band, width=width).run()
+            for j, k in enumerate(p.outputs):
+                seen = np.zeros(p.images[k].size, int)
+                for r, c, px in got[k]:
+                    np.testing.assert_array_equal(px, whole[j][r:r + px.shape[0], c:c + px.shape[1]])
+                    seen[r:r + px.shape[0], c:c + px.shape[1]] += 1
+                assert (seen == 1).all(), f"{work.label} output {k}: band {band}, width {width}"

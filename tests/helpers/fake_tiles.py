@@ -45,7 +45,7 @@ class RecordingWriter(TileSetWriter):
         n = mip_levels(tuple(size)) + 1
         return n if cls.levels_cap is None else min(n, cls.levels_cap)
 
-    def _rows(self, level, y0, pixels):
+    def _rows(self, level, y0, pixels, owned=False):
         assert self.state == "open"
         assert pixels.dtype == np.float32, pixels.dtype
         assert y0 == self.next_row[level], (level, y0, self.next_row[level])
@@ -98,7 +98,7 @@ class FileWriter(TileSetWriter):
         except OSError as exc:
             raise OutputError(f"cannot write {self.path}: {exc.strerror or exc}") from None
 
-    def _rows(self, level, y0, pixels):
+    def _rows(self, level, y0, pixels, owned=False):
         if level == 0 and DELAY:  # a slow disk: signals reach the run mid-way at any load
             time.sleep(DELAY)
         self.rows_seen = getattr(self, "rows_seen", 0) + len(pixels)

@@ -98,7 +98,7 @@ def test_a_file_level_0_is_the_decoded_input(recording, session, tmp_path):
 class Failing(RecordingWriter):
     error: BaseException = OutputError("cannot write x.dzi: No space left on device")
 
-    def _rows(self, level, y0, pixels):
+    def _rows(self, level, y0, pixels, owned=False):
         if level == 2:
             raise self.error
         super()._rows(level, y0, pixels)

@@ -122,9 +122,12 @@ class TileSetWriter(abc.ABC):
             enc = self._encoders[key] = Encoder(key[1], self.info, channels, check_path=False, **self.options.write)
         return enc
 
-    def rows(self, level: int, y0: int, pixels: np.ndarray | None, stored: np.ndarray | None = None) -> None:
+    def rows(self, level: int, y0: int, pixels: np.ndarray | None, stored: np.ndarray | None = None, *,
+             owned: bool = False) -> None:
         """Linear, premultiplied float32 rows ``y0 ..`` of level ``level`` (0 = the input), (h, W, C), each row of
-        each level exactly once and in order; ``pixels`` may be reused by the caller after the call.
+        each level exactly once and in order; ``pixels`` may be reused by the caller after the call, unless
+        ``owned``: the caller never writes into them again (the band engine's rows), so they are kept without a
+        copy.
 
         ``stored``: the same rows as :meth:`encode` stores them (the caller has checked that with
         :meth:`~pyramid_cli.imageio.ImageStream.gives_back`), the writer's to keep; a writer that :attr:`takes_stored`
@@ -134,10 +137,10 @@ class TileSetWriter(abc.ABC):
         elif pixels is None:
             raise ValueError(f"{self.layout}: rows of level {level} without pixels need stored rows it takes")
         else:
-            self._rows(level, y0, pixels)
+            self._rows(level, y0, pixels, owned)
 
     @abc.abstractmethod
-    def _rows(self, level: int, y0: int, pixels: np.ndarray) -> None: ...
+    def _rows(self, level: int, y0: int, pixels: np.ndarray, owned: bool) -> None: ...
 
     def _rows_stored(self, level: int, y0: int, stored: np.ndarray) -> None:
         """Rows already in their stored values (writers that :attr:`takes_stored`)."""

@@ -232,14 +232,14 @@ class _TileFolderWriter(TileSetWriter):
 
     takes_stored = True
 
-    def _rows(self, level: int, y0: int, pixels: np.ndarray) -> None:
+    def _rows(self, level: int, y0: int, pixels: np.ndarray, owned: bool) -> None:
         lv = self._follows(level, y0, pixels)
         if lv is None:
             return
         assert self._pool is not None
-        # encoded on the pool (numpy's table lookups let go of the GIL), taken in order: a copy, since the caller
-        # may reuse ``pixels``
-        self._bands.append((lv, self._pool.submit(self.encode, np.array(pixels), y0)))
+        # encoded on the pool (numpy's table lookups let go of the GIL), taken in order: a copy unless owned, since
+        # the caller may reuse ``pixels``
+        self._bands.append((lv, self._pool.submit(self.encode, pixels if owned else np.array(pixels), y0)))
         self._drain(MAX_BANDS)
 
     def _rows_stored(self, level: int, y0: int, stored: np.ndarray) -> None:

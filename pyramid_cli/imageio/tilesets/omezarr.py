@@ -219,7 +219,8 @@ class OmeZarrWriter(TileSetWriter):
         """Level 0 from the input's stored rows (where they come back): only when this writer encodes."""
         return self.encoded
 
-    def _rows(self, level: int, y0: int, pixels: np.ndarray) -> None:
+    def _rows(self, level: int, y0: int, pixels: np.ndarray, owned: bool) -> None:
+        del owned  # encoded here, at once
         self.put(level, y0, self.encode(pixels, y0))
 
     def _rows_stored(self, level: int, y0: int, stored: np.ndarray) -> None:

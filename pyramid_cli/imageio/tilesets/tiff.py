@@ -310,12 +310,13 @@ class PyramidTiffWriter(TileSetWriter):
 
     takes_stored = True
 
-    def _rows(self, level: int, y0: int, pixels: np.ndarray) -> None:
+    def _rows(self, level: int, y0: int, pixels: np.ndarray, owned: bool) -> None:
         self._follows(level, y0, pixels)
         assert self._pool is not None
-        # encoded on the pool (numpy's table lookups let go of the GIL), stored in the order given: a copy, since
-        # the caller may reuse its rows
-        self._encoding.append((level, y0, self._pool.submit(self.encode, np.array(pixels, np.float32), y0)))
+        # encoded on the pool (numpy's table lookups let go of the GIL), stored in the order given: a copy unless
+        # owned, since the caller may reuse its rows
+        rows = np.asarray(pixels, np.float32) if owned else np.array(pixels, np.float32)
+        self._encoding.append((level, y0, self._pool.submit(self.encode, rows, y0)))
         self._take(_ENCODING)
 
     def _rows_stored(self, level: int, y0: int, stored: np.ndarray) -> None:

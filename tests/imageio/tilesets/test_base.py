@@ -28,7 +28,7 @@ class Recorder(TileSetWriter):
             h, w, n = (h + 1) // 2, (w + 1) // 2, n + 1
         return n
 
-    def _rows(self, level, y0, pixels):
+    def _rows(self, level, y0, pixels, owned=False):
         self.calls.append(("rows", level, y0, pixels.shape))
 
     def _finish(self):
