@@ -183,6 +183,10 @@ class LoadingCPU:
         """:meth:`~pyramid_cli.exec.cpu.CPUExecutor.run`, once the executor is ready."""
         return self.result().run(plan, image)
 
+    def encode8(self):
+        """:meth:`~pyramid_cli.exec.cpu.CPUExecutor.encode8`, once the executor is ready."""
+        return self.result().encode8()
+
     def prepare(self, plan: Plan, dtype=np.float32) -> None:
         """:meth:`~pyramid_cli.exec.cpu.CPUExecutor.prepare`, once the executor is ready."""
         self.result().prepare(plan, dtype)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+from collections.abc import Callable
 from functools import cache
 
 import numpy as np
@@ -304,17 +305,51 @@ def _srgb8_lookup() -> tuple[np.ndarray, np.ndarray]:
     return codes, bucket_threshold
 
 
+@cache
+def srgb8_buckets() -> tuple[np.ndarray, np.ndarray]:
+    """The tables of a compiled :func:`srgb8` loop (:func:`use_srgb8_loop`): for each float32's top 16 bits (sign,
+    exponent, 7 mantissa bits) as an unsigned index, the code of the bucket's first value and the threshold of the
+    next code (NaN where there is none: the comparison is then false). Every bucket spans at most one threshold
+    (checked here): the thresholds of :func:`srgb8_tables` are at least 0.9 % apart, a bucket at most 0.78 %
+    wide. Negative values and NaNs code 0 (a NaN by the loop's own test: +inf shares its bucket)."""
+    thresholds, _ = srgb8_tables()
+    first = (np.arange(1 << 15, dtype=np.uint32) << 16).view(np.float32)
+    last = ((np.arange(1 << 15, dtype=np.uint32) << 16) | 0xFFFF).view(np.float32)
+    with np.errstate(invalid="ignore"):
+        code = np.searchsorted(thresholds, first, side="right")
+        finite = np.isfinite(last)
+        assert np.all(np.searchsorted(thresholds, last[finite], side="right") - code[finite] <= 1)
+    above = np.concatenate([thresholds, np.full(1, np.nan, np.float32)])  # code 255 has no next
+    codes = np.concatenate([code, np.zeros(1 << 15, code.dtype)]).astype(np.uint8)
+    return codes, np.concatenate([above[code], np.full(1 << 15, np.nan, np.float32)])
+
+
+_LOOP: list[Callable[..., None]] = []  # the compiled loop srgb8 runs on, once one is given (use_srgb8_loop)
+
+
+def use_srgb8_loop(loop: Callable[..., None]) -> None:
+    """Have :func:`srgb8` run on ``loop`` from now on, in this process: a compiled
+    ``loop(out, x, bits, codes, thresholds, i0, i1)`` that sets ``out[i] = codes[b] + (x[i] >= thresholds[b])``,
+    ``b = bits[i] >> 16``, and a NaN to 0, for ``i`` in ``[i0, i1)``, given :func:`srgb8_buckets` (the CPU
+    executor's ``encode8``, given by the run layer: this layer compiles nothing). The codes are the same."""
+    _LOOP[:] = [loop]
+
+
 def srgb8(x: np.ndarray) -> np.ndarray:
     """:func:`encode_integer` of ``linear_to_srgb(x)`` for 8 bits without dither, from float32 ``x``.
 
-    Done in bands of :data:`SRGB8_BAND` values into buffers reused from band to band (whole-image temporaries
-    cost more in page faults than the table lookups): the bucket's index straight as ``intp`` (no index
-    conversions in the gathers), its code and its threshold gathered, the comparison added to the code. Only a
-    band holding +inf or a NaN of the one mixed bucket takes the slow path (``isnan``)."""
-    codes, bucket_threshold = _srgb8_lookup()
+    On a compiled loop where one was given (:func:`use_srgb8_loop`): one pass, 3× faster. Else by numpy, in
+    bands of :data:`SRGB8_BAND` values into buffers reused from band to band (whole-image temporaries cost more
+    in page faults than the table lookups): the bucket's index straight as ``intp`` (no index conversions in the
+    gathers), its code and its threshold gathered, the comparison added to the code. Only a band holding +inf
+    or a NaN of the one mixed bucket takes the slow path (``isnan``)."""
     x = np.ascontiguousarray(x, dtype=np.float32)
     out = np.empty(x.shape, dtype=np.uint8)
     flat, res = x.reshape(-1), out.reshape(-1)
+    if _LOOP:
+        _LOOP[0](res, flat, flat.view(np.uint32), *srgb8_buckets(), 0, flat.size)
+        return out
+    codes, bucket_threshold = _srgb8_lookup()
     bits = flat.view(np.int32)
     n = min(SRGB8_BAND, flat.size)
     index, limit, up = np.empty(n, np.intp), np.empty(n, np.float32), np.empty(n, bool)

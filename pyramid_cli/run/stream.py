@@ -316,11 +316,33 @@ def reads_codes(executor) -> bool:
 
 
 def executor_of(session):
+    """The session's plan executor (a UsageError for the reference backend), which from now on also encodes 8-bit
+    sRGB where it can (:func:`encode_on`)."""
     ex = session.executor
     if ex is None:
         raise UsageError("--memory needs a plan executor (--backend gl or cpu): the reference backend "
                          "holds whole pictures")
+    encode_on(ex)
     return ex
+
+
+def encode_on(executor) -> None:
+    """Have 8-bit sRGB encoding (:func:`pyramid_cli.imageio.colour.srgb8`, the writers' and tile encoders') run on
+    the compiled CPU executor's loop (its ``encode8``), where ``executor`` is one: the same codes, 3× faster than
+    numpy's lookups. The loop is asked for at its first call, so an executor still loading in the background is
+    not waited for here."""
+    if not callable(getattr(type(executor), "encode8", None)):
+        return
+    from pyramid_cli.imageio.colour import use_srgb8_loop
+
+    loop: list = []
+
+    def first(*args) -> None:
+        if not loop:
+            loop.append(executor.encode8())
+        loop[0](*args)
+
+    use_srgb8_loop(first)
 
 
 def costs(executor) -> dict:

@@ -63,10 +63,27 @@ def _srgb8_by_formula(x: np.ndarray) -> np.ndarray:
     return np.clip(np.floor(v + 0.5), 0, 255).astype(np.uint8)
 
 
-def test_srgb8_is_the_formula_on_every_kind_of_float32():
-    """srgb8's bucket lookup against the float64 formula: around every code boundary (±2 ulps, both signs), a
-    sweep of all 2^32 bit patterns (every 4099th: every exponent, both signs, the NaNs), and the values that take
-    its slow path (+inf, and NaNs that share +inf's bucket) beside ordinary ones in one band, at a band's edges."""
+def bucket_loop(out, x, bits, codes, thresholds, i0, i1):
+    """What a compiled loop given to use_srgb8_loop computes (the CPU executor's ``encode8``), in numpy."""
+    b = bits[i0:i1] >> 16
+    with np.errstate(invalid="ignore"):
+        c = codes[b] + (x[i0:i1] >= thresholds[b])
+    c[np.isnan(x[i0:i1])] = 0
+    out[i0:i1] = c
+
+
+@pytest.fixture(params=["numpy", "loop"])
+def srgb8_route(request, monkeypatch):
+    """srgb8 by numpy's lookups, then on a loop over :func:`srgb8_buckets` (restored after the test)."""
+    monkeypatch.setattr(colour, "_LOOP", [bucket_loop] if request.param == "loop" else [])
+    return request.param
+
+
+def test_srgb8_is_the_formula_on_every_kind_of_float32(srgb8_route):
+    """srgb8's bucket lookup against the float64 formula, by numpy and on a loop over the 16-bit buckets: around
+    every code boundary (±2 ulps, both signs), a sweep of all 2^32 bit patterns (every 4099th: every exponent,
+    both signs, the NaNs), and the values that take numpy's slow path (+inf, and NaNs that share +inf's bucket)
+    beside ordinary ones in one band, at a band's edges."""
     thresholds, _ = colour.srgb8_tables()
     t = thresholds.view(np.uint32).astype(np.int64)
     edges = np.concatenate([t + d for d in (-2, -1, 0, 1, 2)]).astype(np.uint32).view(np.float32)

@@ -397,3 +397,34 @@ def test_weigh_is_the_whole_run_s_estimate_and_its_files_codecs(tmp_path):
         assert dwab is not None and dwab - bare == held > 0
         assert stream.weigh(str(tmp_path / "missing.exr"), work, session) is None
     assert stream.weigh(src, work, None) is None
+
+
+def test_a_cpu_executor_encodes_8bit_srgb_on_its_compiled_loop(monkeypatch):
+    """executor_of gives srgb8 the compiled CPU executor's loop (asked for at the loop's first call), the same
+    codes; the emulator, which stands in for it without numba, and GL leave numpy's lookups."""
+    from pyramid_cli.exec.emulate import Emulator
+    from pyramid_cli.imageio import colour
+
+    monkeypatch.setattr(colour, "_LOOP", [])
+    x = np.linspace(-0.5, 1.5, 10001, dtype=np.float32)
+    want = colour.srgb8(x)
+    stream.encode_on(Emulator())
+    assert colour._LOOP == []
+
+    class Compiled:
+        asked = 0
+
+        def encode8(self):
+            Compiled.asked += 1
+            return lambda out, x, bits, codes, thresholds, i0, i1: out.__setitem__(slice(i0, i1), 9)
+
+    stream.encode_on(Compiled())
+    assert Compiled.asked == 0  # not waited for while the executor may still be loading
+    assert (colour.srgb8(x) == 9).all() and (colour.srgb8(x[:5]) == 9).all() and Compiled.asked == 1
+    pytest.importorskip("numba")
+    from pyramid_cli.exec.session import Session
+
+    with Session("cpu") as session:
+        stream.executor_of(session)
+        np.testing.assert_array_equal(colour.srgb8(x), want)
+        assert len(colour._LOOP) == 1  # registered: the codes above came through it

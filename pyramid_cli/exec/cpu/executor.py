@@ -43,7 +43,9 @@ from pyramid_cli.core.errors import BackendError
 from pyramid_cli.core.machine import usable_cores
 from pyramid_cli.exec.cpu import aot
 from pyramid_cli.exec.cpu.codegen import (
+    ENCODE8_SIGNATURE,
     POINTWISE_CODES,
+    encode8_source,
     kernel_source,
     phase_terms,
     pointwise_signature,
@@ -459,6 +461,18 @@ class CPUExecutor:
             source = pointwise_source(key[1])
             fn = load(source, self.cache)
             self._ready(fn, pointwise_signature(key[1]), source_digest(source))
+            self._kernels[key] = fn
+        return fn
+
+    def encode8(self) -> Callable[..., None]:
+        """The compiled 8-bit encoding by table (:func:`encode8_source`), loaded once: what image I/O's exact sRGB
+        encoding runs on in a run with a CPU executor (:func:`pyramid_cli.imageio.colour.use_srgb8_loop`)."""
+        key = ("encode8", "float32")
+        fn = self._kernels.get(key)
+        if fn is None:
+            source = encode8_source()
+            fn = load(source, self.cache)
+            self._ready(fn, ENCODE8_SIGNATURE, source_digest(source))
             self._kernels[key] = fn
         return fn
 
