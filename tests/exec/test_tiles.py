@@ -441,3 +441,32 @@ def test_a_sink_may_keep_the_rows_it_is_given_without_a_copy(cpu_executor, borde
                     np.testing.assert_array_equal(px, whole[j][r:r + px.shape[0], c:c + px.shape[1]])
                     seen[r:r + px.shape[0], c:c + px.shape[1]] += 1
                 assert (seen == 1).all(), f"{work.label} output {k}: band {band}, width {width}"
+
+
+def test_codes_are_kept_as_the_executor_reads_them(cpu_executor):
+    """A run on 8-bit codes keeps them as uint16, the type the executor reads through its table, so no step
+    converts its windows again; the pixels are those of the floats ``table[codes]``, tiled or not."""
+    size = (37, 29)
+    codes = np.random.default_rng(3).integers(0, 256, size + (3,), dtype=np.uint8)
+    table = np.linspace(0, 1, 256, dtype=np.float32) ** 2
+    p = Levels(levels=3).plan((size,))
+    seen = set()
+
+    class Recording:
+        def __getattr__(self, name):
+            return getattr(cpu_executor, name)
+
+        def run_outputs(self, plan_, images, dtype=np.float32, codes=None):
+            seen.update(a.dtype.name for a in images if a.dtype.kind == "u")  # the codes, not the levels
+            return cpu_executor.run_outputs(plan_, images, dtype, codes=codes)
+
+    got: dict = {k: np.zeros(p.images[k].size + (3,), np.float32) for k in p.outputs}
+
+    def sink(k, r, c, px):
+        got[k][r:r + px.shape[0], c:c + px.shape[1]] = px
+
+    tiles.Scheduler(Recording(), p, lambda k, r, c: codes[r[0]:r[1], c[0]:c[1]], sink, band=8, width=13,
+                    codes=table).run()
+    assert seen == {"uint16"}
+    for k, want in zip(p.outputs, cpu_executor.run_outputs(p, [table[codes]]), strict=True):
+        np.testing.assert_array_equal(got[k], want)
