@@ -122,6 +122,7 @@ class _TileFolderWriter(TileSetWriter):
         self._memfds: list[int] = []
         self._lock = threading.Lock()
         self._files = threading.Lock()  # held while a tile's file is made (_write_file)
+        self._folders: set[str] = set()  # level folders made (or found) by _write_file
         self._part = False  # writes tile rows into another writer's staging folder (part)
 
     # ---------------------------------------------------------------- geometry
@@ -349,8 +350,7 @@ class _TileFolderWriter(TileSetWriter):
             spec = oiio.ImageSpec(self._template)
             spec.width, spec.height = tile.shape[1], tile.shape[0]
             spec.full_width, spec.full_height = spec.width, spec.height
-            os.ftruncate(mem, 0)
-            failure = None
+            failure = None  # (OpenImageIO's open truncates the memory file)
             try:
                 checked(out, out.open(name, spec), "open")
                 checked(out, out.write_image(tile), "write")  # a column slice: OpenImageIO takes its strides
@@ -361,7 +361,7 @@ class _TileFolderWriter(TileSetWriter):
             if failure is not None:
                 raise failure
             checked(out, closed, "close")
-            data = os.pread(mem, os.fstat(mem).st_size, 0)
+            data = self._encoded(mem)
             if not data:
                 raise WriteFailed("nothing was encoded")
             with self._files:  # one file made at a time: see _write_file
@@ -373,15 +373,26 @@ class _TileFolderWriter(TileSetWriter):
         except OSError as exc:
             raise OutputError(f"cannot write {self.path}: {error_reason(exc)}{diagnosis(target)}") from None
 
-    def _write_file(self, target: str, data: bytes) -> None:
+    def _encoded(self, mem: int) -> memoryview:
+        """The bytes of the memory file ``mem``, read in one call into this thread's buffer (grown while full): a
+        tile's every call that lets go of the GIL waits to take it back while the other threads run Python."""
+        loc = self._local
+        buf = getattr(loc, "buf", None) or bytearray(1 << 16)
+        while (n := os.preadv(mem, [buf], 0)) == len(buf):
+            buf = bytearray(2 * len(buf))
+        loc.buf = buf
+        return memoryview(buf)[:n]
+
+    def _write_file(self, target: str, data: bytes | memoryview) -> None:
         """``data`` into the new file ``target`` (its level folder made when missing). The encoders take turns here:
         files made at once in one folder contend for its lock in the kernel, which spins (on ext4 without a
         journal, each new file first passes over every inode deleted in the last minutes: an 8K Deep Zoom written
         just after another was removed spent more CPU spinning there than encoding its tiles)."""
         assert self._staging is not None
         folder = os.path.dirname(target)
-        if not os.path.isdir(folder):
+        if folder not in self._folders:
             _make_folders(self._staging.staged[0], folder)
+            self._folders.add(folder)
         fd = os.open(target, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o666)
         try:
             view = memoryview(data)

@@ -199,6 +199,28 @@ def test_png_tiles_hold_the_encoded_levels_exactly(sources, tmp_path, cls, optio
     assert checked == sum(a * b for a, b in (lv["tiles"] for lv in report["levels"]))
 
 
+def test_tiles_larger_than_the_encoders_first_buffer_are_written_whole(tmp_path):
+    """Noise PNG tiles of about 190 KB (each encoder thread reads a tile back in one call into a buffer it grows
+    from 64 KiB) hold every stored value, and the small edge tiles written after them only their own bytes."""
+    px = np.random.default_rng(4).integers(0, 256, (300, 300, 3), dtype=np.uint8)
+    path = str(tmp_path / "noise.png")
+    assert oiio.ImageBuf(px).write(path)
+    img = read_image(path)
+    levels = list(pyr.pyramid(img.pixels, backend="reference", dtype=np.float32))
+    w, _ = write(DeepZoomWriter, tmp_path / "pic.dzi", img, levels, band=64, suffix="png")
+    sizes = []
+    for k in range(len(w.sizes)):
+        stored = w.encode(levels[k])
+        cols, rows = w.grid(k)
+        for r in range(rows):
+            for c in range(cols):
+                x0, y0, x1, y1 = w.tile_box(k, c, r)
+                tile = os.path.join(w.tile_folder, w.tile_name(k, c, r))
+                sizes.append(os.path.getsize(tile))
+                np.testing.assert_array_equal(oiio.ImageBuf(tile).get_pixels(oiio.UINT8), stored[y0:y1, x0:x1])
+    assert max(sizes) > 2 << 16 and min(sizes) < 1 << 10  # the buffer grew twice; small tiles came after
+
+
 def test_jpeg_tiles_are_libvips_jpeg_of_the_levels(sources, tmp_path):
     """Each JPEG tile decodes close to the level's stored values, and its entropy-coded data is what libvips's
     JPEG writer makes of the same pixels (Q 75, 4:2:0; Q 90: 4:4:4)."""
