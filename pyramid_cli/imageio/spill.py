@@ -10,6 +10,7 @@ is an :class:`~pyramid_cli.core.errors.OutputError` naming the user's output it 
 from __future__ import annotations
 
 import os
+from collections.abc import Iterator
 
 import numpy as np
 
@@ -63,8 +64,7 @@ class KeptRows:
         return self.fd
 
     def _failed(self, exc: OSError) -> OutputError:
-        return OutputError(f"cannot write {self.beside}: {error_reason(exc)} (in the temporary file of its "
-                           f"{self.what} beside it)")
+        return _failed(self, exc)
 
     def write(self, i: int, r: int, px: np.ndarray) -> None:
         """Rows ``r ..`` of image ``i``."""
@@ -86,18 +86,73 @@ class KeptRows:
         if self.arrays is not None:
             return self.arrays[i][r0:r1]
         _, w, c = self.shapes[i]
-        size = (r1 - r0) * w * c * self.dtype.itemsize
+        out = np.empty((r1 - r0, w, c), dtype=self.dtype)
+        view, at = out.data.cast("B"), self._at(i, r0)  # read straight into the rows: one copy, no bytes
         fd = self._file()
-        data = bytearray()
         try:
-            while len(data) < size:
-                chunk = os.pread(fd, size - len(data), self._at(i, r0) + len(data))
-                if not chunk:
-                    raise OSError(f"the temporary file ends {size - len(data)} bytes early")
-                data += chunk
+            while view:
+                n = os.preadv(fd, [view], at)
+                if not n:
+                    raise OSError(f"the temporary file ends {len(view)} bytes early")
+                view, at = view[n:], at + n
         except OSError as exc:
             raise self._failed(exc) from None
-        return np.frombuffer(data, dtype=self.dtype).reshape(r1 - r0, w, c)
+        return out
 
 
 __all__ = ["KeptRows"]
+
+
+class KeptChunks:
+    """Encoded chunks of ``count`` images (a level's compressed tiles, in file order) kept until their turn in the
+    temporary file ``path``: appended as they are made, read back one at a time, in order (no mapping: nothing of
+    them in the process's memory). Errors as :class:`KeptRows`'s."""
+
+    def __init__(self, count: int, path: str, *, beside: str = "", what: str = "levels"):
+        self.beside, self.what = beside, what
+        self.index: list[list[tuple[int, int]]] = [[] for _ in range(count)]  # (offset, length) per chunk
+        self.end = 0
+        try:
+            self.fd: int | None = os.open(path, os.O_RDWR | os.O_CREAT, 0o600)
+        except OSError as exc:
+            raise _failed(self, exc) from None
+
+    def close(self) -> None:
+        if self.fd is not None:
+            os.close(self.fd)
+            self.fd = None
+
+    def append(self, i: int, data: bytes) -> None:
+        """The next chunk of image ``i``."""
+        if self.fd is None:
+            raise ValueError(f"the temporary file of the {self.what} is closed")
+        view, at = memoryview(data), self.end
+        try:
+            while view:
+                n = os.pwrite(self.fd, view, at)
+                view, at = view[n:], at + n
+        except OSError as exc:
+            raise _failed(self, exc) from None
+        self.index[i].append((self.end, len(data)))
+        self.end = at
+
+    def chunks(self, i: int) -> Iterator[bytes]:
+        """Image ``i``'s chunks, in the order they came."""
+        for at, size in self.index[i]:
+            if self.fd is None:
+                raise ValueError(f"the temporary file of the {self.what} is closed")
+            try:
+                data = os.pread(self.fd, size, at)
+                while len(data) < size:
+                    more = os.pread(self.fd, size - len(data), at + len(data))
+                    if not more:
+                        raise OSError(f"the temporary file ends {size - len(data)} bytes early")
+                    data += more
+            except OSError as exc:
+                raise _failed(self, exc) from None
+            yield data
+
+
+def _failed(kept: KeptRows | KeptChunks, exc: OSError) -> OutputError:
+    return OutputError(f"cannot write {kept.beside}: {error_reason(exc)} (in the temporary file of its "
+                       f"{kept.what} beside it)")

@@ -7,7 +7,7 @@ import pytest
 
 from helpers.images import noise
 from pyramid_cli.core.errors import OutputError
-from pyramid_cli.imageio.spill import KeptRows
+from pyramid_cli.imageio.spill import KeptChunks, KeptRows
 
 SHAPES = [(5, 3, 2), (2, 1, 2)]
 
@@ -34,3 +34,31 @@ def test_a_file_that_fails_names_the_output_beside_it(tmp_path):
     kept.close()
     with pytest.raises(ValueError, match="closed"):
         kept.rows(0, 0, 1)
+
+
+def test_chunks_come_back_per_image_in_the_order_they_came(tmp_path):
+    """Chunks of two images appended interleaved (a pyramidal TIFF's levels compressed as they complete) come back
+    per image, in order, whole; a closed file is a ValueError."""
+    kept = KeptChunks(2, str(tmp_path / "chunks"), beside="out.tif")
+    want: list[list[bytes]] = [[], []]
+    for n in range(7):
+        data = bytes([n]) * (n * 1000 + 1)
+        kept.append(n % 2, data)
+        want[n % 2].append(data)
+    assert [list(kept.chunks(i)) for i in (0, 1)] == want
+    assert (tmp_path / "chunks").stat().st_size == sum(len(d) for d in want[0] + want[1])
+    kept.close()
+    with pytest.raises(ValueError, match="closed"):
+        kept.append(0, b"x")
+
+
+def test_a_chunk_file_that_fails_names_the_output_beside_it(tmp_path, monkeypatch):
+    with pytest.raises(OutputError, match=r"cannot write out\.tif: .*temporary file of its reduced levels"):
+        KeptChunks(1, str(tmp_path / "gone" / "chunks"), beside="out.tif", what="reduced levels")
+    kept = KeptChunks(1, str(tmp_path / "chunks"), beside="out.tif")
+    kept.append(0, b"abc")
+    (tmp_path / "chunks").write_bytes(b"a")  # cut short under it
+    with pytest.raises(OutputError, match="ends 2 bytes early"):
+        list(kept.chunks(0))
+    kept.close()
+

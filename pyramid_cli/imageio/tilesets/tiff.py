@@ -12,9 +12,11 @@ most of a writer's time) and stored in the order given. A TIFF holds level 0's t
 written as each row of tiles completes: tifffile's ``TiffWriter.write`` consumes a generator of tiles on a
 thread of its own, fed through a short queue by
 :meth:`~pyramid_cli.imageio.tilesets.base.TileSetWriter.rows` (which waits when the file is behind). The
-coarser levels (a third of level 0 in all) are kept as stored values in a temporary file in the staging folder
-(explicit reads and writes: no mapping, nothing of them in the process's memory) and written
-from it at :meth:`~pyramid_cli.imageio.tilesets.base.TileSetWriter.finish`. Memory: a few rows of level 0's
+coarser levels (a third of level 0 in all) are kept in a temporary file in the staging folder (explicit reads and
+writes: no mapping, nothing of them in the process's memory) and written from it at
+:meth:`~pyramid_cli.imageio.tilesets.base.TileSetWriter.finish`: with JPEG, compressed on the pool as their rows of
+tiles complete, by tifffile's own codec and arguments (the bytes tifffile makes; the end then only copies them);
+otherwise as stored values, compressed by tifffile at the end. Memory: a few rows of level 0's
 tiles (tile size × width × channels each: the one being filled, two queued for the file, and what tifffile
 gathers to compress on its threads) and a few bands being encoded, never a whole level.
 
@@ -43,7 +45,7 @@ from pyramid_cli.core.errors import OutputError, UsageError
 from pyramid_cli.imageio.atomic import error_reason
 from pyramid_cli.imageio.encode import encode as encode_image
 from pyramid_cli.imageio.image import Image
-from pyramid_cli.imageio.spill import KeptRows
+from pyramid_cli.imageio.spill import KeptChunks, KeptRows
 from pyramid_cli.imageio.tilesets.base import TileOptions, TileSetWriter
 from pyramid_cli.imageio.tilesets.staging import Staging
 
@@ -61,6 +63,7 @@ _UNITS = {"in": ("INCH", 25400.0), "inch": ("INCH", 25400.0), "cm": ("CENTIMETER
 _QUEUED = 2  # rows of level-0 tiles waiting for the file at most
 ENCODERS = 2  # threads encoding rows to stored values beside the band pipeline
 _ENCODING = 2  # bands being encoded before rows() waits for the oldest (copies of the caller's float rows)
+_PACKING = 2   # rows of tiles of levels 1.. being compressed before rows() waits for the oldest
 
 
 class _Aborted(Exception):
@@ -99,7 +102,9 @@ class PyramidTiffWriter(TileSetWriter):
         self._queue: queue.Queue = queue.Queue(maxsize=_QUEUED)
         self._stop = threading.Event()
         self._failure: BaseException | None = None
-        self._band: np.ndarray | None = None  # level 0's row of tiles being completed (stored values)
+        self._bands: list[np.ndarray | None] = [None] * len(self.sizes)  # each level's row of tiles being filled
+        self._packed: KeptChunks | None = None  # levels 1..'s tiles compressed as they complete (JPEG)
+        self._packing: deque[tuple[int, Future]] = deque()  # rows of tiles being compressed, in level order
         self._given = [0] * len(self.sizes)   # rows received per level
         self._done = [0] * len(self.sizes)    # rows stored per level
         self._pool: ThreadPoolExecutor | None = None
@@ -240,7 +245,10 @@ class PyramidTiffWriter(TileSetWriter):
         self._staging = Staging([self.path])
         c, item = self._stored().nchannels, self.dtype.itemsize
         shapes = [(h, w, c) for h, w in self.sizes]
-        if len(shapes) > 1:
+        if len(shapes) > 1 and self._packs():
+            self._packed = KeptChunks(len(shapes) - 1, os.path.join(self._staging.root, "levels.jpeg"),
+                                      beside=self.path, what="reduced levels")
+        elif len(shapes) > 1:
             self._spill = KeptRows(shapes[1:], os.path.join(self._staging.root, "levels.raw"), self.dtype,
                                    beside=self.path, what="reduced levels")
         total = sum(h * w for h, w, _ in shapes) * c * item
@@ -342,26 +350,65 @@ class PyramidTiffWriter(TileSetWriter):
             self._store(level, y0, future.result())
 
     def _store(self, level: int, y0: int, data: np.ndarray) -> None:
-        """Stored rows ``y0..`` of ``level``: levels 1.. to the spill, level 0 into its row of tiles, handed to
-        the file's thread when complete."""
+        """Stored rows ``y0..`` of ``level``: level 0 into its row of tiles, handed to the file's thread when
+        complete; levels 1.. likewise into rows of tiles compressed on the pool (JPEG), else to the spill."""
         self._done[level] = y0 + len(data)
-        if level:
+        if level and self._packed is None:
             assert self._spill is not None, "levels 1.. have a spill"
             self._spill.write(level - 1, y0, data)
             return
-        h, w = self.sizes[0]
+        for band in self._tile_rows(level, y0, data):
+            if not level:
+                self._put(band)
+                continue
+            assert self._pool is not None
+            self._packing.append((level, self._pool.submit(self._pack, band)))
+            self._unpack(_PACKING)
+
+    def _tile_rows(self, level: int, y0: int, data: np.ndarray) -> Iterator[np.ndarray]:
+        """Each row of tiles of ``level`` that rows ``y0..`` complete (filled in :attr:`_bands`)."""
+        h, w = self.sizes[level]
         t, at = self.tile, 0
         while at < len(data):
             y = y0 + at
-            if self._band is None:
-                self._band = np.empty((min(t, h - y), w, data.shape[2]), self.dtype)
+            band = self._bands[level]
+            if band is None:
+                band = self._bands[level] = np.empty((min(t, h - y), w, data.shape[2]), self.dtype)
             r = y % t
-            n = min(len(data) - at, len(self._band) - r)
-            self._band[r:r + n] = data[at:at + n]
+            n = min(len(data) - at, len(band) - r)
+            band[r:r + n] = data[at:at + n]
             at += n
-            if r + n == len(self._band):
-                band, self._band = self._band, None
-                self._put(band)
+            if r + n == len(band):
+                self._bands[level] = None
+                yield band
+
+    def _packs(self) -> bool:
+        """Whether levels 1.. are compressed as their rows of tiles complete (JPEG: tifffile's codec is called
+        alone, :meth:`_pack`), rather than kept as stored values and compressed by tifffile at the end: the end
+        then only copies them, and the compression ran beside the band pipeline."""
+        return self.codec.startswith("jpeg")
+
+    def _pack(self, band: np.ndarray) -> list[bytes]:
+        """A row of tiles of a reduced level as the file stores them: tifffile's own JPEG encoding of each, as its
+        ``write`` sets it up for these pages (its codec at the level asked, and for RGB the 2×2 subsampling into
+        YCbCr it writes the tags of), so the file holds the bytes tifffile would have made."""
+        import tifffile
+
+        kw = dict(self._page_options(1).get("compressionargs", {}))
+        n = self._stored().nchannels
+        if n == 3:
+            kw.update(subsampling=(2, 2), colorspace="RGB", outcolorspace="YCBCR")
+        encode, shape = tifffile.TIFF.COMPRESSORS[7], (self.tile, self.tile, n)
+        return [encode(np.ascontiguousarray(t).reshape(shape), **kw) for t in _tiles(band, self.tile, True)]
+
+    def _unpack(self, keep: int) -> None:
+        """Keep the compressed rows of tiles that are ready, in the order they came, waiting for the oldest while
+        more than ``keep`` are being compressed."""
+        assert self._packed is not None
+        while self._packing and (len(self._packing) > keep or self._packing[0][1].done()):
+            level, future = self._packing.popleft()
+            for data in future.result():
+                self._packed.append(level - 1, data)
 
     def _finish(self) -> dict:
         if self._staging is None:
@@ -369,6 +416,8 @@ class PyramidTiffWriter(TileSetWriter):
         self._raise_failure()
         assert self._pool is not None
         self._take(0)
+        if self._packed is not None:
+            self._unpack(0)
         self._pool.shutdown()
         missing = [k for k, (h, _) in enumerate(self.sizes) if self._done[k] != h]
         if missing:
@@ -379,14 +428,16 @@ class PyramidTiffWriter(TileSetWriter):
         self._raise_failure()
         try:
             for k in range(1, len(self.sizes)):
-                self._tif.write(self._from_spill(k), shape=self._shape(k), dtype=self.dtype,
+                tiles = self._from_spill(k) if self._packed is None else self._packed.chunks(k - 1)
+                self._tif.write(tiles, shape=self._shape(k), dtype=self.dtype,
                                 metadata=None if not self.ome else {}, **self._page_options(k))
             tif, self._tif = self._tif, None
             tif.close()
             with open(self._staging.staged[0], "rb+") as fh:
                 os.fsync(fh.fileno())
-            if self._spill is not None:
-                self._spill.close()
+            for kept in (self._spill, self._packed):
+                if kept is not None:
+                    kept.close()
             self._staging.commit()
         except OSError as exc:
             raise self._error(exc) from None
@@ -411,6 +462,7 @@ class PyramidTiffWriter(TileSetWriter):
         if self._pool is not None:
             self._pool.shutdown(wait=True, cancel_futures=True)
         self._encoding.clear()
+        self._packing.clear()
         with contextlib.suppress(queue.Full):
             self._queue.put_nowait(None)
         if self._thread is not None:
@@ -420,8 +472,9 @@ class PyramidTiffWriter(TileSetWriter):
             with contextlib.suppress(Exception):
                 self._tif.close()
             self._tif = None
-        if self._spill is not None:
-            self._spill.close()
+        for kept in (self._spill, self._packed):
+            if kept is not None:
+                kept.close()
         if self._staging is not None:
             self._staging.discard()
 

@@ -29,6 +29,8 @@ def _info(kind: str, **attributes) -> ImageInfo:
         return ImageInfo("in.exr", "openexr", "half", names[3], -1, "linear", "none", attributes=attributes)
     if kind == "rgba16":
         return ImageInfo("in.png", "png", "uint16", names[4], 3, "srgb", "straight", attributes=attributes)
+    if kind == "y8":
+        return ImageInfo("in.png", "png", "uint8", names[1], -1, "srgb", "none", attributes=attributes)
     assert kind == "y32"
     return ImageInfo("in.exr", "openexr", "float", names[1], -1, "linear", "none", attributes=attributes)
 
@@ -132,6 +134,37 @@ def test_jpeg_tiles_within_jpeg_error(tmp_path, name):
             alone = imagecodecs.jpeg8_decode(imagecodecs.jpeg8_encode(want, level=90, subsampling=(2, 2)))
             # as close as the level encoded whole at the same quality and chroma subsampling, give or take 1 dB
             assert _psnr(level.asarray(), want) > _psnr(alone, want) - 1
+
+
+def _segments(path) -> list[list[bytes]]:
+    """Every level's stored tiles, as the file holds them (compressed), read through tifffile."""
+    out = []
+    with tifffile.TiffFile(path) as tif, open(path, "rb") as fh:
+        for level in tif.series[0].levels:
+            page, tiles = level.keyframe, []
+            for at, size in zip(page.dataoffsets, page.databytecounts, strict=True):
+                fh.seek(at)
+                tiles.append(fh.read(size))
+            out.append(tiles)
+    return out
+
+
+@pytest.mark.parametrize("name", ["j.tif", "j.ome.tif"])
+@pytest.mark.parametrize(("shape", "kind"), [((75, 101, 3), "rgb8"), ((75, 101, 1), "y8"), ((20, 300, 3), "rgb8")])
+def test_jpeg_levels_compressed_as_they_come_are_the_bytes_tifffile_makes(tmp_path, monkeypatch, name, shape, kind):
+    """The reduced levels' JPEG tiles, compressed on the pool as their rows complete (tifffile's codec called
+    alone), are the bytes tifffile makes of the same tiles at the end: the same file (an OME-TIFF's UUID aside:
+    the same tiles at every level, the same level count)."""
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    w, _, _ = _write(tmp_path / "a" / name, kind, _pyramid, shape, compression="jpeg", quality=83)
+    assert len(w.sizes) > 1 and w._packs()
+    monkeypatch.setattr(type(w), "_packs", lambda self: False)
+    _write(tmp_path / "b" / name, kind, _pyramid, shape, compression="jpeg", quality=83)
+    a, b = tmp_path / "a" / name, tmp_path / "b" / name
+    assert _segments(a) == _segments(b) and len(_segments(a)) == len(w.sizes)
+    if not name.endswith(".ome.tif"):
+        assert a.read_bytes() == b.read_bytes()
 
 
 @pytest.mark.parametrize(("codec", "tag", "kind", "name"), [
@@ -304,14 +337,16 @@ def test_a_failing_file_is_an_output_error_and_aborts_clean(tmp_path, monkeypatc
     assert os.listdir(tmp_path) == []
 
 
-def test_a_failing_spill_is_an_output_error(tmp_path, monkeypatch):
+@pytest.mark.parametrize("codec", [None, "jpeg"])  # the reduced levels kept as values, or compressed as they come
+def test_a_failing_spill_is_an_output_error(tmp_path, monkeypatch, codec):
     from pyramid_cli.imageio.tilesets import tiff
 
     def full(*args):
         raise OSError(28, "No space left on device")
 
     path = tmp_path / "g.ome.tif"
-    writer = writer_class("ome-tiff")(str(path), _info("rgb8"), (37, 53), 3, TileOptions(tile_size=TILE))
+    writer = writer_class("ome-tiff")(str(path), _info("rgb8"), (37, 53), 3,
+                                      TileOptions(tile_size=TILE, compression=codec))
     levels = _pyramid(_picture(37, 53, 3), len(writer.sizes))
     writer.rows(0, 0, levels[0])
     monkeypatch.setattr(tiff.os, "pwrite", full)
