@@ -325,6 +325,9 @@ def srgb8_buckets() -> tuple[np.ndarray, np.ndarray]:
 
 
 _LOOP: list[Callable[..., None]] = []  # the compiled loop srgb8 runs on, once one is given (use_srgb8_loop)
+# values from which srgb8 runs on the loop: a few (a writer's one-pixel spec, a check of every code) stay on numpy,
+# which does not wait for the loop's executor, still loading in the background while a run starts
+LOOP_MIN = SRGB8_BAND
 
 
 def use_srgb8_loop(loop: Callable[..., None]) -> None:
@@ -338,7 +341,8 @@ def use_srgb8_loop(loop: Callable[..., None]) -> None:
 def srgb8(x: np.ndarray) -> np.ndarray:
     """:func:`encode_integer` of ``linear_to_srgb(x)`` for 8 bits without dither, from float32 ``x``.
 
-    On a compiled loop where one was given (:func:`use_srgb8_loop`): one pass, 3× faster. Else by numpy, in
+    On a compiled loop where one was given (:func:`use_srgb8_loop`) and ``x`` holds :data:`LOOP_MIN` values or
+    more: one pass, 3× faster. Else by numpy, in
     bands of :data:`SRGB8_BAND` values into buffers reused from band to band (whole-image temporaries cost more
     in page faults than the table lookups): the bucket's index straight as ``intp`` (no index conversions in the
     gathers), its code and its threshold gathered, the comparison added to the code. Only a band holding +inf
@@ -346,7 +350,7 @@ def srgb8(x: np.ndarray) -> np.ndarray:
     x = np.ascontiguousarray(x, dtype=np.float32)
     out = np.empty(x.shape, dtype=np.uint8)
     flat, res = x.reshape(-1), out.reshape(-1)
-    if _LOOP:
+    if _LOOP and flat.size >= LOOP_MIN:
         _LOOP[0](res, flat, flat.view(np.uint32), *srgb8_buckets(), 0, flat.size)
         return out
     codes, bucket_threshold = _srgb8_lookup()

@@ -76,6 +76,7 @@ def bucket_loop(out, x, bits, codes, thresholds, i0, i1):
 def srgb8_route(request, monkeypatch):
     """srgb8 by numpy's lookups, then on a loop over :func:`srgb8_buckets` (restored after the test)."""
     monkeypatch.setattr(colour, "_LOOP", [bucket_loop] if request.param == "loop" else [])
+    monkeypatch.setattr(colour, "LOOP_MIN", 0)  # every size on the loop
     return request.param
 
 
