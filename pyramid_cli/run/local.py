@@ -197,13 +197,13 @@ def run_in_budget(job_list: list[batch.Job], work: Work, session: Session, *, me
     """:func:`run_jobs` on this machine within the memory budget (``memory``, else
     :func:`pyramid_cli.run.budget.default_budget`: a container's limits), in job order. A picture runs alone, as
     one input does (:func:`run_alone`: streamed where it would not fit alone either, or where that is faster),
-    where its whole run (:func:`pyramid_cli.run.stream.weigh`), held :func:`held_at_once` times (no more than
+    where its whole run (:func:`pyramid_cli.run.weight.weigh`), held :func:`held_at_once` times (no more than
     the batch has pictures), would not fit the budget, and where it streams faster alone and has
     :data:`ALONE_PIXELS` (16.8 million) or more; the others run in stretches of overlapped I/O (with ``jobs`` 1,
     one whole picture after another). Two 8K half EXRs blurred in one call held 1.8 GB, which a 700 MiB
     container kills."""
     from pyramid_cli.run.budget import resolve
-    from pyramid_cli.run.stream import weigh
+    from pyramid_cli.run.weight import weigh
 
     share = resolve(memory).size // held_at_once(jobs, len(job_list))
     runs: list[tuple[bool, list[batch.Job]]] = []

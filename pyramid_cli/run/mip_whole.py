@@ -23,8 +23,9 @@ from typing import Any
 import numpy as np
 
 from pyramid_cli.run.report import announce_compiles, wrote_line
+from pyramid_cli.run.weight import HASHERS, LEVEL0_ROWS, stored_codes
 
-WRITE_ROWS = 256  # level 0's rows written between looks at whether the work failed (then the write stops)
+WRITE_ROWS = LEVEL0_ROWS  # level 0's rows written between looks at whether the work failed (then the write stops)
 
 
 @dataclass
@@ -47,17 +48,15 @@ def level0_as_read(st, out_path: str, options: dict) -> Level0 | None:
 
     Read :data:`~pyramid_cli.workflows.mip.SHA1_BLOCK` rows at a time, each band hashed on two helper threads while
     the next one is read (:func:`~pyramid_cli.workflows.mip.block_digest`) and summed for the average colour."""
-    from pyramid_cli import imageio as io
-    from pyramid_cli.imageio.read import code_table
     from pyramid_cli.workflows.mip import SHA1_BLOCK, PixelStats, block_digest, sha1_of_blocks, sha1_state
 
     h, w, c = st.shape
-    table = code_table(st.info, st.stored_dtype, c)
-    if table is None or not st.keeps_stored(io.Encoder(out_path, st.info, c, check_path=False, **options)):
+    table = stored_codes(st, out_path, options)
+    if table is None:
         return None
     stats = PixelStats(h)
     stored = np.empty((h, w, c), dtype=st.stored_dtype)
-    with ThreadPoolExecutor(2, thread_name_prefix="pyramid-sha1") as helper:
+    with ThreadPoolExecutor(HASHERS, thread_name_prefix="pyramid-sha1") as helper:
         digests = []
         for y in range(0, h, SHA1_BLOCK):
             band = stored[y:y + SHA1_BLOCK]

@@ -235,7 +235,7 @@ def choose(plan: Plan, channels: int, budget: int, *, in_bytes: int = 4, out_byt
 
 def choose_mip(plan: Plan, channels: int, budget: int, *, in_bytes: int = 4, work_bytes: int = 4,
                texture: Callable[[tuple[int, int]], int] | None = None, level0: int = 0,
-               where: str = "", codecs: int = 0) -> Choice:
+               where: str = "", codecs: int = 0, whole: int | None = None) -> Choice:
     """:func:`choose` for a MIP map streamed as :func:`run_mip` streams it.
 
     Level 0's writer holds a band of rows and their encoding. The coarser levels (``plan.outputs``, about a
@@ -243,12 +243,14 @@ def choose_mip(plan: Plan, channels: int, budget: int, *, in_bytes: int = 4, wor
     the working set, else in a temporary file beside the output (``Choice.spill``). Level 0 itself
     (``level0`` bytes, as read; 0: never) is kept in memory under the same rule when it fits, and the input
     is then read once (``Choice.level0``); otherwise twice (:func:`run_mip`). On disk it would not pay:
-    spilling 512 MiB of level 0 at 8K took as long as decoding the input again. ``codecs``: as :func:`choose`."""
+    spilling 512 MiB of level 0 at 8K took as long as decoding the input again. ``codecs``: as :func:`choose`.
+    ``whole``: the bytes of the whole run where it is not :func:`estimate`'s (a MIP map from its codes:
+    :func:`pyramid_cli.run.weight.mip_codes_bytes`), besides the codecs'."""
     def cost(band: int | None) -> int:
         return codecs + estimate(plan, channels, band, in_bytes=in_bytes, out_bytes=4, work_bytes=work_bytes,
                                  texture=texture, keeps_input=True)
 
-    whole = cost(None)
+    whole = cost(None) if whole is None else codecs + whole
     anchor = max(plan.images[k].size[0] for k in plan.outputs)
     kept = sum(a * b * channels * 4 for a, b in (plan.images[k].size for k in plan.outputs))
 
@@ -440,7 +442,7 @@ def run_bands(read: Callable[[int, int], np.ndarray], plan: Plan, executor, band
     return BandTimes(reader.busy, computed, writer.busy)
 
 
-def _write_options(write, in_path: str) -> dict:
+def write_options(write, in_path: str) -> dict:
     """The write options of a job's outputs as a dict (``write``: WriteOptions, a dict, or None)."""
     from pyramid_cli.run.settings import WriteOptions
 
@@ -448,7 +450,7 @@ def _write_options(write, in_path: str) -> dict:
     return wo.for_inputs([in_path]) if not isinstance(wo, dict) else dict(wo)
 
 
-def _output_sizes(work, plan: Plan, h: int, w: int) -> list[tuple[int, int]]:
+def output_sizes(work, plan: Plan, h: int, w: int) -> list[tuple[int, int]]:
     """(rows, columns) of each output of ``work``'s ``plan`` on an ``h`` × ``w`` input (the input first, as level
     0, when the job keeps it)."""
     return [(h, w)] * (1 if work.keeps_input else 0) + [plan.images[k].size for k in plan.outputs]
@@ -475,12 +477,12 @@ def stream_file(in_path: str, out_path: str | list[str], work, session, choice: 
         h, w, c = stream.shape
         work.check(((h, w),), where=in_path)
         plan = session.plan(work, [(h, w)])
-        options = _write_options(wo, in_path)
+        options = write_options(wo, in_path)
         info = stream.info
         if attributes:
             info = dataclasses.replace(info, attributes={**info.attributes, **attributes})
         kept = 1 if work.keeps_input else 0
-        sizes = _output_sizes(work, plan, h, w)
+        sizes = output_sizes(work, plan, h, w)
         if len(paths) != len(sizes):
             raise ValueError(f"{work.label} writes {len(sizes)} image(s), got {len(paths)} path(s)")
         half = stream.dtype == np.float16
@@ -555,8 +557,8 @@ def _decide(in_path: str, work, session, memory: int | None, read, reporter, out
         if plan is None:
             st.close()
             return None
-        codecs = Codecs.of([st], list(zip(outputs, _output_sizes(work, plan, h, w), strict=True)), st.info, c,
-                           _write_options(write, in_path))
+        codecs = Codecs.of([st], list(zip(outputs, output_sizes(work, plan, h, w), strict=True)), st.info, c,
+                           write_options(write, in_path))
         choice = choose_run(plan, c, budget, executor_of(session), where=in_path, reporter=reporter,
                             in_bytes=st.dtype.itemsize, keeps_input=work.keeps_input, codecs=codecs, limits=limits)
     except DataError as exc:
@@ -569,49 +571,6 @@ def _decide(in_path: str, work, session, memory: int | None, read, reporter, out
         st.close()
         return None
     return st, choice
-
-
-@dataclass(frozen=True)
-class Weight:
-    """What a batch weighs a picture by (:func:`pyramid_cli.run.local.run_in_budget`): ``whole``, the bytes its
-    whole run holds (``Choice.whole``: :func:`estimate` and OpenEXR's codecs for its files); ``streamed``, the
-    pixels of its widest output where :func:`choose` streams it, fitting, because bands are faster
-    (``Choice.faster``: what :func:`run_job` would do with it), else 0."""
-
-    whole: int
-    streamed: int = 0
-
-
-def weigh(in_path: str, work, session, read=None, output: str | None = None, write=None,
-          tile: int = 0) -> Weight | None:
-    """The :class:`Weight` of ``work``'s run of ``in_path`` to ``output`` (written as ``write`` asks; a MIP file in
-    tiles of ``tile``, which streams only where it would not fit), from the header: :func:`choose`'s choice with
-    no limit on the budget; None where no plan says it (the reference backend, a job of several inputs, a header
-    that cannot be read: the run itself reports why)."""
-    from pyramid_cli import imageio as io
-    from pyramid_cli.core.errors import PyramidError
-    from pyramid_cli.run.settings import ReadOptions
-
-    executor = None if session is None else session.executor
-    if executor is None or work.n_inputs != 1:
-        return None
-    try:
-        with open_input(in_path, read or ReadOptions()) as st:
-            h, w, c = st.shape
-            plan = session.plan(work, [(h, w)])
-            if plan is None:
-                return None
-            size = (h, w) if tile else _output_sizes(work, plan, h, w)[-1]
-            codecs = Codecs.of([st], [] if output is None else [(output, size)], st.info, c,
-                               _write_options(write, in_path), tile)
-            streams = not tile and streamable(work) and (output is None or io.streams_to(output))
-            choice = choose(plan, c, 1 << 62, in_bytes=st.dtype.itemsize, out_bytes=4, where=in_path,
-                            keeps_input=work.keeps_input, prefer=speed_band(plan, executor) if streams else None,
-                            codecs=codecs.first, **costs(executor))
-    except PyramidError:
-        return None
-    widest = max(a * b for a, b in (plan.images[k].size for k in plan.outputs))
-    return Weight(choice.whole, widest if choice.faster else 0)
 
 
 def run_job(job, work, session, *, memory: int | None, read=None, write=None, reporter=None,
@@ -665,6 +624,6 @@ def run_levels(in_path: str, paths: list[str], work, session, *, memory: int | N
 
 __all__ = ["BandTimes", "Choice", "choose", "choose_mip", "estimate", "parse_size", "default_memory",
            "available_memory", "stream_file", "open_input", "format_size", "run_job", "run_levels", "costs",
-           "executor_of", "read_step", "run_bands", "speed_band", "band_rows", "warn_nonfinite", "weigh", "Weight",
-           "streamable", "choose_run", "MIN_BAND",
+           "executor_of", "read_step", "run_bands", "speed_band", "band_rows", "warn_nonfinite", "streamable",
+           "choose_run", "reads_codes", "output_sizes", "write_options", "MIN_BAND",
            "STREAM_PIXELS", "BAND_PIXELS"]

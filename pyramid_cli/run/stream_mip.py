@@ -26,6 +26,7 @@ from pyramid_cli.run.stream import (
     read_step,
     warn_nonfinite,
 )
+from pyramid_cli.run.weight import mip_codes_bytes, mip_from_codes
 
 
 @contextlib.contextmanager
@@ -139,8 +140,11 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
         # coarser levels are kept until level 0's header is known, so bands save little): it streams when it must
         options = wo.for_inputs([in_path])
         codecs = Codecs.of([st], [(out_path, (h, w))], st.info, c, options, tile)
+        whole_run = mip_codes_bytes(plan, st, executor) if whole and mip_from_codes(st, out_path, options, executor) \
+            else None  # run_whole makes it from the codes
         try:
-            choice = choose_mip(plan, c, budget, level0=h * w * c * st.dtype.itemsize, codecs=codecs.first, **kw)
+            choice = choose_mip(plan, c, budget, level0=h * w * c * st.dtype.itemsize, codecs=codecs.first,
+                                whole=whole_run, **kw)
         except DataError as exc:
             raise given.refusal(exc) from None
         reporter.detail(f"{in_path}: {choice.describe()}")

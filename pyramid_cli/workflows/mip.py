@@ -146,7 +146,9 @@ def stored_floats(data: np.ndarray) -> np.ndarray:
     """Stored values as OpenImageIO converts them to float32: integers times ``float32(1/max)``
     (``convert_type``, bit for bit), half widened, float as is."""
     if np.issubdtype(data.dtype, np.integer):
-        return data.astype(np.float32) * np.float32(1 / np.iinfo(data.dtype).max)
+        out = data.astype(np.float32)
+        out *= np.float32(1 / np.iinfo(data.dtype).max)  # in place: one float copy of the rows held, not two
+        return out
     return data.astype(np.float32, copy=False)
 
 

@@ -14,7 +14,7 @@ from pyramid_cli.run import batch
 from pyramid_cli.run.local import held_at_once, run_in_budget, run_jobs, texture_channels
 from pyramid_cli.run.report import Reporter
 from pyramid_cli.run.settings import ReadOptions, WriteOptions
-from pyramid_cli.run.stream import weigh
+from pyramid_cli.run.weight import weigh
 
 
 @pytest.fixture(scope="module")

@@ -377,28 +377,6 @@ def test_a_signal_during_a_streamed_write(tmp_path):
                    lambda f: io.read_image(f).pixels.shape == (1024, 1024, 3))
 
 
-def test_weigh_is_the_whole_run_s_estimate_and_its_files_codecs(tmp_path):
-    """``weigh`` (what a batch weighs each picture by: run.local.run_in_budget) is :func:`stream.estimate` of
-    the whole run, plus what OpenEXR's codecs hold on one thread for the input and for the output as it will be
-    written (a DWAB output); None for what it cannot say."""
-    from pyramid_cli.exec.session import Session
-    from pyramid_cli.run.settings import ReadOptions, WriteOptions
-
-    src = str(write(tmp_path / "in.exr", noise(300, 200, seed=3), "half", compression="zip"))
-    out = str(tmp_path / "o.exr")
-    work = Blur(levels=2)
-    with Session("cpu") as session, stream.open_input(src, ReadOptions()) as st:
-        plan = session.plan(work, [(300, 200)])
-        bare = stream.weigh(src, work, session).whole
-        assert bare == st.codec_memory().first + stream.estimate(plan, 4, None, in_bytes=2, out_bytes=4,
-                                                                 **stream.costs(session.executor))
-        dwab = stream.weigh(src, work, session, output=out, write=WriteOptions(compression="dwab")).whole
-        held = io.output_codec_memory(out, st.info, 4, (300, 200), compression="dwab").first
-        assert dwab is not None and dwab - bare == held > 0
-        assert stream.weigh(str(tmp_path / "missing.exr"), work, session) is None
-    assert stream.weigh(src, work, None) is None
-
-
 def test_a_cpu_executor_encodes_8bit_srgb_on_its_compiled_loop(monkeypatch):
     """executor_of gives srgb8 the compiled CPU executor's loop (asked for at the loop's first call), the same
     codes; the emulator, which stands in for it without numba, and GL leave numpy's lookups."""
