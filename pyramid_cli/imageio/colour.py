@@ -342,11 +342,10 @@ def srgb8(x: np.ndarray) -> np.ndarray:
     """:func:`encode_integer` of ``linear_to_srgb(x)`` for 8 bits without dither, from float32 ``x``.
 
     On a compiled loop where one was given (:func:`use_srgb8_loop`) and ``x`` holds :data:`LOOP_MIN` values or
-    more: one pass, 3× faster. Else by numpy, in
-    bands of :data:`SRGB8_BAND` values into buffers reused from band to band (whole-image temporaries cost more
-    in page faults than the table lookups): the bucket's index straight as ``intp`` (no index conversions in the
-    gathers), its code and its threshold gathered, the comparison added to the code. Only a band holding +inf
-    or a NaN of the one mixed bucket takes the slow path (``isnan``)."""
+    more: one pass, 3× faster. Else by numpy, in bands of :data:`SRGB8_BAND` values into buffers reused from band
+    to band (whole-image temporaries cost more in page faults than the table lookups): the bucket's index straight
+    as ``intp`` (no index conversions in the gathers), its code and its threshold gathered, the comparison added
+    to the code. Only a band holding +inf or a NaN of the one mixed bucket takes the slow path (``isnan``)."""
     x = np.ascontiguousarray(x, dtype=np.float32)
     out = np.empty(x.shape, dtype=np.uint8)
     flat, res = x.reshape(-1), out.reshape(-1)
