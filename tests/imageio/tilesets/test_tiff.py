@@ -307,13 +307,15 @@ def test_refused_before_any_work(tmp_path, options, kind, says):
     assert os.listdir(tmp_path) == ([] if says != "is a directory" else ["x.tif"])
 
 
-def test_abort_leaves_the_previous_output(tmp_path):
+@pytest.mark.parametrize("codec", [None, "jpeg"])  # the reduced levels kept as values, or compressed as they come
+def test_abort_leaves_the_previous_output(tmp_path, codec):
     path = tmp_path / "a.tif"
     path.write_bytes(b"previous")
-    writer = writer_class("tiff")(str(path), _info("rgb8"), (37, 53), 3, TileOptions(tile_size=TILE))
+    writer = writer_class("tiff")(str(path), _info("rgb8"), (37, 53), 3, TileOptions(tile_size=TILE,
+                                                                                    compression=codec))
     levels = _pyramid(_picture(37, 53, 3), len(writer.sizes))
     writer.rows(0, 0, levels[0][:20])
-    writer.rows(1, 0, levels[1][:5])
+    writer.rows(1, 0, levels[1][:18])  # a row of tiles of level 1 complete (compressed, with JPEG), one not
     writer.abort()
     assert os.listdir(tmp_path) == ["a.tif"] and path.read_bytes() == b"previous"
     fresh = writer_class("ome-tiff")(str(tmp_path / "b.ome.tif"), _info("rgb8"), (37, 53), 3, TileOptions())
