@@ -13,8 +13,8 @@ What is ``vips dzsave``'s (libvips ``foreign/dzsave.c``):
   (``0,0,1024,700/512,350/0/default.jpg``; ``full/…`` for the tile that covers the whole picture), and
   ``info.json`` as dzsave writes it (``id`` ``https://example.com/iiif/NAME`` unless told).
 - JPEG as libvips writes it (baseline, standard Huffman tables, 4:2:0 chroma below Q 90, 4:4:4 from Q 90): the
-  entropy-coded data of a tile is byte-identical to libvips's for the same pixels; only the headers differ
-  (OpenImageIO adds a JFIF APP0 and a short Exif APP1). WebP at Q 75 (lossy) like ``vips webpsave``.
+  entropy-coded data of a tile is byte-identical to libvips's for the same pixels; only the header differs (a JFIF
+  APP0). WebP at Q 75 (lossy) like ``vips webpsave``.
 
 What is not: ``vips-properties.xml`` (libvips's own metadata dump, which no viewer reads) is not written, and no
 metadata goes into the tiles (dzsave's default ``--keep none``).
@@ -22,10 +22,12 @@ metadata goes into the tiles (dzsave's default ``--keep none``).
 The rows come in a level at a time, levels interleaved
 (:class:`~pyramid_cli.imageio.tilesets.base.TileSetWriter`). They are encoded to their stored values on a pool of
 two threads, then each level keeps only the rows of the tile row being completed plus its overlap (``T + 2·o``
-rows, stored values); a row of tiles goes to the pool as soon as its last row is in, each tile encoded by
-OpenImageIO into memory and written with ``os.write`` (a full disk is an error, never a process exit), all under
-a hidden staging folder that :meth:`~pyramid_cli.imageio.tilesets.base.TileSetWriter.finish` moves into place,
-the descriptor last. At most a few bands and :data:`MAX_PENDING` tiles wait for the pool.
+rows, stored values); a row of tiles goes to the pool as soon as its last row is in, each tile encoded into memory
+(JPEG by imagecodecs's libjpeg-turbo where the ``viewers`` extra installed it, else by OpenImageIO, the same
+bytes: :mod:`pyramid_cli.imageio.tilesets.jpeg`) and written with ``os.write`` (a full disk is an error, never a
+process exit), all under a hidden staging folder that
+:meth:`~pyramid_cli.imageio.tilesets.base.TileSetWriter.finish` moves into place, the descriptor last. At most a
+few bands and :data:`MAX_PENDING` tiles wait for the pool.
 """
 
 from __future__ import annotations
@@ -46,6 +48,7 @@ from pyramid_cli.imageio.encode import check_write_options
 from pyramid_cli.imageio.formats import png_compression
 from pyramid_cli.imageio.image import default_channel_names
 from pyramid_cli.imageio.tilesets.base import TileOptions, TileSetWriter
+from pyramid_cli.imageio.tilesets.jpeg import jpeg_bytes, libjpeg
 from pyramid_cli.imageio.tilesets.staging import Staging
 from pyramid_cli.imageio.write import WriteFailed, checked, diagnosis
 
@@ -123,6 +126,7 @@ class _TileFolderWriter(TileSetWriter):
         self._lock = threading.Lock()
         self._files = threading.Lock()  # held while a tile's file is made (_write_file)
         self._folders: set[str] = set()  # level folders made (or found) by _write_file
+        self._jpeg = libjpeg(self.quality) if self.fmt == "jpeg" else None  # None: OpenImageIO encodes
         self._part = False  # writes tile rows into another writer's staging folder (part)
 
     # ---------------------------------------------------------------- geometry
@@ -346,6 +350,14 @@ class _TileFolderWriter(TileSetWriter):
         assert self._staging is not None and self._template is not None
         target = os.path.join(self._staging.staged[0], rel)
         try:
+            if self._jpeg is not None:
+                try:
+                    data = self._jpeg(tile)
+                except (RuntimeError, ValueError) as exc:  # imagecodecs's Jpeg8Error is a RuntimeError
+                    raise WriteFailed(f"encode failed: {exc}") from None
+                with self._files:  # one file made at a time: see _write_file
+                    self._write_file(target, data)
+                return
             out, mem, name = self._encoder()
             spec = oiio.ImageSpec(self._template)
             spec.width, spec.height = tile.shape[1], tile.shape[0]
@@ -364,6 +376,8 @@ class _TileFolderWriter(TileSetWriter):
             data = self._encoded(mem)
             if not data:
                 raise WriteFailed("nothing was encoded")
+            if self.fmt == "jpeg":
+                data = jpeg_bytes(data)
             with self._files:  # one file made at a time: see _write_file
                 self._write_file(target, data)
         except WriteFailed as exc:
@@ -383,7 +397,7 @@ class _TileFolderWriter(TileSetWriter):
         loc.buf = buf
         return memoryview(buf)[:n]
 
-    def _write_file(self, target: str, data: bytes | memoryview) -> None:
+    def _write_file(self, target: str, data: bytes | bytearray | memoryview) -> None:
         """``data`` into the new file ``target`` (its level folder made when missing). The encoders take turns here:
         files made at once in one folder contend for its lock in the kernel, which spins (on ext4 without a
         journal, each new file first passes over every inode deleted in the last minutes: an 8K Deep Zoom written

@@ -322,21 +322,57 @@ def test_finish_replaces_the_previous_output(sources, tmp_path):
     assert (tmp_path / "pic_files" / "0" / "0_0.jpeg").read_bytes() != b"old tile"
 
 
-def test_a_tile_the_encoder_fails_on_is_one_line_naming_the_output(sources, tmp_path, monkeypatch):
+@pytest.mark.parametrize("encoder", ["imagecodecs", "openimageio"])
+def test_a_tile_the_encoder_fails_on_is_one_line_naming_the_output(sources, tmp_path, monkeypatch, encoder):
     from pyramid_cli.imageio.tilesets import deepzoom
     from pyramid_cli.imageio.write import WriteFailed
 
     def fail(out, ok, what):
         raise WriteFailed(f"{what} failed: no room in the codec")
 
-    monkeypatch.setattr(deepzoom, "checked", fail)
+    def failing(quality):
+        def encode(tile):
+            raise RuntimeError("no room in the codec")
+        return encode
+
+    if encoder == "openimageio":
+        monkeypatch.setattr(deepzoom, "libjpeg", lambda quality: None)
+        monkeypatch.setattr(deepzoom, "checked", fail)
+    else:
+        monkeypatch.setattr(deepzoom, "libjpeg", failing)
     _, img, levels = sources[(37, 53)]
     out = tmp_path / "pic.dzi"
     old = previous(out)
-    with pytest.raises(OutputError, match=r"^cannot write .*pic\.dzi: \d+/\d+_\d+\.jpeg: open failed: no room in the "
+    says = "open failed" if encoder == "openimageio" else "encode failed"
+    with pytest.raises(OutputError, match=rf"^cannot write .*pic\.dzi: \d+/\d+_\d+\.jpeg: {says}: no room in the "
                                           r"codec$"):
         write(DeepZoomWriter, out, img, levels)
     assert contents(tmp_path) == old and not leftovers(tmp_path)
+
+
+@pytest.mark.parametrize("channels, quality", [(3, None), (3, 90), (1, None), (1, 95)])
+def test_jpeg_tiles_are_the_same_bytes_whichever_library_encodes_them(tmp_path, monkeypatch, channels, quality):
+    """imagecodecs's libjpeg-turbo (the viewers extra) and OpenImageIO's, less its empty Exif segment, write every
+    tile of a Deep Zoom the same, byte for byte: 4:2:0 below Q 90, 4:4:4 from it, grey and RGB, edge tiles of one
+    pixel's width included."""
+    from pyramid_cli.imageio.tilesets import deepzoom
+
+    pytest.importorskip("imagecodecs")
+    px = picture(300, 257, channels, seed=9)
+    path = str(tmp_path / "in.png")
+    assert oiio.ImageBuf(px).write(path)
+    img = read_image(path)
+    levels = list(pyr.pyramid(img.pixels, backend="reference", dtype=np.float32))
+    options = {} if quality is None else {"quality": quality}
+    write(DeepZoomWriter, tmp_path / "a" / "pic.dzi", img, levels, **options)
+    monkeypatch.setattr(deepzoom, "libjpeg", lambda quality: None)
+    write(DeepZoomWriter, tmp_path / "b" / "pic.dzi", img, levels, **options)
+    files = {}
+    for side in ("a", "b"):
+        root = tmp_path / side / "pic_files"
+        files[side] = {str(p.relative_to(root)): p.read_bytes() for p in root.rglob("*.jpeg")}
+    assert files["a"] == files["b"] and len(files["a"]) > 10
+    assert all(b"Exif" not in data[:64] for data in files["a"].values())
 
 
 @pytest.mark.parametrize("cls", [DeepZoomWriter, IIIF3Writer])
