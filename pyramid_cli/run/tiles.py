@@ -56,12 +56,15 @@ FORMAT_ALIASES = {"jpg": "jpeg", "tiff": "tif"}
 WRITER_BANDS = 3  # float bands a writer encodes at once, at most (deepzoom.MAX_BANDS; the TIFF's two)
 DEFAULT_TILE = 256                         # a layout's default tile edge, for the memory estimate (dz: 254)
 PASS_ROWS = 64                             # rows at a time of a one-level tile set (no plan: level 0 only)
-# Pixels of the widest level made per band (level 1: the input's bands are twice the rows of it): half the band
-# engine's BAND_PIXELS. Measured on an 8K 8-bit JPEG to Deep Zoom (2 loaded cores, medians): peak RSS 300 MiB in
-# bands of 16 rows of level 1, 340 of 32 (this), 400 of 64, 500 of 128, the CPU seconds within the noise from
-# 32 rows up (16: a fifth more): every float band of the input is held a few times over (decoded ahead, the
-# scheduler's, the writer's queue), and the process itself is 190 MiB (numba's LLVM is 120 of them).
-TILE_BAND_PIXELS = 1 << 17
+# Pixels of the widest level made per band (level 1: the input's bands are twice the rows of it), twice the band
+# engine's BAND_PIXELS: 128 rows of level 1 at 8K, 64 at 16K, 32 at 32K. Every band costs the scheduler and the
+# writers the same Python work whatever its width, and the band engine's copies once kept these bands small
+# (2026-11-27: 300 MiB peak at 8K in bands of 16 rows, 500 in 128). With them gone (2026-11-28; fresh processes
+# interleaved, Deep Zoom to /dev/shm, 4 to 5 rounds): 8K 1.264 s and 139 MiB in bands of 32 rows, 1.152 s and
+# 160 MiB in 64, 1.101 s and 211 MiB in 128; 16K 3.39 s and 195 MiB in 32, 3.07 s and 243 MiB in 64, 2.92 s and
+# 319 MiB in 128; 32K 10.8 s and 315 MiB in 32, 11.2 s and 558 MiB in 128. The pyramidal TIFF alike: 16K 3.52 →
+# 3.00 s in 64 rows, 8K 1.31 → 1.14 s in 128, the same bytes.
+TILE_BAND_PIXELS = 1 << 19
 # ... but never fewer rows than this: every band costs the same Python work whatever its width, and a 16K Deep Zoom
 # took 6.8 s in bands of 16 rows against 6.0 s in 32 (3 fresh processes interleaved; 295 and 358 MiB peak, where
 # libvips holds 142). Wider pictures hold wider bands, as libvips's tile rows are.
