@@ -352,11 +352,11 @@ class _TileFolderWriter(TileSetWriter):
         try:
             if self._jpeg is not None:
                 try:
-                    data = self._jpeg(tile)
+                    encoded = self._jpeg(tile)
                 except (RuntimeError, ValueError) as exc:  # imagecodecs's Jpeg8Error is a RuntimeError
                     raise WriteFailed(f"encode failed: {exc}") from None
                 with self._files:  # one file made at a time: see _write_file
-                    self._write_file(target, data)
+                    self._write_file(target, encoded)
                 return
             out, mem, name = self._encoder()
             spec = oiio.ImageSpec(self._template)
@@ -376,10 +376,8 @@ class _TileFolderWriter(TileSetWriter):
             data = self._encoded(mem)
             if not data:
                 raise WriteFailed("nothing was encoded")
-            if self.fmt == "jpeg":
-                data = jpeg_bytes(data)
             with self._files:  # one file made at a time: see _write_file
-                self._write_file(target, data)
+                self._write_file(target, jpeg_bytes(data) if self.fmt == "jpeg" else data)
         except WriteFailed as exc:
             raise OutputError(f"cannot write {self.path}: {rel}: {exc}{diagnosis(target)}") from None
         except PyramidError:
