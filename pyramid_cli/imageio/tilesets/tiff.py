@@ -275,8 +275,9 @@ class PyramidTiffWriter(TileSetWriter):
         except BaseException as exc:  # surfaced by rows()/finish() on the caller's thread
             self._failure = exc
 
-    def _queued(self) -> Iterator[np.ndarray]:
-        """Level 0's tiles in file order, as rows() completes them."""
+    def _queued(self) -> Iterator[np.ndarray | bytes]:
+        """Level 0's tiles in file order, as rows() completes them: compressed on the pool already (JPEG,
+        :meth:`_packs`), else for tifffile to compress."""
         pad = self.codec.startswith("jpeg")
         for _ in range(-(-self.sizes[0][0] // self.tile)):
             while True:
@@ -289,9 +290,12 @@ class PyramidTiffWriter(TileSetWriter):
                     continue
             if band is None:
                 raise _Aborted
-            yield from _tiles(band, self.tile, pad)
+            if isinstance(band, Future):
+                yield from band.result()
+            else:
+                yield from _tiles(band, self.tile, pad)
 
-    def _put(self, band: np.ndarray) -> None:
+    def _put(self, band: np.ndarray | Future) -> None:
         """Hand a row of tiles to the file's thread, waiting while it is behind; its failure is raised here."""
         while True:
             self._raise_failure()
@@ -359,7 +363,7 @@ class PyramidTiffWriter(TileSetWriter):
             return
         for band in self._tile_rows(level, y0, data):
             if not level:
-                self._put(band)
+                self._put(self._pool.submit(self._pack, band) if self._packs() else band)  # type: ignore[union-attr]
                 continue
             assert self._pool is not None
             self._packing.append((level, self._pool.submit(self._pack, band)))
