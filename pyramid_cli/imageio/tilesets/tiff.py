@@ -14,9 +14,10 @@ thread of its own, fed through a short queue by
 :meth:`~pyramid_cli.imageio.tilesets.base.TileSetWriter.rows` (which waits when the file is behind). The
 coarser levels (a third of level 0 in all) are kept in a temporary file in the staging folder (explicit reads and
 writes: no mapping, nothing of them in the process's memory) and written from it at
-:meth:`~pyramid_cli.imageio.tilesets.base.TileSetWriter.finish`: with JPEG, compressed on the pool as their rows of
-tiles complete, by tifffile's own codec and arguments (the bytes tifffile makes; the end then only copies them);
-otherwise as stored values, compressed by tifffile at the end. Memory: a few rows of level 0's
+:meth:`~pyramid_cli.imageio.tilesets.base.TileSetWriter.finish`. With JPEG every level's rows of tiles are
+compressed on the pool as they complete, by tifffile's own codec and arguments (:meth:`PyramidTiffWriter._pack`:
+the bytes tifffile makes), and tifffile only writes them; otherwise it compresses level 0's tiles on its threads
+and the coarser levels' stored values at the end. Memory: a few rows of level 0's
 tiles (tile size × width × channels each: the one being filled, two queued for the file, and what tifffile
 gathers to compress on its threads) and a few bands being encoded, never a whole level.
 
