@@ -111,6 +111,7 @@ class PyramidTiffWriter(TileSetWriter):
         self._pool: ThreadPoolExecutor | None = None
         self._encoding: deque[tuple[int, int, Future]] = deque()  # bands being encoded, in the order given
         self._spec: Any = None
+        self._jpeg: tuple[Any, tuple[int, int, int], dict] | None = None  # tifffile's codec, tile shape, arguments
 
     @classmethod
     def level_count(cls, size: tuple[int, int], options: TileOptions) -> int:
@@ -362,11 +363,11 @@ class PyramidTiffWriter(TileSetWriter):
             assert self._spill is not None, "levels 1.. have a spill"
             self._spill.write(level - 1, y0, data)
             return
+        assert self._pool is not None
         for band in self._tile_rows(level, y0, data):
             if not level:
-                self._put(self._pool.submit(self._pack, band) if self._packs() else band)  # type: ignore[union-attr]
+                self._put(self._pool.submit(self._pack, band) if self._packs() else band)
                 continue
-            assert self._pool is not None
             self._packing.append((level, self._pool.submit(self._pack, band)))
             self._unpack(_PACKING)
 
@@ -388,22 +389,24 @@ class PyramidTiffWriter(TileSetWriter):
                 yield band
 
     def _packs(self) -> bool:
-        """Whether levels 1.. are compressed as their rows of tiles complete (JPEG: tifffile's codec is called
-        alone, :meth:`_pack`), rather than kept as stored values and compressed by tifffile at the end: the end
-        then only copies them, and the compression ran beside the band pipeline."""
+        """Whether every level's rows of tiles are compressed on the pool as they complete (JPEG: tifffile's codec
+        called alone, :meth:`_pack`), tifffile then only writing them, rather than compressed by tifffile: level
+        0's on its threads, the coarser levels' stored values at the end."""
         return self.codec.startswith("jpeg")
 
     def _pack(self, band: np.ndarray) -> list[bytes]:
-        """A row of tiles of a reduced level as the file stores them: tifffile's own JPEG encoding of each, as its
-        ``write`` sets it up for these pages (its codec at the level asked, and for RGB the 2×2 subsampling into
-        YCbCr it writes the tags of), so the file holds the bytes tifffile would have made."""
-        import tifffile
+        """A row of tiles as the file stores them: tifffile's own JPEG encoding of each, as its ``write`` sets it
+        up for these pages (its codec at the level asked, and for RGB the 2×2 subsampling into YCbCr it writes the
+        tags of), so the file holds the bytes tifffile would have made."""
+        if self._jpeg is None:  # the same for every level and row (two pool threads may both make it: no matter)
+            import tifffile
 
-        kw = dict(self._page_options(1).get("compressionargs", {}))
-        n = self._stored().nchannels
-        if n == 3:
-            kw.update(subsampling=(2, 2), colorspace="RGB", outcolorspace="YCBCR")
-        encode, shape = tifffile.TIFF.COMPRESSORS[7], (self.tile, self.tile, n)
+            kw = dict(self._page_options(1).get("compressionargs", {}))
+            n = self._stored().nchannels
+            if n == 3:
+                kw.update(subsampling=(2, 2), colorspace="RGB", outcolorspace="YCBCR")
+            self._jpeg = (tifffile.TIFF.COMPRESSORS[7], (self.tile, self.tile, n), kw)
+        encode, shape, kw = self._jpeg
         return [encode(np.ascontiguousarray(t).reshape(shape), **kw) for t in _tiles(band, self.tile, True)]
 
     def _unpack(self, keep: int) -> None:
