@@ -1,0 +1,61 @@
+"""imageio.tilesets.jpeg: JPEG tiles as libjpeg-turbo writes them, through imagecodecs or OpenImageIO."""
+
+from __future__ import annotations
+
+import builtins
+
+import numpy as np
+import OpenImageIO as oiio
+import pytest
+
+from pyramid_cli.imageio.tilesets.jpeg import jpeg_bytes, libjpeg
+
+
+def segment(marker: int, body: bytes) -> bytes:
+    return bytes([0xFF, marker]) + (len(body) + 2).to_bytes(2, "big") + body
+
+
+def test_only_an_exif_app1_segment_is_dropped():
+    """jpeg_bytes drops the APP1 segment that says Exif and keeps every other: JFIF's APP0, an XMP APP1, an ICC
+    APP2, and all from the first segment that is not APPn on (the tables, the frame, the scan)."""
+    soi, rest = b"\xff\xd8", segment(0xDB, b"\x00" * 65) + b"\xff\xda\x00\x02scan\xff\xd9"
+    jfif = segment(0xE0, b"JFIF\x00\x01\x01\x00\x00\x01\x00\x01\x00\x00")
+    exif = segment(0xE1, b"Exif\x00\x00II*\x00\x08\x00\x00\x00\x00\x00")
+    xmp = segment(0xE1, b"http://ns.adobe.com/xap/1.0/\x00<x/>")
+    icc = segment(0xE2, b"ICC_PROFILE\x00\x01\x01abc")
+    assert jpeg_bytes(soi + jfif + exif + rest) == soi + jfif + rest
+    assert jpeg_bytes(memoryview(soi + exif + xmp + icc + rest)) == soi + xmp + icc + rest
+    assert jpeg_bytes(soi + jfif + rest) == soi + jfif + rest  # nothing to drop
+    assert jpeg_bytes(soi + rest + exif) == soi + rest + exif  # after the tables: data, never looked at
+
+
+def test_openimageio_s_tile_less_its_exif_is_imagecodecs_s(tmp_path):
+    """A tile OpenImageIO writes, less its Exif segment, is what libjpeg() makes of it (RGB 4:2:0 at Q 75, grey
+    4:4:4 at Q 95, a one-pixel grey tile)."""
+    pytest.importorskip("imagecodecs")
+    rng = np.random.default_rng(3)
+    path = str(tmp_path / "tile.jpg")
+    for shape, q in (((37, 53, 3), 75), ((20, 9, 1), 95), ((1, 1, 1), 75)):
+        px = rng.integers(0, 256, shape, dtype=np.uint8)
+        spec = oiio.ImageSpec(shape[1], shape[0], shape[2], oiio.UINT8)
+        spec.attribute("compression", f"jpeg:{q}")
+        spec.attribute("jpeg:subsampling", "4:4:4" if q >= 90 else "4:2:0")
+        out = oiio.ImageOutput.create("jpeg")
+        assert out.open(path, spec) and out.write_image(px) and out.close()
+        data = open(path, "rb").read()
+        encode = libjpeg(q)
+        assert encode is not None and b"Exif" in data[:64]
+        assert jpeg_bytes(data) == bytes(encode(px)), (shape, q)
+
+
+def test_without_imagecodecs_openimageio_encodes(monkeypatch):
+    """Without imagecodecs (no viewers extra) there is no libjpeg() encoder: the tile writers use OpenImageIO."""
+    real = builtins.__import__
+
+    def no_imagecodecs(name, *args, **kw):
+        if name == "imagecodecs":
+            raise ImportError("no imagecodecs here")
+        return real(name, *args, **kw)
+
+    monkeypatch.setattr(builtins, "__import__", no_imagecodecs)
+    assert libjpeg(75) is None
