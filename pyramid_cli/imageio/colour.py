@@ -220,12 +220,13 @@ def decode_integer(data: np.ndarray, srgb: bool, colour: np.ndarray, alpha: int,
 
 @cache
 def srgb8_tables() -> tuple[np.ndarray, np.ndarray]:
-    """Exact 8-bit sRGB encoding of float32 values by table: (thresholds, codes by the top 20 bits).
+    """Exact 8-bit sRGB encoding of float32 values by table: (thresholds, codes by the top 16 bits).
 
     ``thresholds[k - 1]`` is the smallest float32 that :func:`encode_integer` turns into
-    code k (sRGB in float64, ×255, round half up). A float32's top 20 bits (sign, exponent,
-    11 mantissa bits) pick a bucket narrower than the gap between thresholds, so the code
-    is the bucket's code plus one comparison.
+    code k (sRGB in float64, ×255, round half up). A float32's top 16 bits (sign, exponent,
+    7 mantissa bits) as an unsigned index pick a bucket at most 0.78 % wide; the thresholds are at least 0.9 %
+    apart (checked as they are made), so the code is the bucket's code (of its first value) plus one comparison
+    (:func:`srgb8_buckets`). Negative values and NaNs code 0, but for +inf's bucket, whose NaNs are told by value.
 
     Computing them takes about 40 ms, a fixed cost of every process that writes 8 bits; they are kept in the
     cache folder (:mod:`pyramid_cli.core.cache`, ``tables/``) under the digest of this code and numpy's
@@ -241,8 +242,9 @@ def srgb8_tables() -> tuple[np.ndarray, np.ndarray]:
     return thresholds, codes
 
 
-_SRGB8_HEAD = b"srgb8-tables-1\n"
-_SRGB8_SIZES = (255 * 4, 1 << 20)  # bytes of the thresholds (float32) and of the codes (uint8)
+_SPECIAL = 0x7F80    # the bucket (top 16 bits) of +inf and of the NaNs below 0x7F810000: a code by value
+_SRGB8_HEAD = b"srgb8-tables-2\n"
+_SRGB8_SIZES = (255 * 4, 1 << 16)  # bytes of the thresholds (float32) and of the codes (uint8)
 
 
 def _tables_entry() -> str:
@@ -275,53 +277,30 @@ def _compute_srgb8_tables() -> tuple[np.ndarray, np.ndarray]:
         up = code(mid) >= want
         hi, lo = np.where(up, mid, hi), np.where(up, lo, mid)
     thresholds = hi.astype(np.uint32).view(np.float32)
-    firsts = (np.arange(1 << 19, dtype=np.uint32) << 12).view(np.float32)  # non-negative buckets
-    lasts = ((np.arange(1 << 19, dtype=np.uint32) << 12) | 0xFFF).view(np.float32)
+    firsts = (np.arange(1 << 15, dtype=np.uint32) << 16).view(np.float32)  # non-negative buckets
+    lasts = ((np.arange(1 << 15, dtype=np.uint32) << 16) | 0xFFFF).view(np.float32)
     with np.errstate(invalid="ignore"):
         start = np.searchsorted(thresholds, firsts, side="right")
         finite = np.isfinite(lasts)
         assert np.all(np.searchsorted(thresholds, lasts[finite], side="right") - start[finite] <= 1)
-    codes = np.concatenate([start, np.zeros(1 << 19, dtype=start.dtype)]).astype(np.uint8)  # negatives: 0
+    start[_SPECIAL + 1:] = 0  # exponent all ones, mantissa's top 7 bits not all zero: NaNs only
+    codes = np.concatenate([start, np.zeros(1 << 15, dtype=start.dtype)]).astype(np.uint8)  # negatives: 0
     return thresholds, codes
 
 
 SRGB8_BAND = 1 << 16  # values encoded per step: the temporaries stay in cache instead of faulting in fresh pages
-_SPECIAL = 0x7F800   # the bucket (top 20 bits) of +inf and of the NaNs below 0x7F801000: a code by value
-
-
-@cache
-def _srgb8_lookup() -> tuple[np.ndarray, np.ndarray]:
-    """The buckets of :func:`srgb8_tables` in the order a signed index (the float32's bits shifted right as int32)
-    reaches them (negative indices from the end: the sign half), each with the code of its first value and the
-    threshold to the next code inside it (NaN where none: a comparison with NaN is false); NaN buckets code 0."""
-    thresholds, codes = srgb8_tables()
-    codes = codes.copy()
-    nan = np.arange(_SPECIAL + 1, 1 << 19)  # exponent all ones, mantissa's top 11 bits not all zero: NaN only
-    codes[nan] = 0
-    above = np.concatenate([thresholds, np.full(1, np.nan, np.float32)])  # code 255 has no next
-    bucket_threshold = above[codes]
-    bucket_threshold[1 << 19:] = np.nan                                    # negatives stay code 0
-    bucket_threshold[nan] = np.nan
-    return codes, bucket_threshold
 
 
 @cache
 def srgb8_buckets() -> tuple[np.ndarray, np.ndarray]:
-    """The tables of a compiled :func:`srgb8` loop (:func:`use_srgb8_loop`): for each float32's top 16 bits (sign,
-    exponent, 7 mantissa bits) as an unsigned index, the code of the bucket's first value and the threshold of the
-    next code (NaN where there is none: the comparison is then false). Every bucket spans at most one threshold
-    (checked here): the thresholds of :func:`srgb8_tables` are at least 0.9 % apart, a bucket at most 0.78 %
-    wide. Negative values and NaNs code 0 (a NaN by the loop's own test: +inf shares its bucket)."""
-    thresholds, _ = srgb8_tables()
-    first = (np.arange(1 << 15, dtype=np.uint32) << 16).view(np.float32)
-    last = ((np.arange(1 << 15, dtype=np.uint32) << 16) | 0xFFFF).view(np.float32)
-    with np.errstate(invalid="ignore"):
-        code = np.searchsorted(thresholds, first, side="right")
-        finite = np.isfinite(last)
-        assert np.all(np.searchsorted(thresholds, last[finite], side="right") - code[finite] <= 1)
+    """:func:`srgb8_tables`'s codes by the top 16 bits of a float32 (as an unsigned index: the sign half last, so
+    that numpy's signed index of the bits shifted as int32 reaches the same bucket from the end), with the
+    threshold of each bucket's next code (NaN where there is none: the comparison is then false)."""
+    thresholds, codes = srgb8_tables()
     above = np.concatenate([thresholds, np.full(1, np.nan, np.float32)])  # code 255 has no next
-    codes = np.concatenate([code, np.zeros(1 << 15, code.dtype)]).astype(np.uint8)
-    return codes, np.concatenate([above[code], np.full(1 << 15, np.nan, np.float32)])
+    bucket_threshold = above[codes]
+    bucket_threshold[1 << 15:] = np.nan  # negatives stay code 0
+    return codes, bucket_threshold
 
 
 _LOOP: list[Callable[..., None]] = []  # the compiled loop srgb8 runs on, once one is given (use_srgb8_loop)
@@ -352,7 +331,7 @@ def srgb8(x: np.ndarray) -> np.ndarray:
     if _LOOP and flat.size >= LOOP_MIN:
         _LOOP[0](res, flat, flat.view(np.uint32), *srgb8_buckets(), 0, flat.size)
         return out
-    codes, bucket_threshold = _srgb8_lookup()
+    codes, bucket_threshold = srgb8_buckets()
     bits = flat.view(np.int32)
     n = min(SRGB8_BAND, flat.size)
     index, limit, up = np.empty(n, np.intp), np.empty(n, np.float32), np.empty(n, bool)
@@ -360,7 +339,7 @@ def srgb8(x: np.ndarray) -> np.ndarray:
         j = min(flat.size, i + SRGB8_BAND)
         m = j - i
         idx, t, u, k = index[:m], limit[:m], up[:m], res[i:j]
-        np.right_shift(bits[i:j], 12, out=idx, casting="unsafe")
+        np.right_shift(bits[i:j], 16, out=idx, casting="unsafe")
         np.take(codes, idx, out=k)
         np.take(bucket_threshold, idx, out=t)
         with np.errstate(invalid="ignore"):

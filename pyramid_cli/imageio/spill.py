@@ -18,7 +18,57 @@ from pyramid_cli.core.errors import OutputError
 from pyramid_cli.imageio.atomic import error_reason
 
 
-class KeptRows:
+class _TempFile:
+    """A raw temporary file beside the user's output ``beside``, written and read at explicit offsets (see the
+    module); None as ``path``: no file (the subclass keeps arrays)."""
+
+    def __init__(self, path: str | None, beside: str, what: str):
+        self.beside, self.what = beside, what
+        self.fd: int | None = None
+        if path:
+            try:
+                self.fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o600)
+            except OSError as exc:
+                raise self._failed(exc) from None
+
+    def close(self) -> None:
+        if self.fd is not None:
+            os.close(self.fd)
+            self.fd = None
+
+    def _file(self) -> int:
+        if self.fd is None:
+            raise ValueError(f"the temporary file of the {self.what} is closed")
+        return self.fd
+
+    def _failed(self, exc: OSError) -> OutputError:
+        return OutputError(f"cannot write {self.beside}: {error_reason(exc)} (in the temporary file of its "
+                           f"{self.what} beside it)")
+
+    def _write(self, view: memoryview, at: int) -> None:
+        """All of ``view`` at offset ``at``."""
+        fd = self._file()
+        try:
+            while view:
+                n = os.pwrite(fd, view, at)
+                view, at = view[n:], at + n
+        except OSError as exc:
+            raise self._failed(exc) from None
+
+    def _read(self, view: memoryview, at: int) -> None:
+        """``view`` filled from offset ``at``, straight into it (no bytes made on the way)."""
+        fd = self._file()
+        try:
+            while view:
+                n = os.preadv(fd, [view], at)
+                if not n:
+                    raise OSError(f"the temporary file ends {len(view)} bytes early")
+                view, at = view[n:], at + n
+        except OSError as exc:
+            raise self._failed(exc) from None
+
+
+class KeptRows(_TempFile):
     """The rows of images of ``shapes`` ((rows, cols, channels) each) as ``dtype``; see the module.
 
     Parameters
@@ -37,49 +87,23 @@ class KeptRows:
 
     def __init__(self, shapes: list[tuple[int, int, int]], path: str | None = None, dtype=np.float32, *,
                  beside: str = "", what: str = "levels"):
-        self.shapes, self.dtype, self.beside, self.what = shapes, np.dtype(dtype), beside, what
+        self.shapes, self.dtype = shapes, np.dtype(dtype)
         self.arrays: list[np.ndarray] | None = None if path else [np.empty(s, dtype=self.dtype) for s in shapes]
-        self.fd: int | None = None
         self.offsets = [0]
         for h, w, c in shapes:
             self.offsets.append(self.offsets[-1] + h * w * c * self.dtype.itemsize)
-        if path:
-            try:
-                self.fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o600)
-            except OSError as exc:
-                raise self._failed(exc) from None
-
-    def close(self) -> None:
-        if self.fd is not None:
-            os.close(self.fd)
-            self.fd = None
+        super().__init__(path, beside, what)
 
     def _at(self, i: int, r: int) -> int:
         _, w, c = self.shapes[i]
         return self.offsets[i] + r * w * c * self.dtype.itemsize
-
-    def _file(self) -> int:
-        if self.fd is None:
-            raise ValueError(f"the temporary file of the {self.what} is closed")
-        return self.fd
-
-    def _failed(self, exc: OSError) -> OutputError:
-        return _failed(self, exc)
 
     def write(self, i: int, r: int, px: np.ndarray) -> None:
         """Rows ``r ..`` of image ``i``."""
         if self.arrays is not None:
             self.arrays[i][r:r + len(px)] = px
             return
-        fd = self._file()
-        view = np.ascontiguousarray(px, dtype=self.dtype).data.cast("B")
-        at = self._at(i, r)
-        try:
-            while view:
-                n = os.pwrite(fd, view, at)
-                view, at = view[n:], at + n
-        except OSError as exc:
-            raise self._failed(exc) from None
+        self._write(np.ascontiguousarray(px, dtype=self.dtype).data.cast("B"), self._at(i, r))
 
     def rows(self, i: int, r0: int, r1: int) -> np.ndarray:
         """Rows ``r0:r1`` of image ``i``."""
@@ -87,72 +111,32 @@ class KeptRows:
             return self.arrays[i][r0:r1]
         _, w, c = self.shapes[i]
         out = np.empty((r1 - r0, w, c), dtype=self.dtype)
-        view, at = out.data.cast("B"), self._at(i, r0)  # read straight into the rows: one copy, no bytes
-        fd = self._file()
-        try:
-            while view:
-                n = os.preadv(fd, [view], at)
-                if not n:
-                    raise OSError(f"the temporary file ends {len(view)} bytes early")
-                view, at = view[n:], at + n
-        except OSError as exc:
-            raise self._failed(exc) from None
+        self._read(out.data.cast("B"), self._at(i, r0))
         return out
 
 
-__all__ = ["KeptRows"]
-
-
-class KeptChunks:
+class KeptChunks(_TempFile):
     """Encoded chunks of ``count`` images (a level's compressed tiles, in file order) kept until their turn in the
     temporary file ``path``: appended as they are made, read back one at a time, in order (no mapping: nothing of
     them in the process's memory). Errors as :class:`KeptRows`'s."""
 
     def __init__(self, count: int, path: str, *, beside: str = "", what: str = "levels"):
-        self.beside, self.what = beside, what
         self.index: list[list[tuple[int, int]]] = [[] for _ in range(count)]  # (offset, length) per chunk
         self.end = 0
-        try:
-            self.fd: int | None = os.open(path, os.O_RDWR | os.O_CREAT, 0o600)
-        except OSError as exc:
-            raise _failed(self, exc) from None
-
-    def close(self) -> None:
-        if self.fd is not None:
-            os.close(self.fd)
-            self.fd = None
+        super().__init__(path, beside, what)
 
     def append(self, i: int, data: bytes) -> None:
         """The next chunk of image ``i``."""
-        if self.fd is None:
-            raise ValueError(f"the temporary file of the {self.what} is closed")
-        view, at = memoryview(data), self.end
-        try:
-            while view:
-                n = os.pwrite(self.fd, view, at)
-                view, at = view[n:], at + n
-        except OSError as exc:
-            raise _failed(self, exc) from None
+        self._write(memoryview(data), self.end)
         self.index[i].append((self.end, len(data)))
-        self.end = at
+        self.end += len(data)
 
     def chunks(self, i: int) -> Iterator[bytes]:
         """Image ``i``'s chunks, in the order they came."""
         for at, size in self.index[i]:
-            if self.fd is None:
-                raise ValueError(f"the temporary file of the {self.what} is closed")
-            try:
-                data = os.pread(self.fd, size, at)
-                while len(data) < size:
-                    more = os.pread(self.fd, size - len(data), at + len(data))
-                    if not more:
-                        raise OSError(f"the temporary file ends {size - len(data)} bytes early")
-                    data += more
-            except OSError as exc:
-                raise _failed(self, exc) from None
-            yield data
+            data = bytearray(size)
+            self._read(memoryview(data), at)
+            yield bytes(data)
 
 
-def _failed(kept: KeptRows | KeptChunks, exc: OSError) -> OutputError:
-    return OutputError(f"cannot write {kept.beside}: {error_reason(exc)} (in the temporary file of its "
-                       f"{kept.what} beside it)")
+__all__ = ["KeptChunks", "KeptRows"]

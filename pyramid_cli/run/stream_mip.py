@@ -140,8 +140,9 @@ def run_mip(job, work, session, *, memory: int | None, tile: int, read=None, wri
         # coarser levels are kept until level 0's header is known, so bands save little): it streams when it must
         options = wo.for_inputs([in_path])
         codecs = Codecs.of([st], [(out_path, (h, w))], st.info, c, options, tile)
-        whole_run = mip_codes_bytes(plan, st, executor) if whole and mip_from_codes(st, out_path, options, executor) \
-            else None  # run_whole makes it from the codes
+        whole_run = None  # the whole run's bytes where run_whole makes it from the codes, else choose_mip's estimate
+        if whole and mip_from_codes(st, out_path, options, executor):
+            whole_run = mip_codes_bytes(plan, st, executor)
         try:
             choice = choose_mip(plan, c, budget, level0=h * w * c * st.dtype.itemsize, codecs=codecs.first,
                                 whole=whole_run, **kw)
