@@ -613,16 +613,16 @@ _NO_FLOAT_1D = {np.dtype(t): np.zeros(1, t) for t in ("float32", "float64")}
 
 
 def build_ahead(plan: Plan, cache: str | Path | None = None) -> int:
-    """Have the float32 kernels of ``plan`` (float16 inputs run on them too) built ahead of time for later processes
-    where they are not yet (:func:`pyramid_cli.exec.cpu.aot.spawn`), without importing numba here: ``auto`` ran
-    this job on GL, partly because the CPU executor would first have imported numba; next time it weighs the
-    CPU executor without that. Returns how many kernels a builder was started for (0: none)."""
+    """Have the float32 kernels of ``plan`` (float16 inputs run on them too) and the 8-bit encoding loop
+    (:meth:`CPUExecutor.encode8`, which every 8-bit sRGB output of a CPU run calls) built ahead of time for later
+    processes where they are not yet (:func:`pyramid_cli.exec.cpu.aot.spawn`), without importing numba here: ``auto``
+    ran this job on GL, partly because the CPU executor would first have imported numba; next time it weighs the
+    CPU executor without that, and runs it without numba. Returns how many kernels a builder was started for."""
     folder = Path(cache) if cache is not None else cache_dir()
     if aot.folder(folder) is None:
         return 0
     kernels: dict[str, tuple[str, str]] = {}
-    for ps in plan.passes:
-        source, sig = _kernel_text(ps, "float32")
+    for source, sig in [*(_kernel_text(ps, "float32") for ps in plan.passes), (encode8_source(), ENCODE8_SIGNATURE)]:
         digest = source_digest(source)
         if digest not in kernels and not aot.ready(folder, digest):
             kernels[digest] = (source, sig)

@@ -232,21 +232,22 @@ def test_no_builder_is_started_from_an_applications_own_interpreter(monkeypatch,
 
 
 def test_build_ahead_writes_each_missing_kernel_once_and_starts_one_builder(monkeypatch, tmp_path):
-    """What auto's GL run leaves for the next process: the CPU plan's kernels, numba not imported for it."""
-    from pyramid_cli.exec.cpu.codegen import signature
+    """What auto's GL run leaves for the next process: the CPU plan's kernels and the 8-bit encoding loop, numba
+    not imported for them (an 8-bit output's next run would otherwise import numba for the loop alone)."""
+    from pyramid_cli.exec.cpu.codegen import ENCODE8_SIGNATURE, encode8_source, signature
     from pyramid_cli.exec.cpu.executor import build_ahead
 
     monkeypatch.setenv(aot.ENV, "1")
     started = []
     monkeypatch.setattr(aot, "spawn", lambda cache, kernels: started.append(kernels) or len(kernels))
     plan = pyramids.blur_plan((37, 53), 3, strategy="fused")
-    assert build_ahead(plan, tmp_path) == 2
+    assert build_ahead(plan, tmp_path) == 3
     (kernels,) = started
-    shapes = {}
+    wanted = {source_digest(encode8_source()): ENCODE8_SIGNATURE}
     for ps in plan.passes:
         s = shape(ps)
-        shapes[source_digest(_pass_source(s, "float32"))] = signature(s.n_sources, s.period[1])
-    assert {d: sig for d, _, sig in kernels} == shapes and len(kernels) == len(shapes) == 2
+        wanted[source_digest(_pass_source(s, "float32"))] = signature(s.n_sources, s.period[1])
+    assert {d: sig for d, _, sig in kernels} == wanted and len(kernels) == len(wanted) == 3
     for digest, path, _ in kernels:
         assert source_digest(Path(path).read_text(encoding="utf-8")) == digest  # what the builder checks
     where = aot.folder(tmp_path)
@@ -254,8 +255,8 @@ def test_build_ahead_writes_each_missing_kernel_once_and_starts_one_builder(monk
     first = kernels[0][0]
     aot.module_path(where, first).write_bytes(b"built")
     started.clear()
-    assert build_ahead(plan, tmp_path) == 1
-    assert [d for d, _, _ in started[0]] == [kernels[1][0]]  # one is built already
+    assert build_ahead(plan, tmp_path) == 2
+    assert [d for d, _, _ in started[0]] == [d for d, _, _ in kernels[1:]]  # one is built already
     monkeypatch.setenv(aot.ENV, "0")
     started.clear()
     assert not build_ahead(plan, tmp_path) and started == []
