@@ -8,7 +8,7 @@ import numpy as np
 import OpenImageIO as oiio
 import pytest
 
-from pyramid_cli.imageio.tilesets.jpeg import jpeg_bytes, libjpeg
+from pyramid_cli.imageio.tilesets.jpeg import abbreviated, jpeg_bytes, jpeg_tables, libjpeg, shared_tables
 
 
 def segment(marker: int, body: bytes) -> bytes:
@@ -59,3 +59,35 @@ def test_without_imagecodecs_openimageio_encodes(monkeypatch):
 
     monkeypatch.setattr(builtins, "__import__", no_imagecodecs)
     assert libjpeg(75) is None
+
+
+@pytest.mark.parametrize(("shape", "q"), [((32, 48, 3), 75), ((16, 16, 1), 90), ((1, 1, 3), 75)])
+def test_a_tile_without_the_tables_it_shares_decodes_as_it_did(shape, q):
+    """A TIFF's tiles share one JPEGTables (libtiff's layout): abbreviated() drops a tile's tables and JFIF segment
+    only where they are the shared ones, and libjpeg-turbo, given the tables, decodes the same pixels."""
+    imagecodecs = pytest.importorskip("imagecodecs")
+    rng = np.random.default_rng(5)
+    px = rng.integers(0, 256, shape, dtype=np.uint8)
+    full = bytes(libjpeg(q)(px))
+    tables = jpeg_tables(bytes(libjpeg(q)(np.zeros(shape, np.uint8))))
+    assert tables.startswith(b"\xff\xd8\xff\xdb") and tables.endswith(b"\xff\xd9")
+    short = abbreviated(full, tables)
+    assert len(short) == len(full) - len(tables) + 4 - 18  # less the tables (their SOI and EOI aside) and JFIF
+    assert b"JFIF" not in short and short.startswith(b"\xff\xd8") and short.endswith(b"\xff\xd9")
+    np.testing.assert_array_equal(imagecodecs.jpeg8_decode(short, tables=tables), imagecodecs.jpeg8_decode(full))
+    other = jpeg_tables(bytes(libjpeg(q - 10)(px)))  # another quality: other tables, the tile kept whole
+    assert abbreviated(full, other) == full
+
+
+def test_shared_tables_store_a_tile_as_abbreviated_does():
+    """shared_tables() swaps the header of tiles encoded like its sample (same tables, same size) and falls back to
+    abbreviated() for any other: the same bytes either way."""
+    pytest.importorskip("imagecodecs")
+    rng = np.random.default_rng(7)
+    encode = libjpeg(75)
+    tables, store = shared_tables(bytes(encode(np.zeros((64, 64, 3), np.uint8))))
+    for shape in ((64, 64, 3), (17, 64, 3)):  # a tile of the sample's size, and another frame: the fallback
+        tile = bytes(encode(rng.integers(0, 256, shape, dtype=np.uint8)))
+        assert store(tile) == abbreviated(tile, tables) != tile
+    other = bytes(libjpeg(60)(np.zeros((64, 64, 3), np.uint8)))
+    assert store(other) == other  # other tables: kept whole
