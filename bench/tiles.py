@@ -209,6 +209,17 @@ def flat(args, ours: list[peers.Pyramid], speed_jobs: list[dict], data: Path) ->
     return res
 
 
+def size_lines(jobs: list[dict]) -> list[str]:
+    """Each job's output size, every contender's (the last run's: tiles and files, as a viewer's server holds them)."""
+    lines = []
+    for j in jobs:
+        sizes = [f"{'libvips' if name == 'peer' else name} {c['output_bytes'] / 1e6:.2f} MB in {c['output_files']} "
+                 f"file(s)" for name, c in j.get("contenders", {}).items() if "output_bytes" in c]
+        if sizes:
+            lines.append(f"{j['id']} output: " + ", ".join(sizes))
+    return lines
+
+
 def summary_lines(report: dict) -> list[str]:
     """What is printed at the end (and kept in the JSON)."""
     lines = []
@@ -217,6 +228,7 @@ def summary_lines(report: dict) -> list[str]:
     if report["jobs"]:
         lines += peers.table_lines(report) + [f"{j['id']}: {r['pyramid']}: {r['not_available']}" for j in
                                               report["jobs"] for r in j["rows"] if "not_available" in r][:1]
+        lines += size_lines(report["jobs"])
     if "flat" in report:
         f = report["flat"]
         lines.append("ours' peak memory by size: " + (f.get("skipped") or ", ".join(

@@ -93,6 +93,8 @@ def test_tiles_quick_writes_json(tmp_path):
         else:
             assert "not available" in row["not_available"] and row["peer_s"] > 0, row
     assert ("skipped" in report["flat"]) != ours["tiles"]
+    sizes = [line for line in report["table"] if " output: " in line]  # every job's output size, libvips's too
+    assert [line.split()[0] for line in sizes] == [j["id"] for j in report["jobs"]] and "libvips" in sizes[0]
     q = report["quality"]
     assert q["ours"] == ("cli" if ours["tiles"] else "api")
     levels = q["zone_plate"]["levels"]
