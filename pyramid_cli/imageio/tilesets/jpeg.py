@@ -67,10 +67,12 @@ def jpeg_bytes(data: bytes | memoryview) -> bytes:
 _TABLES = (0xDB, 0xC4)  # DQT, DHT
 
 
-def jpeg_tables(data: bytes) -> bytes:
-    """The quantisation and Huffman tables of a JPEG file as a tables-only stream (SOI, DQT, DHT, EOI): a TIFF's
-    JPEGTables, shared by its tiles, as libtiff and so ``vips tiffsave`` write it."""
-    return b"".join([data[:2], *(data[a:b] for m, a, b in _segments(data) if m in _TABLES), b"\xff\xd9"])
+def jpeg_tables(data: bytes, parts: list[tuple[int, int, int]] | None = None) -> bytes:
+    """The quantisation and Huffman tables of a JPEG file (its :func:`_segments` ``parts``, found when not given) as
+    a tables-only stream (SOI, DQT, DHT, EOI): a TIFF's JPEGTables, shared by its tiles, as libtiff and so
+    ``vips tiffsave`` write it."""
+    found = _segments(data) if parts is None else parts
+    return b"".join([data[:2], *(data[a:b] for m, a, b in found if m in _TABLES), b"\xff\xd9"])
 
 
 def abbreviated(data: bytes, tables: bytes) -> bytes:
@@ -78,7 +80,7 @@ def abbreviated(data: bytes, tables: bytes) -> bytes:
     without the tables, and without JFIF's APP0 segment, which a TIFF's own tags replace; the file unchanged where
     its tables are not ``tables`` (a decoder then reads its own)."""
     parts = _segments(data)
-    if jpeg_tables(data) != tables:
+    if jpeg_tables(data, parts) != tables:
         return data
     drop = {start for m, start, _ in parts if m in _TABLES or (m == 0xE0 and data[start + 4:start + 9] == b"JFIF\0")}
     return b"".join([data[:2], *(data[a:b] for m, a, b in parts if a not in drop)])

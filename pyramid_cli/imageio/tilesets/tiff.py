@@ -40,6 +40,7 @@ import threading
 from collections import deque
 from collections.abc import Callable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
@@ -87,6 +88,19 @@ def _tiles(band: np.ndarray, tile: int, pad: bool) -> Iterator[np.ndarray]:
         yield t
 
 
+@dataclass(frozen=True)
+class _Jpeg:
+    """A pyramidal TIFF's JPEG tiles: tifffile's codec with the arguments its ``write`` would give it, the tile shape,
+    the tables every tile shares (each page's JPEGTables) and how a tile is stored without them
+    (:func:`~pyramid_cli.imageio.tilesets.jpeg.shared_tables`)."""
+
+    encode: Callable[..., bytes]
+    shape: tuple[int, int, int]
+    args: dict
+    tables: bytes
+    store: Callable[[bytes], bytes]
+
+
 class PyramidTiffWriter(TileSetWriter):
     """A pyramidal tiled TIFF (``name.tif``): reduced levels as further pages, NewSubfileType = 1 (see the
     module). ``--compression`` none (default, as vips), jpeg (8-bit grey or RGB; ``--quality``, 75 by default),
@@ -114,7 +128,7 @@ class PyramidTiffWriter(TileSetWriter):
         self._pool: ThreadPoolExecutor | None = None
         self._encoding: deque[tuple[int, int, Future]] = deque()  # bands being encoded, in the order given
         self._spec: Any = None
-        self._jpeg: tuple[Any, tuple[int, int, int], dict, bytes, Callable[[bytes], bytes]] | None = None  # _codec
+        self._jpeg: _Jpeg | None = None  # see _codec
 
     @classmethod
     def level_count(cls, size: tuple[int, int], options: TileOptions) -> int:
@@ -190,9 +204,9 @@ class PyramidTiffWriter(TileSetWriter):
             data = data[..., None]
         return data.astype(self.dtype, copy=False)
 
-    def _page_options(self, k: int, *, tables: bool = True) -> dict:
+    def _page_options(self, k: int) -> dict:
         """tifffile's ``write`` arguments for level ``k`` (photometric, extra samples, codec, resolution, the JPEG
-        tables of the tiles compressed here where ``tables``, ...)."""
+        tables of the tiles compressed here, ...)."""
         spec = self._stored()
         n, alpha = spec.nchannels, spec.alpha_channel
         colour = 3 if n >= 3 else 1
@@ -202,7 +216,7 @@ class PyramidTiffWriter(TileSetWriter):
                 extra.append("unassalpha" if spec.get_int_attribute("oiio:UnassociatedAlpha", 0) else "assocalpha")
             else:
                 extra.append("unspecified")
-        name, _, level = self.codec.partition(":")
+        name = self.codec.partition(":")[0]
         kw: dict[str, Any] = {"tile": (self.tile, self.tile), "photometric": "rgb" if colour == 3 else "minisblack",
                               "compression": CODECS[name], "maxworkers": 2,
                               # tiles tifffile gathers before compressing them: about one row of level 0's
@@ -211,12 +225,11 @@ class PyramidTiffWriter(TileSetWriter):
             kw["planarconfig"] = "contig"
         if extra:
             kw["extrasamples"] = extra
-        if name == "jpeg":
-            kw["compressionargs"] = {"level": self.options.quality or QUALITY}
-            if tables and self._packs():
-                kw["jpegtables"] = self._codec()[3]
-        elif level:
-            kw["compressionargs"] = {"level": int(level)}
+        args = self._compression_args()
+        if args:
+            kw["compressionargs"] = args
+        if self._packs():
+            kw["jpegtables"] = self._codec().tables
         if name in ("deflate", "zip", "zstd", "lzw"):
             kw["predictor"] = True  # horizontal differencing (floating point for floats), as vips's default
         if k:
@@ -229,6 +242,13 @@ class PyramidTiffWriter(TileSetWriter):
         if icc is not None:
             kw["iccprofile"] = bytes(np.asarray(icc, dtype=np.uint8))
         return kw
+
+    def _compression_args(self) -> dict:
+        """The codec's level as tifffile takes it: ``--quality`` for JPEG (75 by default), else ``CODEC:LEVEL``'s."""
+        name, _, level = self.codec.partition(":")
+        if name == "jpeg":
+            return {"level": self.options.quality or QUALITY}
+        return {"level": int(level)} if level else {}
 
     def _resolution(self) -> tuple[tuple[float, float], str, float] | None:
         """Level 0's (x, y) pixels per unit, tifffile's unit and µm per unit, when the input said them."""
@@ -404,21 +424,21 @@ class PyramidTiffWriter(TileSetWriter):
         """A row of tiles as the file stores them: tifffile's own JPEG encoding of each, as its ``write`` sets it
         up for these pages (its codec at the level asked, and for RGB the 2×2 subsampling into YCbCr it writes the
         tags of), so the file holds the bytes tifffile would have made, less the tables (:meth:`_codec`)."""
-        encode, shape, kw, _, store = self._codec()
-        return [store(encode(np.ascontiguousarray(t).reshape(shape), **kw)) for t in _tiles(band, self.tile, True)]
+        c = self._codec()
+        return [c.store(c.encode(np.ascontiguousarray(t).reshape(c.shape), **c.args))
+                for t in _tiles(band, self.tile, True)]
 
-    def _codec(self) -> tuple[Any, tuple[int, int, int], dict, bytes, Callable[[bytes], bytes]]:
-        """tifffile's JPEG codec, the tile shape, the arguments, the tables every tile shares (the file's
-        JPEGTables) and how a tile is stored without them (:func:`~pyramid_cli.imageio.tilesets.jpeg.shared_tables`)."""
-        if self._jpeg is None:  # the same for every level and row (two pool threads may both make it: no matter)
+    def _codec(self) -> _Jpeg:
+        """How this file's JPEG tiles are made and stored (:class:`_Jpeg`), the same for every level and row."""
+        if self._jpeg is None:  # two pool threads may both make it: no matter
             import tifffile
 
-            kw = dict(self._page_options(1, tables=False).get("compressionargs", {}))
+            args = self._compression_args()
             n = self._stored().nchannels
             if n == 3:
-                kw.update(subsampling=(2, 2), colorspace="RGB", outcolorspace="YCBCR")
+                args.update(subsampling=(2, 2), colorspace="RGB", outcolorspace="YCBCR")
             encode, shape = tifffile.TIFF.COMPRESSORS[7], (self.tile, self.tile, n)
-            self._jpeg = (encode, shape, kw, *shared_tables(encode(np.zeros(shape, self.dtype), **kw)))
+            self._jpeg = _Jpeg(encode, shape, args, *shared_tables(encode(np.zeros(shape, self.dtype), **args)))
         return self._jpeg
 
     def _unpack(self, keep: int) -> None:
