@@ -53,14 +53,14 @@ def log(msg: str) -> None:
 
 
 def wait_for_kernel_builds(timeout: float = 600.0) -> float:
-    """Wait while ``pyramid``'s ahead-of-time kernel builders run (their locks in the cache folder), so that none
+    """Wait while ``pyramid``'s ahead-of-time kernel builders run (their live locks in the cache folder), so that none
     competes with a timed run after a warm-up that loaded new kernels through numba; the seconds waited."""
     from pyramid_cli.exec.cpu import aot
     from pyramid_cli.exec.cpu.compile import cache_dir
 
     where, t0 = aot.folder(cache_dir()), time.perf_counter()
     time.sleep(0.2)  # a builder just spawned takes its locks before the warm-up's process exits
-    while where is not None and list(where.glob("*.lock")) and time.perf_counter() - t0 < timeout:
+    while where is not None and aot.building(where) and time.perf_counter() - t0 < timeout:
         time.sleep(0.5)
     return time.perf_counter() - t0
 

@@ -139,6 +139,19 @@ def _lock(where: Path, digest: str) -> bool:
     return False
 
 
+def building(where: Path) -> list[str]:
+    """The digests whose builders are at work in ``where`` now: their locks, less those older than
+    :data:`STALE_S` (a builder that died, whose lock the next build takes over)."""
+    now, live = time.time(), []
+    for lock in where.glob("k_*.lock"):
+        try:
+            if now - lock.stat().st_mtime < STALE_S:
+                live.append(lock.stem[2:])
+        except OSError:
+            continue  # its builder finished meanwhile
+    return live
+
+
 def blocked(where: Path) -> bool:
     """Whether the builder found, less than :data:`RETRY_S` ago, that it cannot build on this machine."""
     try:
@@ -258,6 +271,6 @@ def main() -> int:
     return 0
 
 
-__all__ = ["ENV", "UNAVAILABLE", "blocked", "build", "enabled", "folder", "load", "machine_key", "module_path",
+__all__ = ["ENV", "UNAVAILABLE", "blocked", "build", "building", "enabled", "folder", "load", "machine_key", "module_path",
            "ready", "spawn"]
 

@@ -167,8 +167,10 @@ def test_a_build_lock_is_respected_until_its_builder_is_presumed_dead(monkeypatc
     assert aot._lock(where, digest)
     assert not aot._lock(where, digest)            # a builder has it
     assert not aot.spawn(tmp_path, [(digest, "k.py", "void()")])
+    assert aot.building(where) == [digest]
     old = time.time() - aot.STALE_S - 1
     os.utime(where / f"k_{digest}.lock", (old, old))
+    assert aot.building(where) == []               # nobody waits on a dead builder (bench/run.py)
     assert aot._lock(where, digest)                # its builder died: taken over
 
 
