@@ -28,6 +28,16 @@ def test_kernel_source_is_canonical_and_unrolled():
     assert "def kernel(out, s0, h0, lut, half, C," in text and text.count("lut[") == text.count("= lut[hr[g]]") > 0
 
 
+def test_rgb_is_unrolled_where_a_strided_loop_has_one_column_phase():
+    """The analysis passes (stride 2, one phase) have a copy for C = 3; a synthesis pass's phased loops do not (its
+    compile would take 1.2 s more, for four phases)."""
+    _, p = planned("box4 *v g", (40, 40))
+    texts = {generate.shape(ps).stride: cpu.kernel_source(generate.shape(ps)) for ps in p.passes}
+    assert "if C == 3:" in texts[(2, 2)] and "v3_2 = t0[" in texts[(2, 2)]
+    _, ds = planned("doosabin", (8, 8))
+    assert "if C == 3:" not in cpu.kernel_source(generate.shape(ds.passes[0]))
+
+
 def test_resampling_and_pointwise_passes_share_one_kernel_each():
     from pyramid_cli.exec.cpu import codegen
 

@@ -41,7 +41,8 @@ def ex(cache_folder):
 
 @pytest.mark.parametrize("channels", [None, 1, 3, 4, 6, 2])
 def test_every_channel_count(ex, channels):
-    """C = 4 and 1 have unrolled loops; others (2, 3, 6) the generic one: all agree with the reference."""
+    """C = 4 and 1 have unrolled loops, C = 3 too in one-phase strided passes (box4 *v g); others (2, 6) the
+    generic one: all agree with the reference."""
     size = (23, 31)
     image = random_image(size, channels, 5)
     for text in ["doosabin *^ (box4 *v g)", "fourpoint", "cubic *v g", "quasi"]:
