@@ -271,6 +271,6 @@ def main() -> int:
     return 0
 
 
-__all__ = ["ENV", "UNAVAILABLE", "blocked", "build", "building", "enabled", "folder", "load", "machine_key", "module_path",
-           "ready", "spawn"]
+__all__ = ["ENV", "UNAVAILABLE", "blocked", "build", "building", "enabled", "folder", "load", "machine_key",
+           "module_path", "ready", "spawn"]
 
