@@ -33,11 +33,16 @@ class Executor(Protocol):
         (the calibrated cost model) or ``"fused"`` (one pass per written filter).
     work_dtype : numpy.dtype
         What it keeps intermediates and the tile scheduler's bands as: float32, or float64 (the emulator).
+    writes_into : bool
+        Whether its ``run_outputs`` takes ``out=``, an array the last output's pixels are written into (the
+        compiled CPU executor: its last pass writes them there, so the tile scheduler makes each band of an image
+        in its place in that image's buffer instead of copying it there).
     """
 
     backend: str
     strategy: str
     work_dtype: np.dtype
+    writes_into: bool
 
     @property
     def name(self) -> str:

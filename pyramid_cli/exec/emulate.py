@@ -218,6 +218,7 @@ class Emulator:
     work_dtype = np.dtype(np.float64)
     max_texture_size = None
     host_textures = False
+    writes_into = False
 
     @staticmethod
     def texture_bytes(extent: tuple[int, int]) -> int:

@@ -102,6 +102,7 @@ class LoadingCPU:
     work_dtype = np.dtype(np.float32)
     max_texture_size = None
     host_textures = False
+    writes_into = True
 
     def __init__(self, threads: int | None = None):
         from pyramid_cli.exec.cpu.executor import default_threads
@@ -175,9 +176,9 @@ class LoadingCPU:
             self._ready = CPUExecutor(threads=self.threads)
         return self._ready
 
-    def run_outputs(self, plan: Plan, images, dtype=np.float32, codes=None) -> list[np.ndarray]:
+    def run_outputs(self, plan: Plan, images, dtype=np.float32, codes=None, out=None) -> list[np.ndarray]:
         """:meth:`~pyramid_cli.exec.cpu.CPUExecutor.run_outputs`, once the executor is ready."""
-        return self.result().run_outputs(plan, images, dtype, codes=codes)
+        return self.result().run_outputs(plan, images, dtype, codes=codes, out=out)
 
     def run(self, plan: Plan, image) -> np.ndarray:
         """:meth:`~pyramid_cli.exec.cpu.CPUExecutor.run`, once the executor is ready."""

@@ -334,9 +334,13 @@ class Scheduler:
             self._advance(s, *_restrict(rr, self.state[s].rows, self.state[s].border))
         windows = [self._window(self.state[s], rr, cc) for s, (rr, cc) in reads]  # views, valid until the next append
         origins = [(s, step.origins[s], rr, cc) for s, (rr, cc) in reads]
-        out = self._run(ps.target, step, windows, origins)
         r0, (k0, k1) = st.held()[1], st.kept()
-        self._append(st, out[r0 - step.rows[0]:, k0 - step.cols[0]:k1 - step.cols[0]])
+        if self.executor.writes_into and step.rows[0] == r0 and tuple(step.cols) == (k0, k1):
+            # the step makes exactly the new rows of the kept columns: made in their place after the kept rows
+            self._run(ps.target, step, windows, origins, self._room(st, step.rows[1] - r0, windows[0][0]))
+        else:
+            out = self._run(ps.target, step, windows, origins)
+            self._append(st, out[r0 - step.rows[0]:, k0 - step.cols[0]:k1 - step.cols[0]])
         for s, *_ in origins:
             self._trim(s)
 
@@ -350,6 +354,20 @@ class Scheduler:
         st.done = st.held()[1] + sum(p.shape[0] for p in parts)
         self.peak_pixels = max(self.peak_pixels, sum(s.buf.shape[0] * s.buf.shape[1] for s in self.state.values()
                                                  if s.buf is not None))
+
+    def _room(self, st: _State, n: int, like: np.ndarray) -> np.ndarray:
+        """:meth:`_append` of ``n`` rows still to be made: a new buffer of the kept rows and ``n`` more (the kept
+        rows copied in, ``like``'s channels, the scheduler's type), which ``st`` holds from now on; its last ``n``
+        rows, for the executor to write (``run_outputs(..., out=)``)."""
+        (c0, c1), m = st.kept(), 0 if st.buf is None else len(st.buf)
+        buf = np.empty((m + n, c1 - c0) + like.shape[2:], self.dtype)
+        if m:
+            buf[:m] = st.buf
+        st.buf = buf
+        st.done = st.held()[1] + n
+        self.peak_pixels = max(self.peak_pixels, sum(s.buf.shape[0] * s.buf.shape[1] for s in self.state.values()
+                                                 if s.buf is not None))
+        return buf[m:]
 
     def _window(self, src: _State, rr: tuple[int, int], cc: tuple[int, int]):
         """(pixels, origin): what a pass reads of ``src`` over ``rr × cc``."""
@@ -367,8 +385,9 @@ class Scheduler:
             px[:, ci < src.colext[0]] = 0
         return px, (rr[0], cc[0])
 
-    def _run(self, target: int, step, windows, origins) -> np.ndarray:
-        """One pass over ``step``'s rectangle, as a one-pass plan of windows."""
+    def _run(self, target: int, step, windows, origins, out: np.ndarray | None = None) -> np.ndarray:
+        """One pass over ``step``'s rectangle, as a one-pass plan of windows (its pixels written into ``out``
+        where given: an executor that :attr:`~pyramid_cli.exec.base.Executor.writes_into`)."""
         plan = self.plan
         images = [Image((1, 1)) for _ in plan.images]
         arrays = []
@@ -385,7 +404,8 @@ class Scheduler:
         sub = Plan(images, [step.run], plan.expression, outputs=[target], inputs=[s for s, *_ in origins],
                    border=plan.border)
         self.steps += 1
-        return self.executor.run_outputs(sub, arrays, self.dtype, **self.codes)[0]
+        into = {} if out is None else {"out": out}
+        return self.executor.run_outputs(sub, arrays, self.dtype, **self.codes, **into)[0]
 
     def _trim(self, s: int) -> None:
         """Drop the rows of ``s`` that no later step reads (and that are emitted, for an output)."""

@@ -456,9 +456,9 @@ def test_codes_are_kept_as_the_executor_reads_them(cpu_executor):
         def __getattr__(self, name):
             return getattr(cpu_executor, name)
 
-        def run_outputs(self, plan_, images, dtype=np.float32, codes=None):
+        def run_outputs(self, plan_, images, dtype=np.float32, codes=None, out=None):
             seen.update(a.dtype.name for a in images if a.dtype.kind == "u")  # the codes, not the levels
-            return cpu_executor.run_outputs(plan_, images, dtype, codes=codes)
+            return cpu_executor.run_outputs(plan_, images, dtype, codes=codes, out=out)
 
     got: dict = {k: np.zeros(p.images[k].size + (3,), np.float32) for k in p.outputs}
 
@@ -470,3 +470,36 @@ def test_codes_are_kept_as_the_executor_reads_them(cpu_executor):
     assert seen == {"uint16"}
     for k, want in zip(p.outputs, cpu_executor.run_outputs(p, [table[codes]]), strict=True):
         np.testing.assert_array_equal(got[k], want)
+
+
+@pytest.mark.parametrize("border", ["clamp", "mirror", "wrap", "zero"])
+def test_an_executor_that_writes_into_makes_each_band_in_its_place(cpu_executor, border):
+    """With the CPU executor (``writes_into``), a step's rows are written by its pass into the image's new buffer,
+    after the kept rows, not copied there: steps that make the rows of their kept columns are given ``out``, a view
+    of the rows the scheduler then holds and hands to the sink, and the pixels are the untiled run's."""
+    size = (53, 47)
+    image = np.random.default_rng(4).random(size + (3,), dtype=np.float32)
+    p = Levels(levels=4, border=border).plan((size,))
+    given: list[np.ndarray] = []
+
+    class Recording:
+        def __getattr__(self, name):
+            return getattr(cpu_executor, name)
+
+        def run_outputs(self, plan_, images, dtype=np.float32, out=None):
+            got = cpu_executor.run_outputs(plan_, images, dtype, out=out)
+            if out is not None:
+                given.append(out)
+                assert got[-1] is out
+            return got
+
+    made: dict = {k: np.zeros(p.images[k].size + (3,), np.float32) for k in p.outputs}
+
+    def sink(k, r, c, px):
+        assert k in p.inputs or any(np.shares_memory(px, a) for a in given), "a band copied after its pass"
+        made[k][r:r + px.shape[0], c:c + px.shape[1]] = px
+
+    tiles.Scheduler(Recording(), p, lambda k, r, c: image[r[0]:r[1], c[0]:c[1]], sink, band=8).run()
+    assert given
+    for k, want in zip(p.outputs, cpu_executor.run_outputs(p, image), strict=True):
+        np.testing.assert_array_equal(made[k], want, err_msg=f"image {k}")

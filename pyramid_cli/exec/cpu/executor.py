@@ -189,6 +189,7 @@ class CPUExecutor:
     work_dtype = np.dtype(np.float32)
     max_texture_size = None  # no limit on an image's sides
     host_textures = False    # no textures: it holds the pictures and nothing else
+    writes_into = True       # run_outputs(..., out=)
 
     @staticmethod
     def texture_bytes(extent: tuple[int, int]) -> int:
@@ -352,7 +353,8 @@ class CPUExecutor:
         """Execute ``plan`` on ``image`` (H, W) or (H, W, C); the logical pixels of the last output, float32."""
         return self.run_outputs(plan, image)[-1]
 
-    def run_outputs(self, plan: Plan, images, dtype=np.float32, codes: np.ndarray | None = None) -> list[np.ndarray]:
+    def run_outputs(self, plan: Plan, images, dtype=np.float32, codes: np.ndarray | None = None,
+                    out: np.ndarray | None = None) -> list[np.ndarray]:
         """Execute ``plan`` with one image per ``plan.inputs``; the logical pixels of every ``plan.outputs``.
 
         Parameters
@@ -371,11 +373,15 @@ class CPUExecutor:
             through it wherever a pass reads them (exactly as if ``codes[input]`` were given; the table takes the
             place of the float16 one, so 8-bit rows need not be decoded to floats first). ``codes[0]`` must be 0
             (a zero border reads code 0, as it reads the float16 0); float32 runs only.
+        out : ndarray, optional
+            The last output's pixels are written into it (its shape, ``dtype``): by the last pass itself where
+            the output is a pass's whole target and ``out`` is C-contiguous, else copied there. The tile
+            scheduler's bands are made so in their place in the image's buffer (:mod:`pyramid_cli.exec.tiles`).
 
         Returns
         -------
         list of ndarray
-            One per ``plan.outputs``, (H, W) for 2-D inputs, else (H, W, C).
+            One per ``plan.outputs``, (H, W) for 2-D inputs, else (H, W, C); the last is ``out`` where given.
         """
         dtype = np.dtype(dtype)
         if dtype not in OUT_DTYPES:
@@ -391,11 +397,15 @@ class CPUExecutor:
                       else a for a in listed]
             self._table = _codes_table(codes)
         try:
-            return self._run_outputs(plan, images, dtype)
+            results = self._run_outputs(plan, images, dtype, out)
         finally:
             self._table = None
+        if out is not None and results[-1] is not out:
+            out[...] = results[-1]
+            results[-1] = out
+        return results
 
-    def _run_outputs(self, plan: Plan, images, dtype) -> list[np.ndarray]:
+    def _run_outputs(self, plan: Plan, images, dtype, into: np.ndarray | None = None) -> list[np.ndarray]:
         wt = np.dtype(_work(dtype))  # the working type
         arrays = plan_inputs(plan, images, np.float64 if wt == np.float64 else None)
         flat = arrays[0].ndim == 2
@@ -407,10 +417,11 @@ class CPUExecutor:
         half = {k for k, a in zip(plan.inputs, arrays, strict=True) if a.dtype == np.float16}
         released = plan.releases()
         spare: dict[tuple, list[np.ndarray]] = {}  # this run's dead intermediates, by shape, for later targets
+        written = None  # the output made in ``into``
 
         def retire(k: int) -> None:
             a = stored.pop(k)
-            if k not in plan.inputs and a.dtype == wt:
+            if k not in plan.inputs and a.dtype == wt and a is not into:
                 spare.setdefault(a.shape, []).append(a)
 
         for i, ps in enumerate(plan.passes):
@@ -428,7 +439,11 @@ class CPUExecutor:
             # a page fault per page at its first write, about as much as the pass's own stores
             shape_ = target.stored + (channels,)
             free = spare.get(shape_)
-            out = free.pop() if free else np.empty(shape_, dtype=wt)
+            if (into is not None and ps.target == plan.outputs[-1] and into.shape == shape_
+                    and into.dtype == wt == dtype and not any(target.guard) and into.flags.c_contiguous):
+                out, written = into, ps.target  # the caller's array: no copy of the output after
+            else:
+                out = free.pop() if free else np.empty(shape_, dtype=wt)
             if isinstance(ps, PointwisePass):
                 self._run_pointwise(ps, out, [self._float(stored[s]) if s in half else stored[s] for s in srcs])
             else:
@@ -439,6 +454,9 @@ class CPUExecutor:
                 retire(s)
         results = []
         for k in plan.outputs:
+            if k == written and into is not None:
+                results.append(into)
+                continue
             im = plan.images[k]
             t, le = im.guard[0], im.guard[1]
             a = stored[k]

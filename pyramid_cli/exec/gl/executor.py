@@ -165,6 +165,7 @@ class GLExecutor:
     backend = "gl"
     strategy = "cost"  # the calibrated cost model's plans (pyramid_cli.plan.lower)
     work_dtype = np.dtype(np.float32)
+    writes_into = False  # run_outputs reads its outputs back into arrays of its own
 
     def __init__(self, precision: str = "float", info: dict | None = None):
         if precision not in PRECISIONS:
