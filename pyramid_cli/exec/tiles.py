@@ -133,8 +133,8 @@ class Scheduler:
     sink : callable
         ``sink(k, row, col, pixels)``: output image ``k``'s pixels at ``(row, col)``; called in row order
         within a strip. ``pixels`` is a read-only view of the scheduler's buffers, whose rows are never written
-        again once made (:meth:`_append` makes a new buffer, :meth:`_trim` only narrows the view): a sink may
-        keep it without a copy, holding that buffer's memory while it does.
+        again once made (:meth:`_append` and :meth:`_room` make a new buffer, :meth:`_trim` only narrows the
+        view): a sink may keep it without a copy, holding that buffer's memory while it does.
     band, width : int
         Rows and columns of a tile, in pixels of the largest output (smaller outputs get their share).
     dtype
@@ -352,6 +352,10 @@ class Scheduler:
         st.buf = (np.concatenate(kept + parts, dtype=dtype) if len(kept) + len(parts) > 1
                   else np.array(parts[0], dtype=dtype))
         st.done = st.held()[1] + sum(p.shape[0] for p in parts)
+        self._held()
+
+    def _held(self) -> None:
+        """:attr:`peak_pixels` with what the images hold now."""
         self.peak_pixels = max(self.peak_pixels, sum(s.buf.shape[0] * s.buf.shape[1] for s in self.state.values()
                                                  if s.buf is not None))
 
@@ -365,8 +369,7 @@ class Scheduler:
             buf[:m] = st.buf
         st.buf = buf
         st.done = st.held()[1] + n
-        self.peak_pixels = max(self.peak_pixels, sum(s.buf.shape[0] * s.buf.shape[1] for s in self.state.values()
-                                                 if s.buf is not None))
+        self._held()
         return buf[m:]
 
     def _window(self, src: _State, rr: tuple[int, int], cc: tuple[int, int]):

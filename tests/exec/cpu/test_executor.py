@@ -235,6 +235,22 @@ def test_dead_intermediates_are_reused_and_live_ones_are_not(ex):
     assert not any(np.shares_memory(a, b) for i, a in enumerate(outs) for b in outs[i + 1:])
 
 
+def test_the_last_output_is_written_into_out(ex):
+    """``out=``: the last output's pixels in the caller's array (the tile scheduler's bands), the same values as
+    without it: written by the last pass itself at float32, copied there at float16; the other outputs as ever."""
+    size = (37, 53)
+    x = random_image(size, 3, 9)
+    p = pyramids.levels_plan(size, 3, strategy="fused")
+    want = ex.run_outputs(p, [x])
+    for dtype in (np.float32, np.float16):
+        out = np.full(want[-1].shape, np.nan, dtype)
+        got = ex.run_outputs(p, [x], dtype, out=out)
+        assert got[-1] is out
+        np.testing.assert_array_equal(out, want[-1].astype(dtype))
+        for a, b in zip(got[:-1], want[:-1], strict=True):
+            np.testing.assert_array_equal(a, b.astype(dtype))
+
+
 @pytest.mark.parametrize("border", slow_beyond(BORDERS))
 def test_cpu_plans_fuse_each_step_and_equal_reference(ex, border):
     """The "fused" strategy (the CPU executor's): one pass per written step, the same numbers at every pixel."""
