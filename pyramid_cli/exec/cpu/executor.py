@@ -38,7 +38,6 @@ from pathlib import Path
 
 import numpy as np
 
-from pyramid_cli.core.border import Border, fold
 from pyramid_cli.core.errors import BackendError
 from pyramid_cli.core.machine import usable_cores
 from pyramid_cli.exec.cpu import aot
@@ -68,7 +67,7 @@ from pyramid_cli.exec.cpu.compile import (
     write_source,
 )
 from pyramid_cli.exec.emulate import plan_inputs, resample_table
-from pyramid_cli.exec.gather import MAX_BLOCKS, run_slice, runs
+from pyramid_cli.exec.gather import window
 from pyramid_cli.plan.model import Pass, Plan, PointwisePass, ResamplePass
 from pyramid_cli.plan.shapes import PassShape, shape, sources
 
@@ -93,45 +92,6 @@ class Kernel:
     terms: dict      # phase → list[Term]
     extents: list    # per slot: (dr_min, dr_max, dc_min, dc_max)
     digest: str      # of its source: the file it is cached under
-
-
-# ------------------------------------------------------------------ folding
-def _fold(index: np.ndarray, n: int, border: str) -> np.ndarray:
-    """0-based stored indices folded into ``0..n−1`` by the border mode; −1 reads zero."""
-    return fold(index + 1, n, Border.parse(border)) - 1
-
-
-@lru_cache(maxsize=256)  # a strip's index arrays are as long as its side: 256 of 4K strips are ~15 MB
-def _window_index(rows: tuple[int, int], cols: tuple[int, int], extent: tuple[int, int], border: str):
-    """How :func:`_window` copies a window: as slice copies ``(out rows, out columns, source rows, source
-    columns)`` (None for a block that reads zero), or, when a fold bounces too often for that, one ``np.ix_``
-    gather with the rows and columns that read zero. The same few windows recur in every run of a plan, so
-    they are computed once."""
-    ri = _fold(np.arange(rows[0], rows[1] + 1), extent[0], border)
-    ci = _fold(np.arange(cols[0], cols[1] + 1), extent[1], border)
-    rr, cr = runs(ri), runs(ci)
-    if len(rr) * len(cr) <= MAX_BLOCKS:
-        blocks = [(slice(r0, r1), slice(c0, c1),
-                   None if rf < 0 or cf < 0 else (run_slice(rf, rs, r1 - r0), run_slice(cf, cs, c1 - c0)))
-                  for r0, r1, rf, rs in rr for c0, c1, cf, cs in cr]
-        return (len(ri), len(ci)), blocks, None
-    return (len(ri), len(ci)), None, (np.ix_(np.maximum(ri, 0), np.maximum(ci, 0)), ri < 0, ci < 0)
-
-
-def _window(src: np.ndarray, rows: tuple[int, int], cols: tuple[int, int], border: str) -> np.ndarray:
-    """Texels ``rows[0]..rows[1]`` × ``cols[0]..cols[1]`` (inclusive, 0-based stored, possibly outside) of ``src``."""
-    size, blocks, gather = _window_index(rows, cols, src.shape[:2], border)
-    if blocks is None:
-        index, zero_rows, zero_cols = gather
-        win = src[index]
-        if border == "zero":
-            win[zero_rows] = 0
-            win[:, zero_cols] = 0
-        return win
-    win = np.empty(size + src.shape[2:], src.dtype)
-    for out_rows, out_cols, read in blocks:
-        win[out_rows, out_cols] = 0 if read is None else src[read]
-    return win
 
 
 def _calls(fn: Callable[..., None], calls: list[list]) -> None:
@@ -579,7 +539,7 @@ class CPUExecutor:
         for (dr0, dr1, dc0, dc1), (ro, co), a, im in zip(kern.extents, offs, srcs, imgs, strict=True):
             r0, r1 = sr * rows[0] + dr0 + ro, sr * (rows[1] - 1) + dr1 + ro
             c0, c1 = sc * n_lo + dc0 + co, sc * n_hi + dc1 + co
-            wins.append(_window(a, (r0, r1), (c0, c1), im.border))
+            wins.append(window(a, (r0, r1), (c0, c1), im.border))
             woffs.append((ro - r0, co - c0))
         head, tail = self._args(out, wins, cols, woffs, yoff, xoff)
         return [*head, rows[0], rows[1], *tail]

@@ -66,33 +66,6 @@ def test_threads_split_rows_without_changing_a_bit(threads):
     assert many.threads == threads
 
 
-@pytest.mark.parametrize("border", BORDERS)
-def test_a_window_is_the_folded_gather_of_its_texels(border):
-    """``_window`` copies slices of the source (each run of a folded index is one); it equals the plain gather of
-    the folded indices for every border, window and extent, a fold that bounces too often for slices included."""
-    from pyramid_cli.exec.cpu import executor
-
-    rng = np.random.default_rng(3)
-    blocks = gathers = 0
-    for extent in [(1, 1), (1, 7), (5, 1), (3, 4), (9, 13)]:
-        src = rng.standard_normal(extent + (2,)).astype(np.float32)
-        for r0 in range(-12, extent[0] + 3, 3):
-            for r1 in (r0, r0 + 1, r0 + 5, r0 + 30):
-                for c0 in range(-9, extent[1] + 3, 4):
-                    for c1 in (c0, c0 + 2, c0 + 17, c0 + 200):
-                        ri = executor._fold(np.arange(r0, r1 + 1), extent[0], border)
-                        ci = executor._fold(np.arange(c0, c1 + 1), extent[1], border)
-                        want = src[np.ix_(np.maximum(ri, 0), np.maximum(ci, 0))]
-                        want[ri < 0] = 0
-                        want[:, ci < 0] = 0
-                        np.testing.assert_array_equal(executor._window(src, (r0, r1), (c0, c1), border), want)
-                        sliced = executor._window_index((r0, r1), (c0, c1), extent, border)[1] is not None
-                        blocks += sliced
-                        gathers += not sliced
-    assert blocks > 0
-    assert (gathers > 0) == (border in ("mirror", "wrap"))  # a 200-column window over 4 to 13 columns bounces
-
-
 @pytest.mark.slow
 @pytest.mark.parametrize("border", BORDERS)
 def test_border_strips_run_beside_the_interior(border):
