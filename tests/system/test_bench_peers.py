@@ -80,3 +80,19 @@ def test_peers_rejects_an_unknown_job(tmp_path):
     p = subprocess.run([sys.executable, str(PEERS), "--only", "nope", "--data", str(tmp_path)],
                        capture_output=True, text=True, timeout=60, cwd=ROOT)
     assert p.returncode == 2 and "unknown job" in p.stderr
+
+
+def test_every_pyramid_timed_writes_its_bytecode(monkeypatch, tmp_path):
+    """Under PYTHONDONTWRITEBYTECODE a tree would compile every module in every timed run (an installed package's
+    are compiled once, by pip): the contenders' environments drop it, so the warm-up round writes the bytecode."""
+    import argparse
+
+    monkeypatch.syspath_prepend(str(ROOT / "bench"))
+    monkeypatch.setenv("PYTHONDONTWRITEBYTECODE", "1")
+    import peers
+
+    (tmp_path / "pyramid_cli").mkdir()
+    found = peers.pyramids(argparse.Namespace(pyramid=peers.DEFAULT_PYRAMID, pyramid_tree=[str(tmp_path)]))
+    assert [p.label for p in found] == ["pyramid", f"pyramid@{tmp_path.name}"]
+    for p in found:
+        assert p.env is not None and "PYTHONDONTWRITEBYTECODE" not in p.env and p.env["PYTHONSAFEPATH"] == "1"
