@@ -37,9 +37,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pyramid_cli.core.border import Border, fold
 from pyramid_cli.exec.base import Executor
-from pyramid_cli.exec.gather import gather
+from pyramid_cli.exec.gather import fold_stored, gather
 from pyramid_cli.plan.model import Image, Plan
 
 Rect = tuple[tuple[int, int], tuple[int, int]]
@@ -62,9 +61,10 @@ def _restrict(span: tuple[int, int], extent: tuple[int, int], border: str) -> tu
 
 
 def _fold(index: np.ndarray, extent: tuple[int, int], border: str) -> np.ndarray:
-    """0-based logical indices folded into ``extent`` (an image without guard: ``(0, n)``); ``e0 − 1``: zero."""
+    """0-based logical indices folded into ``extent`` (an image without guard: ``(0, n)``); ``e0 − 1``: zero: the
+    stored indices' fold (:func:`~pyramid_cli.exec.gather.fold_stored`) shifted by the extent's start."""
     e0, e1 = extent
-    return fold(index - e0 + 1, e1 - e0, Border.parse(border)) - 1 + e0
+    return fold_stored(index - e0, e1 - e0, border) + e0
 
 
 def _union(a, b):
@@ -352,9 +352,9 @@ class Scheduler:
         st.buf = (np.concatenate(kept + parts, dtype=dtype) if len(kept) + len(parts) > 1
                   else np.array(parts[0], dtype=dtype))
         st.done = st.held()[1] + sum(p.shape[0] for p in parts)
-        self._held()
+        self._note_peak()
 
-    def _held(self) -> None:
+    def _note_peak(self) -> None:
         """:attr:`peak_pixels` with what the images hold now."""
         self.peak_pixels = max(self.peak_pixels, sum(s.buf.shape[0] * s.buf.shape[1] for s in self.state.values()
                                                  if s.buf is not None))
@@ -369,7 +369,7 @@ class Scheduler:
             buf[:m] = st.buf
         st.buf = buf
         st.done = st.held()[1] + n
-        self._held()
+        self._note_peak()
         return buf[m:]
 
     def _window(self, src: _State, rr: tuple[int, int], cc: tuple[int, int]):
