@@ -80,18 +80,20 @@ def _folded_sample(src: np.ndarray, q: np.ndarray, p: np.ndarray, border: Border
             + a * (1 - b) * padded[np.ix_(rows[1], cols[0])] + a * b * padded[np.ix_(rows[1], cols[1])])
 
 
-def plan_inputs(plan: Plan, images, dtype=None) -> list[np.ndarray]:
+def plan_inputs(plan: Plan, images, dtype=None, codes: bool = False) -> list[np.ndarray]:
     """The executors' check of a plan's inputs: one array per ``plan.inputs``, each (H, W) or (H, W, C) of
     the input image's size (its stored extent where it has a guard band: a tile's window), one channel layout;
-    float32 and float16 arrays are kept, others made float32 (every one made ``dtype`` where it is given: a
-    float64 run's inputs).
+    float32 and float16 arrays are kept (uint8 ones too where ``codes``: 8-bit codes the executor reads through
+    its table), others made float32 (every one made ``dtype`` where it is given: a float64 run's inputs).
 
     Raises
     ------
     ValueError
         A wrong count, shape, size or channel layout (the executors' callers turn these into messages).
     """
-    keep = (np.dtype(np.float32), np.dtype(np.float16)) if dtype is None else (np.dtype(dtype),)
+    keep: tuple[np.dtype, ...] = (np.dtype(np.float32), np.dtype(np.float16)) if dtype is None else (np.dtype(dtype),)
+    if codes:
+        keep += (np.dtype(np.uint8),)
     arrays = [a if isinstance(a, np.ndarray) and a.dtype in keep else np.asarray(a, dtype=keep[0])
               for a in (images if isinstance(images, (list, tuple)) else [images])]
     if len(arrays) != len(plan.inputs):

@@ -144,8 +144,8 @@ class Scheduler:
         none), with the pixels of the whole run (a part of a picture run on a cluster worker). Every image is
         then read and made from the first row its window needs (:meth:`run`).
     codes : ndarray, optional
-        The sources give 8/16-bit codes, kept as uint16 and read through this table of their float32 values by
-        the executor (the CPU executor's ``run_outputs(..., codes=)``).
+        The sources give 8/16-bit codes, kept as they are (uint8, uint16) and read through this table of their
+        float32 values by the executor (the CPU executor's ``run_outputs(..., codes=)``).
     """
 
     def __init__(self, executor: Executor, plan: Plan, source: Source, sink: Sink, *, band: int,
@@ -324,9 +324,8 @@ class Scheduler:
         ps = self.writer.get(k)
         if ps is None:  # an input
             px = self.source(k, (done, hi), st.kept())
-            # codes are kept as uint16, the type the executor reads them in through its table: converted once, in
-            # the copy that joins them to the kept rows, not in every window of every step
-            self._append(st, px, np.uint16 if self.codes else None)
+            # codes are kept as decoded (uint8 or uint16): the executor reads both through its table
+            self._append(st, px)
             return
         step = ps.tile((done, hi), st.computed())
         reads = sorted(ps.reads(step.rows, step.cols).items())
@@ -344,13 +343,12 @@ class Scheduler:
         for s, *_ in origins:
             self._trim(s)
 
-    def _append(self, st: _State, px: np.ndarray | list[np.ndarray], dtype=None) -> None:
+    def _append(self, st: _State, px: np.ndarray | list[np.ndarray]) -> None:
         parts = px if isinstance(px, list) else [px]
         kept = [] if st.buf is None or not len(st.buf) else [st.buf]
         # one copy of the kept rows and the new ones into a new buffer: rows once made are never written again, so
         # the sink keeps views (a ring buffer measured no faster, and held more)
-        st.buf = (np.concatenate(kept + parts, dtype=dtype) if len(kept) + len(parts) > 1
-                  else np.array(parts[0], dtype=dtype))
+        st.buf = np.concatenate(kept + parts) if len(kept) + len(parts) > 1 else np.array(parts[0])
         st.done = st.held()[1] + sum(p.shape[0] for p in parts)
         self._note_peak()
 

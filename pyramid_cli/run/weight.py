@@ -104,7 +104,7 @@ def mip_codes_bytes(plan: Plan, st, executor) -> int:
     """Bytes a whole MIP run of ``plan`` from the codes of ``st`` holds (:func:`mip_from_codes`): level 0's codes,
     held until its header is known and it is written, and the larger of what comes beside them while it is read
     (each hashing thread's block of rows as float32, and a block as read) and after (the coarser levels as
-    stored, the scheduler's bands with the codes kept as uint16, or a picture too small for bands run whole, and
+    stored, the scheduler's bands with copies of the codes, or a picture too small for bands run whole, and
     the rows of level 0 its writer has in hand)."""
     from pyramid_cli.workflows.mip import SHA1_BLOCK
 
@@ -115,7 +115,9 @@ def mip_codes_bytes(plan: Plan, st, executor) -> int:
     reading = HASHERS * block * row * 4 + block * row * item
     coarse = sum(a * b for a, b in (plan.images[k].size for k in plan.outputs)) * c * item
     written = 2 * min(h, LEVEL0_ROWS) * row * item
-    levels = coarse + estimate(plan, c, speed_band(plan, executor), in_bytes=2) + written
+    band = speed_band(plan, executor)
+    # whole, the executor reads the codes held as level 0 where they are; in bands, the scheduler joins copies
+    levels = coarse + estimate(plan, c, band, in_bytes=item if band else 0) + written
     return h * row * item + max(reading, levels)
 
 

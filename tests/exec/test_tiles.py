@@ -444,8 +444,9 @@ def test_a_sink_may_keep_the_rows_it_is_given_without_a_copy(cpu_executor, borde
 
 
 def test_codes_are_kept_as_the_executor_reads_them(cpu_executor):
-    """A run on 8-bit codes keeps them as uint16, the type the executor reads through its table, so no step
-    converts its windows again; the pixels are those of the floats ``table[codes]``, tiled or not."""
+    """A run on 8-bit codes keeps them as uint8, as decoded: the executor reads them through its table, so
+    neither the scheduler's joins nor any step converts them; the pixels are those of the floats
+    ``table[codes]``, tiled or not."""
     size = (37, 29)
     codes = np.random.default_rng(3).integers(0, 256, size + (3,), dtype=np.uint8)
     table = np.linspace(0, 1, 256, dtype=np.float32) ** 2
@@ -467,7 +468,7 @@ def test_codes_are_kept_as_the_executor_reads_them(cpu_executor):
 
     tiles.Scheduler(Recording(), p, lambda k, r, c: codes[r[0]:r[1], c[0]:c[1]], sink, band=8, width=13,
                     codes=table).run()
-    assert seen == {"uint16"}
+    assert seen == {"uint8"}
     for k, want in zip(p.outputs, cpu_executor.run_outputs(p, [table[codes]]), strict=True):
         np.testing.assert_array_equal(got[k], want)
 

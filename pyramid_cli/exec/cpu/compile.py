@@ -93,13 +93,16 @@ def compile_vectorised(fn, sig: str) -> None:
 
 def compile_plain(fn, sig: str) -> None:
     """``fn.compile(sig)``; a disk cache that cannot be written (a full disk, a file-size limit) costs the
-    cache, not the run: numba adds the overload before it saves it, so the retry without a cache finds it."""
+    cache, not the run: the retry runs without the caches of ``fn`` and of the functions of its module that it
+    calls (``half_row``, compiled for each type of row it is given, each saved as it is compiled)."""
     try:
         fn.compile(sig)
     except OSError:
         from numba.core.caching import NullCache
 
-        fn._cache = NullCache()
+        for d in (fn, *fn.py_func.__globals__.values()):
+            if hasattr(d, "_cache") and hasattr(d, "py_func"):  # numba's dispatchers
+                d._cache = NullCache()
         fn.compile(sig)
 
 

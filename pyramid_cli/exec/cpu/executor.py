@@ -352,9 +352,9 @@ class CPUExecutor:
             if codes[0] != 0:
                 raise ValueError("a table of codes reads 0 for code 0 (the zero border's)")
             listed = images if isinstance(images, (list, tuple)) else [images]
-            # uint16 inputs are read through a table as float16 bit patterns are: these, through this one
-            images = [np.asarray(a, np.uint16).view(np.float16) if np.asarray(a).dtype in (np.uint8, np.uint16)
-                      else a for a in listed]
+            # uint16 inputs are read through a table as float16 bit patterns are: these, through this one (uint8
+            # ones too, as they are: no uint16 copy)
+            images = [np.asarray(a).view(np.float16) if np.asarray(a).dtype == np.uint16 else a for a in listed]
             self._table = _codes_table(codes)
         try:
             results = self._run_outputs(plan, images, dtype, out)
@@ -367,14 +367,15 @@ class CPUExecutor:
 
     def _run_outputs(self, plan: Plan, images, dtype, into: np.ndarray | None = None) -> list[np.ndarray]:
         wt = np.dtype(_work(dtype))  # the working type
-        arrays = plan_inputs(plan, images, np.float64 if wt == np.float64 else None)
+        arrays = plan_inputs(plan, images, np.float64 if wt == np.float64 else None,
+                             codes=self._table is not None)
         flat = arrays[0].ndim == 2
         arrays = [a[:, :, None] if flat else a for a in arrays]
         channels = arrays[0].shape[2]
         stored: dict[int, np.ndarray] = {}
         for k, a in zip(plan.inputs, arrays, strict=True):
             stored[k] = np.ascontiguousarray(a.view(np.uint16) if a.dtype == np.float16 else a)
-        half = {k for k, a in zip(plan.inputs, arrays, strict=True) if a.dtype == np.float16}
+        half = {k for k, a in zip(plan.inputs, arrays, strict=True) if a.dtype in (np.float16, np.uint8)}
         released = plan.releases()
         spare: dict[tuple, list[np.ndarray]] = {}  # this run's dead intermediates, by shape, for later targets
         written = None  # the output made in ``into``
@@ -546,12 +547,14 @@ class CPUExecutor:
 
     def _args(self, out, srcs, cols, offs, yoff, xoff) -> tuple[list, list]:
         """A kernel's arguments (see :func:`kernel_source`) before and after the output groups ``m0, m1``."""
-        half = sum(1 << k for k, a in enumerate(srcs) if a.dtype == np.uint16)  # float32 runs only
+        # bit k: slot k is uint16 (float16 bits or codes), bit 16 + k: uint8 codes (float32 runs only)
+        half = sum(1 << k if a.dtype == np.uint16 else 1 << (16 + k) for k, a in enumerate(srcs) if a.dtype.kind == "u")
         none = _NO_FLOAT[out.dtype]
         extra = [self._half_lut() if half else _NO_FLOAT_1D[out.dtype], half, out.shape[2]]
         out = out.reshape(out.shape[0], -1)
         flat = [a.reshape(a.shape[0], -1) for a in srcs]
-        srcs = [v for a in flat for v in ((none, a) if a.dtype == np.uint16 else (a, _NO_U16))]
+        srcs = [v for a in flat for v in ((none, a, _NO_U8) if a.dtype == np.uint16 else (none, _NO_U16, a)
+                                          if a.dtype == np.uint8 else (a, _NO_U16, _NO_U8))]
         tail = [yoff, xoff] + [v for lo_hi in cols for v in lo_hi] + [v for o in offs for v in o]
         return [out, *srcs, *extra], tail
 
@@ -587,6 +590,7 @@ class CPUExecutor:
 # by dtype (not its ``.name``: numpy computes that in Python, a few µs a call, and the band engine makes thousands)
 _NO_FLOAT = {np.dtype(t): np.zeros((1, 1), t) for t in ("float32", "float64")}
 _NO_U16 = np.zeros((1, 1), np.uint16)
+_NO_U8 = np.zeros((1, 1), np.uint8)
 _NO_FLOAT_1D = {np.dtype(t): np.zeros(1, t) for t in ("float32", "float64")}
 
 

@@ -24,8 +24,10 @@ def test_kernel_source_is_canonical_and_unrolled():
     text = cpu.kernel_source(generate.shape(ds.passes[0]))
     assert "cache=True" in text and "v0_3 = t0[" in text and "if C == 4:" in text  # RGBA unrolled
     assert "np.float32(0.25)" in text and "np.float32(0.75)" in text  # one vertical (¼, ¾) sum per row phase
-    # one text for float32 and float16 sources: a half row goes through the table once, into a scratch row
-    assert "def kernel(out, s0, h0, lut, half, C," in text and text.count("lut[") == text.count("= lut[hr[g]]") > 0
+    # one text for float32, float16 and 8/16-bit code sources: such a row goes through the table once, into a
+    # scratch row
+    assert "def kernel(out, s0, h0, e0, lut, half, C," in text and "half_row(e0, " in text
+    assert text.count("lut[") == text.count("= lut[hr[g]]") > 0
 
 
 def test_rgb_is_unrolled_where_a_strided_loop_has_one_column_phase():
