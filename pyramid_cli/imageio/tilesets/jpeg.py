@@ -30,7 +30,9 @@ def libjpeg(quality: int) -> Callable[[np.ndarray], bytes | bytearray] | None:
 
     def encode(tile: np.ndarray) -> bytes | bytearray:
         pixels = tile[:, :, 0] if tile.shape[2] == 1 else tile  # a grey tile as a plane: (1, 1, 1) is ambiguous
-        return jpeg8_encode(np.ascontiguousarray(pixels), level=quality, subsampling=subsampling)
+        if not pixels[0].flags.c_contiguous:  # imagecodecs takes rows apart (a tile's columns of a band) as they are
+            pixels = np.ascontiguousarray(pixels)
+        return jpeg8_encode(pixels, level=quality, subsampling=subsampling)
 
     return encode
 

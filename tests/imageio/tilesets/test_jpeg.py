@@ -48,6 +48,32 @@ def test_openimageio_s_tile_less_its_exif_is_imagecodecs_s(tmp_path):
         assert jpeg_bytes(data) == bytes(encode(px)), (shape, q)
 
 
+def test_a_tile_of_a_band_is_encoded_where_it_lies(monkeypatch):
+    """A tile's columns of a band (rows apart, each row's pixels together) go to libjpeg-turbo as they are, with
+    the band's row stride: no copy, the bytes of the copy's file. Pixels not together in a row are copied first."""
+    imagecodecs = pytest.importorskip("imagecodecs")
+    given = []
+    real = imagecodecs.jpeg8_encode
+
+    def seen(data, **kw):
+        given.append(data)
+        return real(data, **kw)
+
+    monkeypatch.setattr(imagecodecs, "jpeg8_encode", seen)
+    rng = np.random.default_rng(5)
+    for channels in (3, 1):
+        band = rng.integers(0, 256, (40, 300, channels), dtype=np.uint8)
+        tile = band[3:35, 254:300]
+        want = bytes(real(np.ascontiguousarray(tile[:, :, 0] if channels == 1 else tile), level=75,
+                          subsampling=(2, 2)))
+        assert bytes(libjpeg(75)(tile)) == want
+        assert np.shares_memory(given[-1], band), channels
+    sparse = band[:, ::2]  # every other column: copied
+    assert bytes(libjpeg(75)(sparse)) == bytes(real(np.ascontiguousarray(sparse[:, :, 0]), level=75,
+                                                   subsampling=(2, 2)))
+    assert not np.shares_memory(given[-1], band)
+
+
 def test_without_imagecodecs_openimageio_encodes(monkeypatch):
     """Without imagecodecs (no viewers extra) there is no libjpeg() encoder: the tile writers use OpenImageIO."""
     real = builtins.__import__
