@@ -30,11 +30,15 @@ def libjpeg(quality: int) -> Callable[[np.ndarray], bytes | bytearray] | None:
 
     def encode(tile: np.ndarray) -> bytes | bytearray:
         pixels = tile[:, :, 0] if tile.shape[2] == 1 else tile  # a grey tile as a plane: (1, 1, 1) is ambiguous
-        if not pixels[0].flags.c_contiguous:  # imagecodecs takes rows apart (a tile's columns of a band) as they are
-            pixels = np.ascontiguousarray(pixels)
-        return jpeg8_encode(pixels, level=quality, subsampling=subsampling)
+        return jpeg8_encode(rows_together(pixels), level=quality, subsampling=subsampling)
 
     return encode
+
+
+def rows_together(pixels: np.ndarray) -> np.ndarray:
+    """``pixels`` as they lie where each row's values are together in memory (a tile's columns of a band: imagecodecs
+    hands libjpeg-turbo each row at the array's row stride), else a contiguous copy."""
+    return pixels if pixels[0].flags.c_contiguous else np.ascontiguousarray(pixels)
 
 
 def _segments(data: bytes) -> list[tuple[int, int, int]]:
@@ -103,4 +107,4 @@ def shared_tables(sample: bytes) -> tuple[bytes, Callable[[bytes], bytes]]:
     return tables, store
 
 
-__all__ = ["abbreviated", "jpeg_bytes", "jpeg_tables", "libjpeg", "shared_tables"]
+__all__ = ["abbreviated", "jpeg_bytes", "jpeg_tables", "libjpeg", "rows_together", "shared_tables"]

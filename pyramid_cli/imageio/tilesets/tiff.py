@@ -51,7 +51,7 @@ from pyramid_cli.imageio.encode import encode as encode_image
 from pyramid_cli.imageio.image import Image
 from pyramid_cli.imageio.spill import KeptChunks, KeptRows
 from pyramid_cli.imageio.tilesets.base import TileOptions, TileSetWriter
-from pyramid_cli.imageio.tilesets.jpeg import shared_tables
+from pyramid_cli.imageio.tilesets.jpeg import rows_together, shared_tables
 from pyramid_cli.imageio.tilesets.staging import Staging
 
 TILE = 256  # the default tile edge (vips tiffsave's is 128: give --tile-size 128 for its grid)
@@ -425,8 +425,7 @@ class PyramidTiffWriter(TileSetWriter):
         up for these pages (its codec at the level asked, and for RGB the 2×2 subsampling into YCbCr it writes the
         tags of), so the file holds the bytes tifffile would have made, less the tables (:meth:`_codec`)."""
         c = self._codec()
-        return [c.store(c.encode(np.ascontiguousarray(t).reshape(c.shape), **c.args))
-                for t in _tiles(band, self.tile, True)]
+        return [c.store(c.encode(rows_together(t).reshape(c.shape), **c.args)) for t in _tiles(band, self.tile, True)]
 
     def _codec(self) -> _Jpeg:
         """How this file's JPEG tiles are made and stored (:class:`_Jpeg`), the same for every level and row."""

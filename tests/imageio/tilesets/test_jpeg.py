@@ -8,7 +8,14 @@ import numpy as np
 import OpenImageIO as oiio
 import pytest
 
-from pyramid_cli.imageio.tilesets.jpeg import abbreviated, jpeg_bytes, jpeg_tables, libjpeg, shared_tables
+from pyramid_cli.imageio.tilesets.jpeg import (
+    abbreviated,
+    jpeg_bytes,
+    jpeg_tables,
+    libjpeg,
+    rows_together,
+    shared_tables,
+)
 
 
 def segment(marker: int, body: bytes) -> bytes:
@@ -72,6 +79,20 @@ def test_a_tile_of_a_band_is_encoded_where_it_lies(monkeypatch):
     assert bytes(libjpeg(75)(sparse)) == bytes(real(np.ascontiguousarray(sparse[:, :, 0]), level=75,
                                                    subsampling=(2, 2)))
     assert not np.shares_memory(given[-1], band)
+
+
+def test_rows_together_are_kept_where_they_lie():
+    """rows_together gives a tile's columns of a band (and a grey one's plane, and its (h, w, 1) view, as a pyramidal
+    TIFF's codec takes it) as they lie; pixels apart within a row, as a contiguous copy of the same values."""
+    band = np.arange(6 * 40 * 3, dtype=np.uint8).reshape(6, 40, 3)
+    grey = band[:, :, :1].copy()
+    for tile in (band[:, 8:24], grey[:, 8:24, 0], grey[:, 8:24]):
+        assert rows_together(tile) is tile
+        assert rows_together(tile).reshape(tile.shape[:2] + (-1,)).base is not None  # the TIFF's reshape: a view
+    for apart in (band[:, ::2], band[:, 8:24, 0]):  # every other pixel; one channel of three
+        kept = rows_together(apart)
+        assert kept.flags.c_contiguous and not np.shares_memory(kept, band)
+        np.testing.assert_array_equal(kept, apart)
 
 
 def test_without_imagecodecs_openimageio_encodes(monkeypatch):
