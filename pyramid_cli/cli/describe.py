@@ -7,6 +7,7 @@ import json
 
 import click
 
+from pyramid_cli.cli.group import collector_on
 from pyramid_cli.cli.params import EXPR, choice
 from pyramid_cli.core.errors import UsageError
 from pyramid_cli.core.options import BORDERS, STRATEGIES
@@ -32,6 +33,8 @@ def explain(expression, as_json: bool, plot: str | None) -> None:
     R = stride·⌈r/period⌉ (r for ⊗, 2ᵐr for ⊗↓ᵐ, ⌊(r+1)/2⌋ for ⊗↑), anchor = [i0, j0].
     """
     from pyramid_cli.run.explain import check_plot_path, describe, plot_powers, render
+
+    collector_on()
 
     if plot:
         check_plot_path(plot)  # refused before any work
@@ -90,6 +93,8 @@ def plan_command(expression, size, as_json: bool, strategy: str, mip_round: str 
     output fragment maps to (R = S·⌈r/P⌉); all are multiples of ¼ texel.
     """
     from pyramid_cli.plan import check, plan, render, to_json
+
+    collector_on()
 
     w, h = size
     if mip_round is not None:

@@ -19,6 +19,7 @@ from typing import Any
 
 import click
 
+from pyramid_cli.cli.group import collector_on
 from pyramid_cli.core.options import ALPHA_MODES
 from pyramid_cli.diff.idiff import DEFAULT_FAIL, DEFAULT_WARN, EXIT_CODES, format_value
 
@@ -257,6 +258,8 @@ def diff(ctx: click.Context, path_a: str, path_b: str, fail: float, warn: float,
     """
     from pyramid_cli.core.errors import PyramidError
     from pyramid_cli.diff import goldens
+
+    collector_on()
 
     if perceptual:
         _finish(ctx, 2, "-p (idiff's Yee perceptual test) is not implemented: use --metric flip "

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import click
 
+from pyramid_cli.cli.group import collector_on
 from pyramid_cli.core.errors import UsageError
 
 
@@ -43,6 +44,8 @@ def farm_template(ctx: click.Context, frames, chunk, target_seconds, name, execu
       deadline bundle submit ...   # a job bundle holding template.json
     """
     from pyramid_cli.run.farm import check_plan, dumps, job_template
+
+    collector_on()
 
     template = job_template(list(command), frames, chunk=chunk, name=name, executable=executable,
                             target_seconds=target_seconds)

@@ -7,6 +7,8 @@ import sys
 
 import click
 
+from pyramid_cli.cli.group import collector_on
+
 
 class ProgressBar:
     """click's progress bar as the pipeline's progress (shown at a terminal only)."""
@@ -38,8 +40,18 @@ def open_session(opts: dict, reporter):
     chosen: ``auto`` chooses when the first job is known, with each backend's estimate)."""
     from pyramid_cli.exec.session import Session
 
+    collector_on()
     return Session(opts["backend"], opts["precision"], threads=opts["threads"], warn=reporter.warn,
                    note=reporter.detail)
+
+
+def cluster_spec(opts: dict):
+    """The :class:`~pyramid_cli.run.cluster.SessionSpec` of --backend, --precision and --threads that each worker of a
+    --cluster run opens its session with (this process opens none)."""
+    from pyramid_cli.run.cluster import SessionSpec
+
+    collector_on()
+    return SessionSpec(opts["backend"], opts["precision"], opts["threads"])
 
 
 def read_write(opts: dict):
@@ -69,10 +81,7 @@ def run_paths(paths, work, opts: dict, mip_tile: int | None = None) -> None:
 
         batch["memory"] = parse_size(opts["memory"])
     if opts["cluster"]:  # every worker opens its own session; none is needed here
-        from pyramid_cli.run.cluster import SessionSpec
-
-        spec = SessionSpec(opts["backend"], opts["precision"], opts["threads"])
-        report = process(list(paths), opts["template"], work, spec, **batch)
+        report = process(list(paths), opts["template"], work, cluster_spec(opts), **batch)
     else:
         with open_session(opts, reporter) as session:
             report = process(list(paths), opts["template"], work, session, **batch)
@@ -80,4 +89,4 @@ def run_paths(paths, work, opts: dict, mip_tile: int | None = None) -> None:
         sys.exit(report.exit_code)
 
 
-__all__ = ["ProgressBar", "make_reporter", "drop", "open_session", "read_write", "run_paths"]
+__all__ = ["ProgressBar", "cluster_spec", "make_reporter", "drop", "open_session", "read_write", "run_paths"]

@@ -8,7 +8,7 @@ import sys
 import click
 
 from pyramid_cli.cli.params import batch_options_of, border_option, choice, io_options, memory_option
-from pyramid_cli.cli.running import drop, make_reporter, open_session, read_write
+from pyramid_cli.cli.running import cluster_spec, drop, make_reporter, open_session, read_write
 from pyramid_cli.core import catalogue
 from pyramid_cli.core.errors import UsageError
 
@@ -95,14 +95,13 @@ def tiles(paths, layout, analysis, tile_size, overlap, tile_format, quality, iii
     if cluster is None and (chunk is not None or cluster_timeout is not None):
         raise UsageError("--chunk and --cluster-timeout are for --cluster runs")
     if cluster is not None:
-        from pyramid_cli.run.cluster import SessionSpec
         from pyramid_cli.run.tiles import tile_files
 
         if memory is not None:
             raise UsageError("--memory is not for --cluster runs: each worker streams its rows of tiles in bands "
                              "of its own")
         report, described = tile_files(
-            list(paths), opts["template"], settings, SessionSpec(opts["backend"], opts["precision"], opts["threads"]),
+            list(paths), opts["template"], settings, cluster_spec(opts),
             read=ro, reporter=reporter, force=wo.force, keep_going=opts["keep_going"],
             skip_existing=opts["skip_existing"], frames=opts["frames"], shard=opts["shard"], cluster=cluster,
             chunk=chunk, cluster_timeout=cluster_timeout)

@@ -51,6 +51,35 @@ def test_the_console_script_starts_no_blas_threads_unless_asked(chosen):
         assert int(threads) == 2, threads  # the main thread and core.signals' helper
 
 
+@pytest.mark.parametrize("args", [
+    ["explain", "box4 *v g"], ["plan", "box4 *v g", "--size", "64x64"],
+    ["farm-template", "--frames", "1-9", "--", "blur", "/sh/a.####.exr", "-o", "/sh/b.####.exr"],
+    ["blur", "--backend", "cpu", "{a}", "{o}/blur.exr"], ["tiles", "--backend", "cpu", "{a}", "{o}/t.dzi"],
+    ["diff", "{a}", "{a}"]], ids=lambda a: a[0])
+def test_the_console_script_collects_cycles_again_once_a_command_works(tmp_path, args):
+    """run() turns the cyclic garbage collector off while a command imports what it runs with; whatever the
+    command (a session, a cluster spec, none), it is back on by its end, what the imports made frozen out of its
+    walks. Called from Python, main leaves the collector as it was."""
+    import gc
+
+    import numpy as np
+
+    from helpers.images import write
+    from pyramid_cli.cli.group import collector_on
+
+    a = write(tmp_path / "a.exr", np.random.default_rng(1).random((20, 30, 3)).astype(np.float32))
+    argv = [v.replace("{a}", str(a)).replace("{o}", str(tmp_path)) for v in args]
+    code = ("import atexit, gc, sys\nfrom pyramid_cli.cli import group\n"
+            f"sys.argv = ['pyramid', *{argv!r}]\n"
+            "atexit.register(lambda: print('GC', gc.isenabled(), gc.get_freeze_count() > 0))\ngroup.run()")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.splitlines()[-1] == "GC True True", out.stdout
+    assert gc.isenabled()
+    collector_on()  # not turned off here: nothing to do
+    assert gc.isenabled() and gc.get_freeze_count() == 0
+
+
 @pytest.mark.parametrize("args", [["explain", "box4 *v g"], ["plan", "box4 *v g", "--size", "64x64"],
                                   ["farm-template", "--frames", "1-9", "--", "blur", "/sh/a.####.exr",
                                    "-o", "/sh/b.####.exr"]],
