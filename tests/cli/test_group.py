@@ -51,6 +51,42 @@ def test_the_console_script_starts_no_blas_threads_unless_asked(chosen):
         assert int(threads) == 2, threads  # the main thread and core.signals' helper
 
 
+def test_malloc_is_set_to_reuse_freed_blocks_unless_the_user_chose(monkeypatch):
+    """On Linux the console script fixes glibc's mapping threshold (32 MiB) and the free memory kept at the heap's
+    top (64 MiB) with mallopt; not where MALLOC_MMAP_THRESHOLD_ or MALLOC_TRIM_THRESHOLD_ is set, nor elsewhere
+    than Linux, nor without glibc's mallopt."""
+    import ctypes
+
+    from pyramid_cli.cli import group
+
+    calls: list[tuple[int, int]] = []
+
+    class Libc:
+        def mallopt(self, param, value):
+            calls.append((param, value))
+            return 1
+
+    monkeypatch.setattr(ctypes, "CDLL", lambda name: Libc())
+    for k in ("MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_"):
+        monkeypatch.delenv(k, raising=False)
+    monkeypatch.setattr(sys, "platform", "linux")
+    group.reuse_freed_blocks()
+    assert calls == [(-3, 32 << 20), (-1, 64 << 20)]
+    for k in ("MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_"):
+        calls.clear()
+        monkeypatch.setenv(k, "1000000")
+        group.reuse_freed_blocks()
+        assert calls == []
+        monkeypatch.delenv(k)
+    monkeypatch.setattr(sys, "platform", "darwin")
+    group.reuse_freed_blocks()
+    assert calls == []
+    monkeypatch.setattr(sys, "platform", "linux")
+    monkeypatch.setattr(ctypes, "CDLL", lambda name: object())  # a libc without mallopt (musl's is a stub)
+    group.reuse_freed_blocks()
+    assert calls == []
+
+
 @pytest.mark.parametrize("args", [
     ["explain", "box4 *v g"], ["plan", "box4 *v g", "--size", "64x64"],
     ["farm-template", "--frames", "1-9", "--", "blur", "/sh/a.####.exr", "-o", "/sh/b.####.exr"],
