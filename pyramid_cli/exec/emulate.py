@@ -83,8 +83,8 @@ def _folded_sample(src: np.ndarray, q: np.ndarray, p: np.ndarray, border: Border
 def plan_inputs(plan: Plan, images, dtype=None, codes: bool = False) -> list[np.ndarray]:
     """The executors' check of a plan's inputs: one array per ``plan.inputs``, each (H, W) or (H, W, C) of
     the input image's size (its stored extent where it has a guard band: a tile's window), one channel layout;
-    float32 and float16 arrays are kept (uint8 ones too where ``codes``: 8-bit codes the executor reads through
-    its table), others made float32 (every one made ``dtype`` where it is given: a float64 run's inputs).
+    float32 and float16 arrays are kept (uint8 and uint16 ones too where ``codes``: codes the executor reads
+    through its table), others made float32 (every one made ``dtype`` where it is given: a float64 run's inputs).
 
     Raises
     ------
@@ -93,7 +93,7 @@ def plan_inputs(plan: Plan, images, dtype=None, codes: bool = False) -> list[np.
     """
     keep: tuple[np.dtype, ...] = (np.dtype(np.float32), np.dtype(np.float16)) if dtype is None else (np.dtype(dtype),)
     if codes:
-        keep += (np.dtype(np.uint8),)
+        keep += (np.dtype(np.uint8), np.dtype(np.uint16))
     arrays = [a if isinstance(a, np.ndarray) and a.dtype in keep else np.asarray(a, dtype=keep[0])
               for a in (images if isinstance(images, (list, tuple)) else [images])]
     if len(arrays) != len(plan.inputs):

@@ -93,13 +93,12 @@ class DaskProcesses:
         if p is None:
             return
         members = _group(p.pid)
-        if members is None:  # no /proc: the whole group
-            members = [p.pid]
-            with contextlib.suppress(ProcessLookupError):
+        with contextlib.suppress(ProcessLookupError):
+            if members is None:  # no /proc: the whole group
                 os.killpg(p.pid, signal.SIGKILL)
-        for pid in members:
-            with contextlib.suppress(ProcessLookupError):
-                os.kill(pid, signal.SIGKILL)
+            for pid in members or []:
+                with contextlib.suppress(ProcessLookupError):
+                    os.kill(pid, signal.SIGKILL)
         p.wait(timeout=30)
 
     def close(self) -> None:

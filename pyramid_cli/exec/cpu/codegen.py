@@ -281,10 +281,9 @@ def kernel_source(s: PassShape, dtype=np.float32) -> str:
             name = _name(k, dr)
             by_row.add(k)
             body += [f"            rr = {sr} * m + {dr} + ro{k}"]
-            for flag, arr in (("if", f"H{k}"), ("elif", f"E{k}")):
-                array = arr.lower()  # H0: h0, E0: e0
-                body += [f"            {flag} {arr}:",
-                         f"                {name} = cb{k}[half_row({array}, rr, cb{k}, tag{k}, lut)]"]
+            for keyword, bit, codes in (("if", "H", "h"), ("elif", "E", "e")):  # uint16 rows, uint8 rows
+                body += [f"            {keyword} {bit}{k}:",
+                         f"                {name} = cb{k}[half_row({codes}{k}, rr, cb{k}, tag{k}, lut)]"]
             body += ["            else:", f"                {name} = s{k}[rr]"]
         if vertical:
             body += ["            nA = 1 << 62", "            nB = -(1 << 62)"]

@@ -351,11 +351,7 @@ class CPUExecutor:
                 raise ValueError("codes are read in float32 runs only")
             if codes[0] != 0:
                 raise ValueError("a table of codes reads 0 for code 0 (the zero border's)")
-            listed = images if isinstance(images, (list, tuple)) else [images]
-            # uint16 inputs are read through a table as float16 bit patterns are: these, through this one (uint8
-            # ones too, as they are: no uint16 copy)
-            images = [np.asarray(a).view(np.float16) if np.asarray(a).dtype == np.uint16 else a for a in listed]
-            self._table = _codes_table(codes)
+            self._table = _codes_table(codes)  # read where float16 bit patterns are read through theirs
         try:
             results = self._run_outputs(plan, images, dtype, out)
         finally:
@@ -375,7 +371,7 @@ class CPUExecutor:
         stored: dict[int, np.ndarray] = {}
         for k, a in zip(plan.inputs, arrays, strict=True):
             stored[k] = np.ascontiguousarray(a.view(np.uint16) if a.dtype == np.float16 else a)
-        half = {k for k, a in zip(plan.inputs, arrays, strict=True) if a.dtype in (np.float16, np.uint8)}
+        half = {k for k, a in zip(plan.inputs, arrays, strict=True) if a.dtype != wt}  # read through the table
         released = plan.releases()
         spare: dict[tuple, list[np.ndarray]] = {}  # this run's dead intermediates, by shape, for later targets
         written = None  # the output made in ``into``
