@@ -22,6 +22,15 @@ nanobind enums, numba) aborts the process on an exception it did not expect (SIG
 nanobind error" traceback, not exit 143). A signal that arrives while a module is being imported is sent
 again a moment later, until it finds the import done.
 
+Nor should it raise between the two steps with which Python code takes a lock and starts the block that gives it
+back: ``threading.Condition.__enter__`` and ``Semaphore.acquire`` take theirs in C and return through Python, where
+the handler can run. An exception there leaves the lock taken for ever. A batch stopped by SIGINT at that point
+hung: the thread pool's workers waited for its idle semaphore, and the clean-up waited for them (60 s, until the
+clean-up's watchdog ended it; tests/core/test_signals.py). A signal that arrives in the code of the standard
+library's locking modules (:data:`LOCKING_MODULES`) is sent again a moment later, as for an import, except where
+that code waits and handles an exception itself (:data:`WAITS`: a ``Condition.wait``, a thread's join), so that a
+signal still ends a long wait at once.
+
 Nor should it raise into a library that keeps state across a call: an exception thrown into
 numba's compiler in mid-compile leaves it inconsistent, and its clean-up then fails with a
 traceback of its own. Code that calls such a library runs it under :func:`deferred`, which holds
@@ -48,6 +57,7 @@ from __future__ import annotations
 import atexit
 import contextlib
 import faulthandler
+import linecache
 import os
 import queue
 import signal
@@ -96,6 +106,9 @@ def _handler(signum, frame):  # noqa: ARG001 - the signal module's signature
     if _importing(frame):
         _redeliver(signum)
         return
+    if _taking_a_lock(frame):
+        _redeliver(signum, LOCK_REDELIVER_S)
+        return
     _watch(signum)
     raise Interrupted(signum)
 
@@ -118,7 +131,7 @@ _helper: threading.Thread | None = None
 def _watch(signum: int) -> None:
     """End the process :data:`STUCK_S` seconds from now, with every thread's stack on stderr, unless it ended
     first (the helper thread is a daemon: a clean-up that finishes never hears of it)."""
-    _requests.put((_WATCH, signum))
+    _requests.put((_WATCH, signum, 0.0))
 
 
 def _serve() -> None:
@@ -127,12 +140,12 @@ def _serve() -> None:
     while True:
         try:
             wait = None if deadline is None else max(0.0, deadline - time.monotonic())
-            kind, signum = _requests.get(timeout=wait)
+            kind, signum, delay = _requests.get(timeout=wait)
         except queue.Empty:
             _stuck(watched)
             return
         if kind == _AGAIN:
-            time.sleep(REDELIVER_S)
+            time.sleep(delay)
             os.kill(os.getpid(), signum)
         elif deadline is None:
             deadline, watched = time.monotonic() + STUCK_S, signum
@@ -162,6 +175,31 @@ def _importing(frame) -> bool:
     return False
 
 
+#: Modules of the standard library whose Python code takes a lock and enters the block that releases it in two
+#: steps (threading's Condition and Semaphore, the futures and their thread pool, queue, logging's handlers).
+LOCKING_MODULES = frozenset({"threading", "queue", "concurrent.futures._base", "concurrent.futures.thread", "logging"})
+#: Where code of those modules waits and handles an exception raised there: a function's code, and what the line
+#: it waits on calls. ``Condition.wait`` restores its lock in a ``finally``; a thread's join releases what it took
+#: (bpo-45274; Python 3.13 joins in C).
+WAITS = tuple((fn.__code__, call) for fn, call in (
+    (threading.Condition.wait, "acquire("),
+    (getattr(threading.Thread, "_wait_for_tstate_lock", None), "acquire("),
+    (threading.Thread.join, "_handle.join("),
+) if fn is not None)
+
+
+def _taking_a_lock(frame) -> bool:
+    """Whether the main thread was stopped in the code of :data:`LOCKING_MODULES`, outside the waits of
+    :data:`WAITS` (where an exception might leave a lock taken that other threads then wait for)."""
+    if frame is None or frame.f_globals.get("__name__") not in LOCKING_MODULES:
+        return False
+    for code, call in WAITS:
+        if frame.f_code is code:
+            line = linecache.getline(code.co_filename, frame.f_lineno).split("#")[0]
+            return call not in line
+    return True
+
+
 @contextlib.contextmanager
 def deferred() -> Iterator[None]:
     """Hold SIGINT, SIGTERM and SIGHUP while the block runs, and raise :class:`Interrupted` after it.
@@ -183,13 +221,14 @@ def deferred() -> Iterator[None]:
 
 
 REDELIVER_S = 0.02  # how long after a swallowed signal it is sent again
+LOCK_REDELIVER_S = 0.001  # the same after a signal that found the main thread taking a lock (microseconds' work)
 
 
-def _redeliver(signum: int) -> None:
-    """Send ``signum`` again in :data:`REDELIVER_S`, as a first signal (from the helper thread: the handler only
+def _redeliver(signum: int, delay: float = REDELIVER_S) -> None:
+    """Send ``signum`` again in ``delay`` seconds, as a first signal (from the helper thread: the handler only
     runs in the main thread, between its bytecodes)."""
     _received.clear()
-    _requests.put((_AGAIN, signum))
+    _requests.put((_AGAIN, signum, delay))
 
 
 def _unraisable(previous):

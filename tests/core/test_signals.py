@@ -219,3 +219,73 @@ def test_a_finished_run_ends_after_its_threads_and_atexit_handlers_without_the_t
     plain = subprocess.run([sys.executable, "-c", script.replace("group.run()", "group.main()"), "finish",
                             str(status)], capture_output=True, text=True, timeout=60)
     assert plain.returncode == status and "teardown" in plain.stderr  # the finaliser runs at a plain exit
+
+
+def test_a_signal_never_leaves_a_lock_taken_that_other_threads_wait_for():
+    """A signal that lands between a ``threading.Semaphore``'s lock being taken (in C) and the block that gives it
+    back (``Condition.__enter__`` returns through Python) is sent again once the main thread is out of the
+    standard library's locking code. Raised there, it left the lock taken for ever: a thread pool's workers then
+    waited for their idle semaphore, and a batch stopped by SIGINT hung in its clean-up (CI, 2026-11-28). Here
+    100 interruptions of a loop that releases and takes a semaphore leave none taken (raised there at once, about
+    one in five did)."""
+    import subprocess
+    import sys
+    import textwrap
+
+    script = textwrap.dedent("""
+        import os, random, signal, threading, time
+        from pyramid_cli.core import signals
+        signals.STUCK_S = 3600  # every round is a first signal's clean-up: no watchdog ending the script
+        random.seed(1)
+        sem, taken = threading.Semaphore(0), 0
+        for _ in range(100):
+            signals.install()
+            timer = threading.Timer(random.random() * 0.003, os.kill, (os.getpid(), signal.SIGINT))
+            try:
+                timer.start()  # the signal may come before start() returns (it waits for the thread to run)
+                while True:
+                    sem.release()
+                    sem.acquire(timeout=0)
+                    sum(range(30))  # some work of the loop's own, where the signal can be raised
+            except signals.Interrupted:
+                timer.join()
+            if sem._cond._lock.locked():
+                taken, sem = taken + 1, threading.Semaphore(0)
+        print(taken, flush=True)
+        os._exit(0)
+    """)
+    r = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert (r.returncode, r.stdout.strip()) == (0, "0"), r.stdout + r.stderr
+
+
+@pytest.mark.parametrize("wait", ["event", "join", "future"])
+def test_a_signal_still_ends_a_long_wait_at_once(wait):
+    """The waits of the standard library's locking code handle an exception themselves (``Condition.wait``, a
+    thread's join): a signal is raised there at once, not sent again until the wait ends (here after 60 s)."""
+    import subprocess
+    import sys
+    import textwrap
+
+    script = textwrap.dedent("""
+        import os, signal, sys, threading, time
+        from concurrent.futures import ThreadPoolExecutor
+        from pyramid_cli.core import signals
+        signals.install()
+        threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGTERM)).start()
+        start = time.monotonic()
+        try:
+            if sys.argv[1] == "event":
+                threading.Event().wait(60)
+            elif sys.argv[1] == "join":
+                t = threading.Thread(target=time.sleep, args=(60,), daemon=True)
+                t.start()
+                t.join()
+            else:
+                ThreadPoolExecutor(1).submit(time.sleep, 60).result()
+            print("waited", flush=True)
+        except signals.Interrupted:
+            print("interrupted" if time.monotonic() - start < 30 else "late", flush=True)
+        os._exit(0)
+    """)
+    r = subprocess.run([sys.executable, "-c", script, wait], capture_output=True, text=True, timeout=120)
+    assert (r.returncode, r.stdout.strip()) == (0, "interrupted"), r.stdout + r.stderr
