@@ -75,30 +75,29 @@ def _same(ours: list[np.ndarray], theirs: list[np.ndarray]) -> None:
         assert a.shape == b.shape and np.array_equal(a, b, equal_nan=True)
 
 
-def test_default_runs_and_batches_finish_inside_a_700_mib_cgroup(cgroup, tmp_path):
+@pytest.mark.parametrize("name, command", [("blur", ["blur", "--levels", "5"]), ("mipmap", ["mipmap"])],
+                         ids=["blur", "mipmap"])
+def test_default_runs_and_batches_finish_inside_a_700_mib_cgroup(cgroup, tmp_path, name, command):
     """One picture, and a batch (``-o TEMPLATE``) of two, each command at its defaults inside the cgroup, write what
     the command writes of the picture unconstrained (run once). A batch holds the pictures it reads ahead and writes
     behind beside the one it computes: two 8K inputs held 1.8 GB and were killed; each now runs alone, streamed,
-    in the container's budget."""
+    in the container's budget. One test per command, so that the two can run on two test workers at once."""
     kind, child = cgroup
     first = _picture(tmp_path / "a.exr")
     second = tmp_path / "b.exr"
     second.write_bytes(first.read_bytes())
-    for name, command in (("blur", ["blur", "--levels", "5"]), ("mipmap", ["mipmap"])):
-        free = tmp_path / f"{name}_free.exr"
-        r = run_cli(*command, first, free)
-        assert r.returncode == 0, r.stderr
-        theirs = _levels(free)
-        inside = tmp_path / f"{name}_cgroup.exr"
-        r = run_inside(child, [*CLI, *command, "-v", first, inside])
-        assert r.returncode == 0, f"{name} in the cgroup: exit {r.returncode}\n{r.stderr[-2000:]}"
-        assert f"left under the {kind} limit of 700.0 MiB" in r.stderr, r.stderr
-        assert "streams in bands" in r.stderr, r.stderr
-        _same(_levels(inside), theirs)
-        r = run_inside(child, [*CLI, *command, "-v", "-o", tmp_path / f"{name}_cgroup" / "{stem}.exr", first, second])
-        assert r.returncode == 0, f"{name} batch in the cgroup: exit {r.returncode}\n{r.stderr[-2000:]}"
-        assert f"left under the {kind} limit of 700.0 MiB" in r.stderr and "2 written" in r.stderr, r.stderr
-        for stem in ("a", "b"):
-            _same(_levels(tmp_path / f"{name}_cgroup" / f"{stem}.exr"), theirs)
-        for done in (free, inside, tmp_path / f"{name}_cgroup" / "a.exr", tmp_path / f"{name}_cgroup" / "b.exr"):
-            done.unlink()
+    free = tmp_path / f"{name}_free.exr"
+    r = run_cli(*command, first, free)
+    assert r.returncode == 0, r.stderr
+    theirs = _levels(free)
+    inside = tmp_path / f"{name}_cgroup.exr"
+    r = run_inside(child, [*CLI, *command, "-v", first, inside])
+    assert r.returncode == 0, f"{name} in the cgroup: exit {r.returncode}\n{r.stderr[-2000:]}"
+    assert f"left under the {kind} limit of 700.0 MiB" in r.stderr, r.stderr
+    assert "streams in bands" in r.stderr, r.stderr
+    _same(_levels(inside), theirs)
+    r = run_inside(child, [*CLI, *command, "-v", "-o", tmp_path / f"{name}_cgroup" / "{stem}.exr", first, second])
+    assert r.returncode == 0, f"{name} batch in the cgroup: exit {r.returncode}\n{r.stderr[-2000:]}"
+    assert f"left under the {kind} limit of 700.0 MiB" in r.stderr and "2 written" in r.stderr, r.stderr
+    for stem in ("a", "b"):
+        _same(_levels(tmp_path / f"{name}_cgroup" / f"{stem}.exr"), theirs)
