@@ -29,7 +29,8 @@ hung: the thread pool's workers waited for its idle semaphore, and the clean-up 
 clean-up's watchdog ended it; tests/core/test_signals.py). A signal that arrives in the code of the standard
 library's locking modules (:data:`LOCKING_MODULES`) is sent again a moment later, as for an import, except where
 that code waits and handles an exception itself (:data:`WAITS`: a ``Condition.wait``, a thread's join), so that a
-signal still ends a long wait at once.
+signal still ends a long wait at once; and not for more than :data:`LOCK_PATIENCE_S` (a thread still there is
+blocked in a call made there, such as a log record written to a pipe that nobody reads).
 
 Nor should it raise into a library that keeps state across a call: an exception thrown into
 numba's compiler in mid-compile leaves it inconsistent, and its clean-up then fails with a
@@ -106,9 +107,10 @@ def _handler(signum, frame):  # noqa: ARG001 - the signal module's signature
     if _importing(frame):
         _redeliver(signum)
         return
-    if _taking_a_lock(frame):
+    if _taking_a_lock(frame) and _patient():
         _redeliver(signum, LOCK_REDELIVER_S)
         return
+    _lock_since.clear()
     _watch(signum)
     raise Interrupted(signum)
 
@@ -188,6 +190,20 @@ WAITS = tuple((fn.__code__, call) for fn, call in (
 ) if fn is not None)
 
 
+LOCK_PATIENCE_S = 1.0  # how long a signal waits for the main thread to leave the locking code before it is raised
+_lock_since: list[float] = []  # when the signal being sent again first found the main thread there
+
+
+def _patient() -> bool:
+    """Whether a signal that found the main thread in the locking code may still wait for it to leave
+    (:data:`LOCK_PATIENCE_S`). Taking a lock is microseconds; a thread still there a second later is blocked in a
+    call made there (a write of logging's to a pipe nobody reads), which the signal must end."""
+    now = time.monotonic()
+    if not _lock_since:
+        _lock_since.append(now)
+    return now - _lock_since[0] < LOCK_PATIENCE_S
+
+
 def _taking_a_lock(frame) -> bool:
     """Whether the main thread was stopped in the code of :data:`LOCKING_MODULES`, outside the waits of
     :data:`WAITS` (where an exception might leave a lock taken that other threads then wait for)."""
@@ -259,6 +275,7 @@ def install() -> None:
         return
     _received.clear()
     _held.clear()
+    _lock_since.clear()
     if _helper is None:  # started here, in plain code: never from a handler or a finaliser (see _requests)
         _start_helper()
         os.register_at_fork(after_in_child=_start_helper)  # a forked child has no thread but the one that forked

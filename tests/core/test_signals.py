@@ -289,3 +289,31 @@ def test_a_signal_still_ends_a_long_wait_at_once(wait):
     """)
     r = subprocess.run([sys.executable, "-c", script, wait], capture_output=True, text=True, timeout=120)
     assert (r.returncode, r.stdout.strip()) == (0, "interrupted"), r.stdout + r.stderr
+
+
+def test_a_signal_waits_at_most_a_moment_for_the_locking_code_to_end():
+    """A main thread that stays in the locking modules' code (here logging's handler, blocked writing to a pipe
+    that nobody reads) is not waited for beyond LOCK_PATIENCE_S: the signal is then raised where it is."""
+    import subprocess
+    import sys
+    import textwrap
+
+    script = textwrap.dedent("""
+        import logging, os, signal, threading, time
+        from pyramid_cli.core import signals
+        signals.install()
+        r, w = os.pipe()
+        os.set_blocking(w, True)
+        log = logging.getLogger("blocked")
+        log.addHandler(logging.StreamHandler(os.fdopen(w, "w", buffering=1)))
+        threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGTERM)).start()
+        start = time.monotonic()
+        try:
+            log.warning("x" * (1 << 20))  # more than a pipe holds: the write blocks
+            print("written", flush=True)
+        except signals.Interrupted:
+            print("interrupted" if time.monotonic() - start < 30 else "late", flush=True)
+        os._exit(0)
+    """)
+    r = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert (r.returncode, r.stdout.strip()) == (0, "interrupted"), r.stdout + r.stderr
