@@ -183,6 +183,8 @@ LOCKING_MODULES = frozenset({"threading", "queue", "concurrent.futures._base", "
 #: Where code of those modules waits and handles an exception raised there: a function's code, and what the line
 #: it waits on calls. ``Condition.wait`` restores its lock in a ``finally``; a thread's join releases what it took
 #: (bpo-45274; Python 3.13 joins in C).
+#:
+#: :meta hide-value:
 WAITS = tuple((fn.__code__, call) for fn, call in (
     (threading.Condition.wait, "acquire("),
     (getattr(threading.Thread, "_wait_for_tstate_lock", None), "acquire("),

@@ -85,3 +85,13 @@ def test_the_readme_is_for_users_and_short():
     assert "pip install" in readme and "make demo" in readme and "make test" in readme
     links = re.findall(r"\]\((docs/[^)#]+)", readme)
     assert links and all((ROOT / link).exists() for link in links), links
+
+
+def test_no_page_shows_a_memory_address(site):
+    """A constant's value is shown as its ``repr``; one that holds code objects or functions would show where they
+    lay in the build's memory, different at every build (``:meta hide-value:`` in its doc comment hides it)."""
+    def text(page: Path) -> str:
+        return html.unescape(re.sub(r"<[^>]*>", "", page.read_text(encoding="utf-8")))
+
+    shown = [p.relative_to(site).as_posix() for p in _pages(site) if re.search(r"\bat\s+0x[0-9a-f]{6,}", text(p))]
+    assert shown == []
