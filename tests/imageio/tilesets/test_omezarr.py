@@ -17,9 +17,8 @@ from pyramid_cli.imageio.encode import encoded_rows
 from pyramid_cli.imageio.tilesets import TileOptions, layout_of, omezarr, writer_class
 
 zarr = pytest.importorskip("zarr")
-reader = pytest.importorskip("ome_zarr.reader")
-ome_io = pytest.importorskip("ome_zarr.io")
-models = pytest.importorskip("ome_zarr_models.v05.image")
+# ome-zarr's reader and ome-zarr-models are imported by the tests that read with them: ome_zarr alone takes 2.5 s
+# to import (dask.array, scikit-image), which every test worker would pay when it collects this file.
 
 RNG = np.random.default_rng(27)
 
@@ -44,6 +43,7 @@ def feed(w, levels: list[np.ndarray]) -> None:
 
 def load(path) -> tuple[dict, list[np.ndarray]]:
     """What ome-zarr's reader finds: the image node's metadata and every level as numpy (c, y, x)."""
+    reader, ome_io = pytest.importorskip("ome_zarr.reader"), pytest.importorskip("ome_zarr.io")
     nodes = list(reader.Reader(ome_io.parse_url(str(path)))())
     assert nodes, f"ome-zarr found no image at {path}"
     return nodes[0].metadata, [np.asarray(d) for d in nodes[0].data]
@@ -123,6 +123,7 @@ def test_axes_transforms_and_channels_validate(written):
         assert transforms[0] == {"type": "scale", "scale": [1.0, s, s]}
         assert transforms[1:] == ([{"type": "translation", "translation": [0.0, t, t]}] if k else [])
     assert meta["channel_names"] == list(img.spec.channel_names)
+    models = pytest.importorskip("ome_zarr_models.v05.image")
     image = models.Image.from_zarr(zarr.open_group(str(out), mode="r"))  # raises on any NGFF 0.5 violation
     ms = image.attributes.ome.multiscales[0]
     assert [d.path for d in ms.datasets] == [str(k) for k in range(len(levels))]
