@@ -55,6 +55,8 @@ COMMANDS = [
     (["tiles", "--help"], NO_PIXELS),
     # a local tile set loads no cluster client, and no library of another layout
     (["tiles", "a.png", "a.dzi"], {"dask", "distributed", "matplotlib", "zarr", "ome_zarr", "tifffile"}),
+    # OME-Zarr through zarr alone: ome-zarr's writer imports dask.array and SciPy (1.9 s)
+    (["tiles", "a.png", "a.ome.zarr"], {"dask", "distributed", "matplotlib", "ome_zarr", "scipy", "tifffile"}),
 ]
 
 

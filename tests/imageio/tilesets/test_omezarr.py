@@ -216,6 +216,30 @@ def test_compression_is_honoured(tmp_path, compression, codec):
     assert out[1][:].tolist() == [[[1, 1], [1, 1]]]
 
 
+@pytest.mark.parametrize("name, channels, dtype", [("slide", ["R", "G", "B"], np.uint8), (None, ["Y"], np.float32),
+                                                    ("scan", ["R", "G", "B", "A"], np.uint16)])
+def test_the_metadata_is_what_ome_zarr_s_writer_writes(name, channels, dtype):
+    """write_metadata gives the JSON that ome-zarr's ``write_multiscales_metadata`` (NGFF 0.5) gives for the same
+    levels, name and metadata, and keeps other keys of an ``ome`` attribute already on the group, as it does."""
+    import warnings
+
+    with warnings.catch_warnings():  # ome-zarr 0.18 warns of its own deprecated Scaler default at import
+        warnings.simplefilter("ignore", DeprecationWarning)
+        writer = pytest.importorskip("ome_zarr.writer")
+        fmt = pytest.importorskip("ome_zarr.format")
+    datasets = [{"path": str(k), "coordinateTransformations": omezarr.level_transforms(k)} for k in range(4)]
+    about = {"description": "d", "method": "pyramid_cli", "version": "0", "args": {"analysis": "box4"}}
+    omero = omezarr.channel_metadata(channels, np.dtype(dtype), [(-0.5, 2.0)] * len(channels))
+    groups = [zarr.open_group(zarr.storage.MemoryStore(), mode="w", zarr_format=3) for _ in range(2)]
+    for g in groups:
+        g.attrs["ome"] = {"kept": [1, 2]}
+    writer.write_multiscales_metadata(groups[0], [dict(d) for d in datasets], fmt=fmt.FormatV05(), axes=omezarr.AXES,
+                                      name=name, metadata={**about, "omero": omero})
+    omezarr.write_metadata(groups[1], datasets, name, about, omero)
+    theirs, ours = (json.dumps(g.attrs.asdict()) for g in groups)
+    assert ours == theirs and '"kept"' in ours
+
+
 def test_missing_zarr_is_a_usage_error_naming_the_extra(tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "zarr", None)
     with pytest.raises(UsageError, match=r"pip install 'bilinear-pyramid\[viewers\]'"):
