@@ -62,8 +62,13 @@ def sample(src: np.ndarray, guard_lo: tuple[int, int], rows: np.ndarray, cols: n
     i1, j1 = np.minimum(i0 + 1, src.shape[0] - 1), np.minimum(j0 + 1, src.shape[1] - 1)
     extra = (slice(None),) * 2 + (None,) * (src.ndim - 2)
     a, b = a[:, None][extra], b[None, :][extra]
-    return ((1 - a) * (1 - b) * src[np.ix_(i0, j0)] + (1 - a) * b * src[np.ix_(i0, j1)]
-            + a * (1 - b) * src[np.ix_(i1, j0)] + a * b * src[np.ix_(i1, j1)])
+    return ((1 - a) * (1 - b) * src[_grid(i0, j0)] + (1 - a) * b * src[_grid(i0, j1)]
+            + a * (1 - b) * src[_grid(i1, j0)] + a * b * src[_grid(i1, j1)])
+
+
+def _grid(rows: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``np.ix_(rows, cols)`` for two integer index arrays, without its checks (a tenth of a small tiled run)."""
+    return rows[:, None], cols[None, :]
 
 
 def _folded_sample(src: np.ndarray, q: np.ndarray, p: np.ndarray, border: Border) -> np.ndarray:
@@ -76,8 +81,8 @@ def _folded_sample(src: np.ndarray, q: np.ndarray, p: np.ndarray, border: Border
     padded[1:, 1:] = src  # folded index 0 reads zero
     extra = (slice(None),) * 2 + (None,) * (src.ndim - 2)
     a, b = a[:, None][extra], b[None, :][extra]
-    return ((1 - a) * (1 - b) * padded[np.ix_(rows[0], cols[0])] + (1 - a) * b * padded[np.ix_(rows[0], cols[1])]
-            + a * (1 - b) * padded[np.ix_(rows[1], cols[0])] + a * b * padded[np.ix_(rows[1], cols[1])])
+    return ((1 - a) * (1 - b) * padded[_grid(rows[0], cols[0])] + (1 - a) * b * padded[_grid(rows[0], cols[1])]
+            + a * (1 - b) * padded[_grid(rows[1], cols[0])] + a * b * padded[_grid(rows[1], cols[1])])
 
 
 def plan_inputs(plan: Plan, images, dtype=None, codes: bool = False) -> list[np.ndarray]:
@@ -152,7 +157,7 @@ def _execute(plan: Plan, image: np.ndarray | Sequence[np.ndarray]) -> list[np.nd
             acc = np.zeros((len(ri), len(ci)) + out.shape[2:])
             for t in taps:
                 acc += float(t.weight) * _read(plan, stored, t, base_r, base_c)
-            out[np.ix_(ri, ci)] = acc
+            out[_grid(ri, ci)] = acc
         stored[ps.target] = out
     return stored
 
