@@ -2,7 +2,8 @@
 
 The tile set is written by the streaming :class:`helpers.fake_tiles.FileWriter` (rows into one staged file,
 a trailer last, moved into place at the end), so that these check the run layer's promises whatever layout
-is merged: every failure aborts the writer, the previous output stays, no temporary is left, one line.
+is merged: every failure aborts the writer, the previous output stays, no temporary is left, one line. A real
+full disk (a tiny tmpfs, as root) is also met by every real layout (Deep Zoom, IIIF, OME-Zarr, pyramidal TIFF).
 """
 
 from __future__ import annotations
@@ -16,7 +17,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from helpers.disks import leftovers
+from helpers.cli import CLI
+from helpers.disks import leftovers, mounted
 from helpers.fake_tiles import complete
 from helpers.images import write
 
@@ -78,3 +80,29 @@ def test_odd_shapes_and_a_tile_size_the_layout_refuses(tmp_path):
     code, _, err = run([tmp_path / "wide.tif", tmp_path / "bad.tif"])  # not a picture
     assert code == 3 and "Traceback" not in err and not (tmp_path / "bad.tif").exists()
     assert not leftovers(tmp_path)
+
+
+def _contents(folder: Path) -> dict[str, bytes]:
+    return {p.relative_to(folder).as_posix(): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+@pytest.mark.parametrize("name, extra", [("a.dzi", []), ("a", ["--layout", "iiif3"]), ("a.ome.zarr", []),
+                                         ("a.tif", [])], ids=["dz", "iiif3", "ome-zarr", "tiff"])
+def test_a_real_full_disk_keeps_each_layout_s_previous_output(tmp_path, name, extra):
+    """Every real layout, in a real process, on a tmpfs too small for the new set: exit 4, one line naming the
+    output, the previous set (written there first) unchanged file for file, nothing left beside it."""
+    small, noise = tmp_path / "small.png", tmp_path / "noise.png"
+    write(small, (np.random.default_rng(5).random((64, 64, 3)) * 255).astype(np.uint8), "uint8")
+    write(noise, (np.random.default_rng(6).random((1024, 1024, 3)) * 255).astype(np.uint8), "uint8")
+    with mounted(tmp_path / "disk", "size=600k") as disk:
+        out = disk / name
+        first = subprocess.run([*CLI, "tiles", "-q", *extra, str(small), str(out)], capture_output=True, text=True,
+                               timeout=TIMEOUT)
+        assert first.returncode == 0, first.stderr
+        old = _contents(disk)
+        r = subprocess.run([*CLI, "tiles", "--force", *extra, str(noise), str(out)], capture_output=True, text=True,
+                           timeout=TIMEOUT)
+        assert r.returncode == 4, r.stderr
+        lines = r.stderr.strip().splitlines()
+        assert len(lines) == 1 and "the disk is full" in lines[0] and str(out) in lines[0], r.stderr
+        assert _contents(disk) == old and not leftovers(disk)
