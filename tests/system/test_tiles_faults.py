@@ -17,10 +17,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from helpers.cli import CLI
+from helpers.cli import run_cli
 from helpers.disks import leftovers, mounted
 from helpers.fake_tiles import complete
 from helpers.images import write
+from helpers.tilesets import tree
 
 pytestmark = [pytest.mark.cli, pytest.mark.slow]  # real processes and signals: seconds each
 
@@ -82,10 +83,6 @@ def test_odd_shapes_and_a_tile_size_the_layout_refuses(tmp_path):
     assert not leftovers(tmp_path)
 
 
-def _contents(folder: Path) -> dict[str, bytes]:
-    return {p.relative_to(folder).as_posix(): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
-
-
 @pytest.mark.parametrize("name, extra", [("a.dzi", []), ("a", ["--layout", "iiif3"]), ("a.ome.zarr", []),
                                          ("a.tif", [])], ids=["dz", "iiif3", "ome-zarr", "tiff"])
 def test_a_real_full_disk_keeps_each_layout_s_previous_output(tmp_path, name, extra):
@@ -96,13 +93,11 @@ def test_a_real_full_disk_keeps_each_layout_s_previous_output(tmp_path, name, ex
     write(noise, (np.random.default_rng(6).random((1024, 1024, 3)) * 255).astype(np.uint8), "uint8")
     with mounted(tmp_path / "disk", "size=600k") as disk:
         out = disk / name
-        first = subprocess.run([*CLI, "tiles", "-q", *extra, str(small), str(out)], capture_output=True, text=True,
-                               timeout=TIMEOUT)
+        first = run_cli("tiles", "-q", *extra, small, out, timeout=TIMEOUT)
         assert first.returncode == 0, first.stderr
-        old = _contents(disk)
-        r = subprocess.run([*CLI, "tiles", "--force", *extra, str(noise), str(out)], capture_output=True, text=True,
-                           timeout=TIMEOUT)
+        old = tree(disk)
+        r = run_cli("tiles", "--force", *extra, noise, out, timeout=TIMEOUT)
         assert r.returncode == 4, r.stderr
         lines = r.stderr.strip().splitlines()
         assert len(lines) == 1 and "the disk is full" in lines[0] and str(out) in lines[0], r.stderr
-        assert _contents(disk) == old and not leftovers(disk)
+        assert tree(disk) == old and not leftovers(disk)
