@@ -38,12 +38,15 @@ $(OSD)/node_modules/.installed: $(OSD)/package-lock.json
 # pytest across the cores (pytest-xdist; at most 4 workers: every one holds a GL context and numba kernels).
 # TEST_JOBS=0 runs the tests in this process, one after another. tests/system/test_docs.py builds the docs site as
 # `make docs` does (warnings are errors), so `make test` does not build it twice.
+# PYTHONDONTWRITEBYTECODE is dropped for pytest, as bench/peers.py drops it for its timings: without bytecode each
+# of the ~400 `pyramid` processes the suite starts compiles the package from source (0.25 s a run, a fifth of the
+# examples' time) and each worker rewrites every test module again. The caches are git-ignored.
 TEST_JOBS ?= auto
 test: $(STAMP) check-gl $(OSD)/node_modules/.installed
 	$(PY) -m ruff check pyramid_cli tests samples scripts bench
 	$(VENV)/bin/lint-imports
 	$(PY) -m mypy
-	$(PY) -m pytest -n $(TEST_JOBS) --maxprocesses 4 --dist worksteal
+	env -u PYTHONDONTWRITEBYTECODE $(PY) -m pytest -n $(TEST_JOBS) --maxprocesses 4 --dist worksteal
 
 # The Sphinx site: warnings are errors and every cross-reference must resolve (-n).
 DOCS_OUT := build/docs
