@@ -91,14 +91,14 @@ def mip_reference(pixels: np.ndarray, analysis: str, border: str = "clamp", resi
     border = DOMAIN[border]
     if resize:
         h, w = (1 << max(0, n - 1).bit_length() for n in x.shape[:2])
-        x = np.einsum("ji,ik...->jk...", bilinear_matrix(x.shape[0], h, border), x)
-        x = np.einsum("lk,jk...->jl...", bilinear_matrix(x.shape[1], w, border), x)
+        x = np.einsum("ji,ik...->jk...", bilinear_matrix(x.shape[0], h, border), x, optimize=True)
+        x = np.einsum("lk,jk...->jl...", bilinear_matrix(x.shape[1], w, border), x, optimize=True)
     levels = [x]
     for h, w in mip_sizes(x.shape[:2])[1:]:
         a = resample_matrix(*kern, x.shape[0], h, border)
         b = resample_matrix(*kern, x.shape[1], w, border)
-        x = np.einsum("ji,ik...->jk...", a, x)
-        x = np.einsum("lk,jk...->jl...", b, x)
+        x = np.einsum("ji,ik...->jk...", a, x, optimize=True)
+        x = np.einsum("lk,jk...->jl...", b, x, optimize=True)
         levels.append(x)
     return levels
 
