@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from fractions import Fraction
+from functools import lru_cache
 
 from pyramid_cli.core.algebra import Weights
 from pyramid_cli.plan.model import Tap
@@ -31,8 +32,14 @@ def _bilinear_fit(block: list[list[Fraction]]) -> tuple[Fraction, Fraction] | No
 
 def taps_for(weights: Weights, source: int) -> list[Tap]:
     """Fewest taps found greedily: 2×2 and 1×2 bilinear footprints at quarter positions, else nearest."""
-    left = dict(weights)
-    out: list[Tap] = []
+    return [Tap(source, offset, w, linear) for offset, w, linear in _fit(tuple(sorted(weights.items())))]
+
+
+@lru_cache(maxsize=1024)  # plans ask for the same few masks again and again (4K calls a test file): fitted once
+def _fit(items: tuple) -> tuple[tuple[tuple[Fraction, Fraction], Fraction, bool], ...]:
+    """:func:`taps_for`'s taps of the weights ``items`` (sorted (offset, weight) pairs) as (offset, weight, linear)."""
+    left = dict(items)
+    out: list[tuple[tuple[Fraction, Fraction], Fraction, bool]] = []
     while left:
         # Largest footprint first: try every placement covering the smallest remaining offset.
         d0 = min(left)
@@ -46,12 +53,12 @@ def taps_for(weights: Weights, source: int) -> list[Tap]:
                 best = (covered, top, fit, sum((v for row in block for v in row), Fraction(0)))
         if best is None or best[0] == 1:
             v = left.pop(d0)
-            out.append(Tap(source, (Fraction(d0[0]), Fraction(d0[1])), v, False))
+            out.append(((Fraction(d0[0]), Fraction(d0[1])), v, False))
             continue
         _, top, (a, b), w = best
         for i in range(2):
             for j in range(2):
                 left.pop((top[0] + i, top[1] + j), None)
         offset = (top[0] + a, top[1] + b)
-        out.append(Tap(source, offset, w, bool(a % 1 or b % 1)))
-    return out
+        out.append((offset, w, bool(a % 1 or b % 1)))
+    return tuple(out)
