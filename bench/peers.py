@@ -25,12 +25,12 @@ Jobs (see ``JOBS``; outputs in the same format and compression as the peer's):
 * ``backend-1080p`` / ``backend-4k`` / ``backend-batch``: ``pyramid blur --levels 5`` with ``--backend auto``,
   ``cpu`` and ``gl`` on one half EXR at 1080p and 4K, and on 50 half EXRs of 512² in one call.
 
-Each repetition runs every contender of a job once, in an order rotated by the repetition (A B, B A, …),
-each in a fresh process launched by ``bench/scripts/peak_rss.py`` (its time from fork to exit and its
-peak RSS from ``os.wait4``); the first round is a dropped warm-up (numba's kernel cache, the page cache).
-Medians are reported with the ratio pyramid/peer and PASS/MISS against the issue's targets (``TARGETS``),
-never asserted. A peer that is not installed is a ``skipped`` entry, not a failure. Inputs are made once,
-deterministically (smooth content plus noise, so compression does real work), under ``--data``.
+Each repetition runs every contender of a job once, in an order rotated by the repetition (A B, B A, …), each in a
+fresh process launched by ``bench/scripts/peak_rss.py`` (its time from fork to exit, its peak RSS and CPU seconds
+from ``os.wait4``); the first round is a dropped warm-up (numba's kernel cache, the page cache). Medians are
+reported with the ratio pyramid/peer and PASS/MISS against the issue's targets (``TARGETS``), never asserted; the
+CPU seconds' ratio has no target. A peer that is not installed is a ``skipped`` entry, not a failure. Inputs are
+made once, deterministically (smooth content plus noise, so compression does real work), under ``--data``.
 """
 
 from __future__ import annotations
@@ -52,7 +52,7 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
-from run import ROOT, SCRIPTS, cmd_time_peak_rss, interleaved, log, machine_info, wait_for_kernel_builds  # noqa: E402
+from run import ROOT, SCRIPTS, cmd_time_cpu_peak_rss, interleaved, log, machine_info, wait_for_kernel_builds  # noqa: E402
 
 BIN = Path(sys.executable).parent
 SIZES = {"4k": (2160, 3840), "1080p": (1080, 1920), "tile": (512, 512)}
@@ -235,7 +235,7 @@ def jobs(files: dict[str, Path], out: Path) -> list[Job]:
 
 # ====================================================================== measuring
 class Runs:
-    """One contender's fresh-process runs (seconds, MiB), or why it could not run."""
+    """One contender's fresh-process runs (seconds, MiB, CPU seconds), or why it could not run."""
 
     def __init__(self, argv: list[str], out: Path, env: dict | None = None):
         self.argv, self.out, self.env, self.runs, self.error = argv, out, env, [], None
@@ -244,7 +244,7 @@ class Runs:
         if self.error:
             return
         try:
-            run = cmd_time_peak_rss(self.argv, self.env)
+            run = cmd_time_cpu_peak_rss(self.argv, self.env)
         except RuntimeError as e:
             self.error = " ".join(str(e).split())[:400]
             return
@@ -257,8 +257,9 @@ class Runs:
         written = [f for f in self.out.parent.iterdir() if f.name == self.out.name or
                    f.name.startswith(self.out.name + ".")]
         written += [f for d in written if d.is_dir() for f in d.iterdir()]
-        return {"median_s": statistics.median(t for t, _ in self.runs),
-                "peak_rss_mib": statistics.median(m for _, m in self.runs), "runs": self.runs,
+        return {"median_s": statistics.median(t for t, _, _ in self.runs),
+                "peak_rss_mib": statistics.median(m for _, m, _ in self.runs),
+                "median_cpu_s": statistics.median(c for _, _, c in self.runs), "runs": self.runs,
                 "output_bytes": sum(f.stat().st_size for f in written if f.is_file())}
 
 
@@ -328,11 +329,12 @@ def job_row(job: Job, label: str, cons: dict, targets: dict | None = None) -> di
         return {"pyramid": label, "times_s": mine, "memory_mib": {k: med(f"{label} {k}", "peak_rss_mib")
                                                                   for k in job.ours},
                 "time": ratio_entry(job.id, "time", ratio, targets)}
-    t, m = med(label, "median_s"), med(label, "peak_rss_mib")
-    pt, pm = med("peer", "median_s"), med("peer", "peak_rss_mib")
-    return {"pyramid": label, "pyramid_s": t, "pyramid_mib": m, "peer_s": pt, "peer_mib": pm,
-            "time": ratio_entry(job.id, "time", t / pt if t and pt else None, targets),
-            "memory": ratio_entry(job.id, "memory", m / pm if m and pm else None, targets)}
+    t, m, c = med(label, "median_s"), med(label, "peak_rss_mib"), med(label, "median_cpu_s")
+    pt, pm, pc = med("peer", "median_s"), med("peer", "peak_rss_mib"), med("peer", "median_cpu_s")
+    return {"pyramid": label, "pyramid_s": t, "pyramid_mib": m, "pyramid_cpu_s": c, "peer_s": pt, "peer_mib": pm,
+            "peer_cpu_s": pc, "time": ratio_entry(job.id, "time", t / pt if t and pt else None, targets),
+            "memory": ratio_entry(job.id, "memory", m / pm if m and pm else None, targets),
+            "cpu": ratio_entry(job.id, "cpu", c / pc if c and pc else None, targets)}
 
 
 def measure_cpu_opencv(pyrs: list[Pyramid], args) -> dict:
@@ -403,7 +405,7 @@ def fmt(v: float | None, unit: str) -> str:
 def table_lines(report: dict) -> list[str]:
     """The table printed at the end (and kept in the JSON): one line per job and pyramid."""
     lines = [f"{'job':15s} {'pyramid':18s} {'time':>9s} {'mem':>8s} {'peer time':>10s} {'peer mem':>9s} "
-             f"{'t ratio':>8s} {'target':>7s}      {'m ratio':>8s} {'target':>7s}"]
+             f"{'t ratio':>8s} {'target':>7s}      {'m ratio':>8s} {'target':>7s}      {'cpu ratio':>9s}"]
     for j in report["jobs"]:
         if not j["rows"]:
             lines.append(f"{j['id']:15s} skipped: {j.get('skipped')}")
@@ -426,7 +428,8 @@ def table_lines(report: dict) -> list[str]:
                          f"{fmt(r['pyramid_mib'], 'MiB'):>8s} {fmt(r['peer_s'], 's'):>10s} "
                          f"{fmt(r['peer_mib'], 'MiB'):>9s} {fmt(t['ratio'], 'x'):>8s} "
                          f"{'≤' + str(t['target']):>7s} {t['verdict']:4s} {fmt(m.get('ratio'), 'x'):>8s} "
-                         f"{('≤' + str(m['target'])) if m.get('target') else '':>7s} {m.get('verdict', '')}")
+                         f"{('≤' + str(m['target'])) if m.get('target') else '':>7s} {m.get('verdict', ''):4s} "
+                         f"{fmt(r.get('cpu', {}).get('ratio'), 'x'):>9s}")
     return lines
 
 

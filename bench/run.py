@@ -133,8 +133,9 @@ def cmd_time(argv: list[str], env=None) -> float:
     return dt
 
 
-def cmd_time_peak_rss(argv: list[str], env=None) -> tuple[float, float]:
-    """Wall time (s) and peak resident memory (MiB) of one command, measured by ``bench/scripts/peak_rss.py``.
+def cmd_time_cpu_peak_rss(argv: list[str], env=None) -> tuple[float, float, float]:
+    """Wall time (s), peak resident memory (MiB) and CPU time (s, user and system) of one command, measured by
+    ``bench/scripts/peak_rss.py``.
 
     A child forked from this (large) process would inherit its high-water mark across exec, so
     a small launcher forks the command from its own fresh address space and reports its rusage;
@@ -144,8 +145,13 @@ def cmd_time_peak_rss(argv: list[str], env=None) -> tuple[float, float]:
                        env=env)
     if p.returncode:
         raise RuntimeError(f"{' '.join(argv[:4])} … exited {p.returncode}: {p.stderr.strip()[-600:]}")
-    seconds, mib = p.stdout.split()[-2:]
-    return float(seconds), float(mib)
+    cpu, seconds, mib = p.stdout.split()[-3:]
+    return float(seconds), float(mib), float(cpu)
+
+
+def cmd_time_peak_rss(argv: list[str], env=None) -> tuple[float, float]:
+    """Wall time (s) and peak resident memory (MiB) of one command (:func:`cmd_time_cpu_peak_rss`)."""
+    return cmd_time_cpu_peak_rss(argv, env)[:2]
 
 
 def cmd_peak_rss(argv: list[str]) -> float:

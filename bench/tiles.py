@@ -23,12 +23,13 @@ Parts (``--only``):
   PNG's single-threaded zlib decode would dominate both sides at 16K.
 * ``flat``: ours alone at ``--flat`` sizes (default 32K) after the speed sizes: peak memory must stay flat.
 
-Timing is bench/peers.py's: each round runs every contender once in a fresh process (order rotated by the
-round), through bench/scripts/peak_rss.py (time from fork to exit, peak RSS from ``os.wait4``), after one
-dropped warm-up round; medians, ratios ours / peer against the issue's targets (time ≤ 1.5×, memory ≤ 4×),
-reported, never asserted. Every run starts on an empty output folder (the previous run's set aside, deleted at the
-end: :func:`set_aside`). Without ``pyramid tiles`` in a checkout, its rows say "not available" and the peers are
-still measured.
+Timing is bench/peers.py's: each round runs every contender once in a fresh process (order rotated by the round),
+through bench/scripts/peak_rss.py (time from fork to exit, peak RSS and CPU seconds from ``os.wait4``), after one
+dropped warm-up round; medians, ratios ours / peer against the issue's targets (time ≤ 1.5×, memory ≤ 4×), reported,
+never asserted. The ratio of CPU seconds is reported beside them, without a target: on a shared machine it moves
+less with the hour than the time does. Every run starts on an empty output folder (the previous run's set aside,
+deleted at the end: :func:`set_aside`). Without ``pyramid tiles`` in a checkout, its rows say "not available" and
+the peers are still measured.
 """
 
 from __future__ import annotations

@@ -1,7 +1,8 @@
 """Wall time and peak resident memory of a command: python bench/scripts/peak_rss.py CMD [ARG …].
 
-Prints ``SECONDS MIB``: the seconds from fork to the child's exit and its peak RSS in MiB (the last
-field, which callers that want only the memory take). The command is forked from this small process
+Prints ``CPU SECONDS MIB``: the child's CPU seconds (user and system), the seconds from fork to its exit, and its
+peak RSS in MiB (the last field, which callers that want only the memory take; the last two, callers that want the
+time and the memory). The command is forked from this small process
 (not from the benchmark, whose high-water mark a forked child would inherit across exec) and its own
 rusage is printed; its standard output is discarded, its standard error passes through.
 """
@@ -23,4 +24,4 @@ seconds = time.perf_counter() - t0
 code = os.waitstatus_to_exitcode(status)
 if code:
     sys.exit(code)
-print(seconds, usage.ru_maxrss / 1024)
+print(usage.ru_utime + usage.ru_stime, seconds, usage.ru_maxrss / 1024)

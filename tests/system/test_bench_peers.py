@@ -47,6 +47,7 @@ def test_peers_quick_writes_json_and_plot(tmp_path):
         (row,) = jobs[job_id]["rows"]
         assert row["pyramid_s"] > 0 and row["pyramid_mib"] > 0, row
         assert row["peer_s"] > 0 and row["peer_mib"] > 0, row
+        assert row["pyramid_cpu_s"] > 0 and row["peer_cpu_s"] > 0 and row["cpu"]["verdict"] == "n/a", row
         assert row["time"]["verdict"] in ("PASS", "MISS") and row["memory"]["verdict"] in ("PASS", "MISS")
         assert jobs[job_id]["contenders"]["peer"]["output_bytes"] > 0
     floor = jobs["tiff-blur"]["contenders"]["OIIO read+write (floor)"]

@@ -85,11 +85,14 @@ def test_tiles_quick_writes_json(tmp_path):
         return
     for job in report["jobs"]:
         peer = job["contenders"]["peer"]
-        assert peer["median_s"] > 0 and peer["peak_rss_mib"] > 0, job["id"]
+        assert peer["median_s"] > 0 and peer["peak_rss_mib"] > 0 and peer["median_cpu_s"] > 0, job["id"]
         assert peer["output_files"] > 1 if job["id"].startswith("dz") else peer["output_bytes"] > 0, job["id"]
         (row,) = job["rows"]
         if ours["tiles"]:
             assert row["pyramid_s"] > 0 and row["time"]["verdict"] in ("PASS", "MISS"), row
+            # CPU seconds beside the time, their ratio reported without a target
+            assert row["pyramid_cpu_s"] > 0 and row["peer_cpu_s"] > 0 and row["cpu"]["target"] is None, row
+            assert row["cpu"]["ratio"] == row["pyramid_cpu_s"] / row["peer_cpu_s"], row
         else:
             assert "not available" in row["not_available"] and row["peer_s"] > 0, row
     assert ("skipped" in report["flat"]) != ours["tiles"]
