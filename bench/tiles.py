@@ -173,12 +173,9 @@ def speed(args, pyrs: list[peers.Pyramid], ours: list[peers.Pyramid], data: Path
         r = peers.measure_job(job, ours or pyrs[:1], data / "out", args, targets, TileRuns)
         for p in pyrs:
             if p not in ours:
-                r["rows"] = [row for row in r["rows"] if row["pyramid"] != p.label] + [
-                    {"pyramid": p.label, "not_available": NOT_AVAILABLE, "pyramid_s": None, "pyramid_mib": None,
-                     "peer_s": r["contenders"].get("peer", {}).get("median_s"),
-                     "peer_mib": r["contenders"].get("peer", {}).get("peak_rss_mib"),
-                     "time": peers.ratio_entry(job.id, "time", None, targets),
-                     "memory": peers.ratio_entry(job.id, "memory", None, targets)}]
+                # its runs failed or never ran: job_row gives the peer's figures, ours and every ratio None
+                r["rows"] = [x for x in r["rows"] if x["pyramid"] != p.label] + [
+                    peers.job_row(job, p.label, r["contenders"], targets) | {"not_available": NOT_AVAILABLE}]
         res.append(r)
     return res
 

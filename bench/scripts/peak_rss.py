@@ -1,4 +1,4 @@
-"""Wall time and peak resident memory of a command: python bench/scripts/peak_rss.py CMD [ARG …].
+"""CPU time, wall time and peak resident memory of a command: python bench/scripts/peak_rss.py CMD [ARG …].
 
 Prints ``CPU SECONDS MIB``: the child's CPU seconds (user and system), the seconds from fork to its exit, and its
 peak RSS in MiB (the last field, which callers that want only the memory take; the last two, callers that want the
